@@ -1,0 +1,42 @@
+"""sklearn-gpcd: proprioceptive robot collision detection with Gaussian Processes.
+
+Implements Dalla Libera et al., "Proprioceptive Robot Collision Detection
+through Gaussian Process Regression" (ACC 2019) as scikit-learn estimators.
+
+Public names are imported lazily from their submodules, so ``import
+sklearn_gpcd`` stays fast and pinocchio is loaded only when a robot is.
+"""
+
+import importlib
+
+from ._version import __version__
+
+# public name -> submodule that defines it
+_EXPORTS = {
+    "Recording": "io",
+    "load_recording": "io",
+    "load_robot": "robots",
+    "Robot": "robots",
+    "RigidBodyRegressor": "dynamics",
+    "ARDRBF": "kernels",
+    "QuasiStaticGate": "kernels",
+    "ParametricKernel": "kernels",
+    "ParametricMean": "gp",
+    "SemiParametricGPRegressor": "gp",
+    "make_p_f": "gp",
+    "make_sp_s": "gp",
+    "make_sp_p": "gp",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name):
+    if name in _EXPORTS:
+        module = importlib.import_module(f".{_EXPORTS[name]}", __name__)
+        return getattr(module, name)
+    raise AttributeError(f"module 'sklearn_gpcd' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
