@@ -1,0 +1,30 @@
+"""Physical torque model features: regressor, base parameters, sklearn transformer.
+
+>>> from sklearn_gpcd.dynamics import parameter_names
+>>> parameter_names(6)[-1]
+'viscous_5'
+"""
+
+from .base_parameters import base_parameters
+from .regressor import (
+    FRICTION_TERMS,
+    INERTIAL_PARAMETERS,
+    friction_features,
+    full_regressor,
+    joint_torque_regressor,
+    parameter_names,
+    parameter_vector,
+)
+from .rigid_body import RigidBodyRegressor
+
+__all__ = [
+    "RigidBodyRegressor",
+    "parameter_vector",
+    "parameter_names",
+    "full_regressor",
+    "joint_torque_regressor",
+    "friction_features",
+    "base_parameters",
+    "FRICTION_TERMS",
+    "INERTIAL_PARAMETERS",
+]

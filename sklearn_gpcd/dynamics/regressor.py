@@ -1,0 +1,258 @@
+"""The linear-in-parameters torque model and its regressor.
+
+The joint torques of a rigid serial arm with reflected rotor inertias,
+friction and offsets are linear in the parameters (paper Eq. 8-10):
+
+.. math::
+
+    \\tau = \\Phi(q, \\dot q, \\ddot q)\\, \\pi,
+    \\qquad
+    \\Phi = [\\,Y_{rb}(q, \\dot q, \\ddot q) \\;|\\; \\mathrm{diag}(\\ddot q)
+            \\;|\\; \\mathrm{diag}(\\mathrm{sign}\\,\\dot q)
+            \\;|\\; \\mathrm{diag}(\\dot q) \\;|\\; I\\,],
+
+with :math:`Y_{rb}` pinocchio's joint torque regressor (10 standard inertial
+parameters per link, in the frame of the joint that moves the link, ordered
+``m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz``; inertias about the joint
+frame origin) and one rotor-inertia, Coulomb, viscous and offset column per
+joint. Note that ``pinocchio.rnea`` adds ``model.armature * qdd`` while
+``pinocchio.computeJointTorqueRegressor`` does not: the rotor-inertia block
+supplies that term.
+
+The full parameter vector is ordered
+
+``[link_0 (10), ..., link_{n-1} (10), rotor_0..rotor_{n-1},
+coulomb_0..coulomb_{n-1}, viscous_0..viscous_{n-1}, offset_0..offset_{n-1}]``
+
+keeping only the blocks that are switched on. Joints and links are 0-based
+like the columns of :mod:`sklearn_gpcd._layout` (link ``k`` is moved by
+joint ``k``).
+"""
+
+import numpy as np
+import pinocchio as pin
+
+from ..robots.loading import resolve_robot
+from ..robots.robot import as_joint_batch
+
+#: Names of pinocchio's 10 standard inertial parameters of one link.
+INERTIAL_PARAMETERS = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+#: Friction models, in the order their columns appear.
+FRICTION_TERMS = ("coulomb", "viscous")
+
+
+def check_friction(friction):
+    """Validate a friction spec and return it in canonical column order.
+
+    Parameters
+    ----------
+    friction : None, str or iterable of str
+        Any of ``"coulomb"``, ``"viscous"``.
+
+    Returns
+    -------
+    terms : tuple of str
+
+    Examples
+    --------
+    >>> check_friction(("viscous", "coulomb"))
+    ('coulomb', 'viscous')
+    >>> check_friction(None)
+    ()
+    """
+    if friction is None:
+        return ()
+    if isinstance(friction, str):
+        friction = (friction,)
+    terms = tuple(friction)
+    unknown = [t for t in terms if t not in FRICTION_TERMS]
+    if unknown:
+        raise ValueError(f"unknown friction term(s) {unknown}; choose from {list(FRICTION_TERMS)}")
+    return tuple(t for t in FRICTION_TERMS if t in terms)
+
+
+def parameter_names(n_joints, rotor_inertia=True, friction=FRICTION_TERMS, offset=False):
+    """Names of the full parameter vector (see module docstring for the order).
+
+    Parameters
+    ----------
+    n_joints : int
+    rotor_inertia : bool, default=True
+    friction : iterable of str, default=("coulomb", "viscous")
+    offset : bool, default=False
+
+    Returns
+    -------
+    names : list of str
+        ``"link{k}_{param}"``, ``"rotor_{l}"``, ``"coulomb_{l}"``,
+        ``"viscous_{l}"``, ``"offset_{l}"``.
+
+    Examples
+    --------
+    >>> parameter_names(1, friction=("viscous",))[:2], parameter_names(1)[-3:]
+    (['link0_m', 'link0_mx'], ['rotor_0', 'coulomb_0', 'viscous_0'])
+    """
+    names = [f"link{k}_{p}" for k in range(n_joints) for p in INERTIAL_PARAMETERS]
+    blocks = (["rotor"] if rotor_inertia else []) + list(check_friction(friction))
+    blocks += ["offset"] if offset else []
+    names += [f"{b}_{j}" for b in blocks for j in range(n_joints)]
+    return names
+
+
+def joint_torque_regressor(model, q, qd, qdd):
+    """Pinocchio's rigid-body regressor for a batch of states.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+    q, qd, qdd : ndarray of shape (n_samples, nv)
+
+    Returns
+    -------
+    Y : ndarray of shape (n_samples, nv, 10 * nv)
+        ``Y[k] @ pi_links`` is ``pinocchio.rnea`` of sample ``k`` without
+        armature.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.robots import load_robot
+    >>> model = load_robot("ur5").model
+    >>> joint_torque_regressor(model, *np.zeros((3, 2, 6))).shape
+    (2, 6, 60)
+    """
+    n, nv = q.shape
+    out = np.empty((n, nv, 10 * nv))
+    data = model.createData()
+    for k in range(n):
+        out[k] = pin.computeJointTorqueRegressor(model, data, q[k], qd[k], qdd[k])
+    return out
+
+
+def _diagonal_block(values):
+    """(n, nv) per-joint values -> (n, nv, nv) with ``values[:, l]`` at ``[l, l]``."""
+    n, nv = values.shape
+    block = np.zeros((n, nv, nv))
+    idx = np.arange(nv)
+    block[:, idx, idx] = values
+    return block
+
+
+def friction_features(qd, term, sigma_v=None):
+    """Per-joint friction regressors, gated by the velocity threshold.
+
+    Coulomb: :math:`\\mathrm{sign}(\\dot q_l)`; viscous: :math:`\\dot q_l`.
+    With ``sigma_v`` set they are zeroed where :math:`|\\dot q_l| < \\sigma_v`
+    (the paper's :math:`\\bar\\phi`, Eq. 17), because friction at rest is not
+    a function of velocity.
+
+    Parameters
+    ----------
+    qd : ndarray of shape (n_samples, n_joints)
+    term : {"coulomb", "viscous"}
+    sigma_v : float, default=None
+
+    Returns
+    -------
+    features : ndarray of shape (n_samples, n_joints)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> friction_features(np.array([[0.001, -0.5]]), "coulomb", sigma_v=0.01).tolist()
+    [[0.0, -1.0]]
+    """
+    values = np.sign(qd) if term == "coulomb" else np.array(qd, dtype=float)
+    if sigma_v is not None:
+        values = np.where(np.abs(qd) < sigma_v, 0.0, values)
+    return values
+
+
+def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERMS,
+                   offset=False, sigma_v=None):
+    """Regressor of the full parameter vector for a batch of states.
+
+    Parameters
+    ----------
+    robot : Robot or str
+    q, qd, qdd : array-like of shape (n_samples, n_joints)
+    rotor_inertia : bool, default=True
+        Add the ``diag(qdd)`` block (reflected rotor inertias, Eq. 4).
+    friction : iterable of str, default=("coulomb", "viscous")
+    offset : bool, default=False
+        Add a constant per-joint column.
+    sigma_v : float, default=None
+        Velocity threshold of the friction gate (Eq. 17).
+
+    Returns
+    -------
+    Phi : ndarray of shape (n_samples, n_joints, n_parameters)
+        ``Phi[k] @ parameter_vector(...)`` are the joint torques of sample ``k``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> full_regressor("ur10", *np.zeros((3, 4, 6))).shape
+    (4, 6, 78)
+    """
+    robot = resolve_robot(robot)
+    n = robot.n_joints
+    q, _ = as_joint_batch(q, n, "q")
+    qd, _ = as_joint_batch(qd, n, "qd")
+    qdd, _ = as_joint_batch(qdd, n, "qdd")
+    blocks = [joint_torque_regressor(robot.model, q, qd, qdd)]
+    if rotor_inertia:
+        blocks.append(_diagonal_block(qdd))
+    for term in check_friction(friction):
+        blocks.append(_diagonal_block(friction_features(qd, term, sigma_v)))
+    if offset:
+        blocks.append(_diagonal_block(np.ones_like(q)))
+    return np.concatenate(blocks, axis=2)
+
+
+def parameter_vector(robot, friction=None, rotor_inertia=True, offset=None):
+    """The full parameter vector :math:`\\pi` of a robot model.
+
+    Parameters
+    ----------
+    robot : Robot or str
+        Inertial parameters are read from ``robot.model.inertias`` (in joint
+        frames) and rotor inertias from ``robot.model.armature``.
+    friction : dict, default=None
+        ``{"coulomb": values, "viscous": values}`` (any subset), one value per
+        joint [Nm] and [Nm s/rad]. Blocks are placed in the canonical order
+        ``coulomb, viscous`` whatever the dict order.
+    rotor_inertia : bool, default=True
+        Include the ``rotor_l`` block.
+    offset : array-like of shape (n_joints,), default=None
+        Constant torque offsets; ``None`` leaves the block out.
+
+    Returns
+    -------
+    pi : ndarray of shape (n_parameters,)
+        Ordered like :func:`parameter_names` with the same options.
+
+    Examples
+    --------
+    >>> pi = parameter_vector("ur5", friction={"viscous": [1.0] * 6})
+    >>> pi.shape, float(pi[0])
+    ((72,), 3.7)
+    """
+    robot = resolve_robot(robot)
+    model = robot.model
+    n = robot.n_joints
+    parts = [np.concatenate([model.inertias[j].toDynamicParameters() for j in range(1, n + 1)])]
+    if rotor_inertia:
+        parts.append(np.asarray(model.armature, dtype=float))
+    friction = {} if friction is None else dict(friction)
+    for term in check_friction(tuple(friction)):
+        values = np.asarray(friction[term], dtype=float).reshape(-1)
+        if values.shape != (n,):
+            raise ValueError(f"friction[{term!r}] needs {n} values, got shape {values.shape}")
+        parts.append(values)
+    if offset is not None:
+        values = np.asarray(offset, dtype=float).reshape(-1)
+        if values.shape != (n,):
+            raise ValueError(f"offset needs {n} values, got shape {values.shape}")
+        parts.append(values)
+    return np.concatenate(parts)

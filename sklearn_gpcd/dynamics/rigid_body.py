@@ -1,0 +1,298 @@
+"""scikit-learn transformer from joint states to rigid-body regressor features."""
+
+import numpy as np
+from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.utils import check_random_state
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .._layout import block_columns
+from ..robots.loading import resolve_robot
+from .base_parameters import base_parameters
+from .regressor import FRICTION_TERMS, check_friction, full_regressor, parameter_names
+
+#: Random states stacked in ``fit`` to find the structural parameter
+#: dependencies: at least this many, and enough for 3 rows per parameter.
+_MIN_IDENTIFICATION_STATES = 20
+
+
+def _random_states(robot, n_states, random_state):
+    """Random ``(q, qd, qdd)`` spanning the joint space, for rank detection."""
+    rng = check_random_state(random_state)
+    n = robot.n_joints
+    lo = np.clip(robot.lower, -np.pi, np.pi)
+    hi = np.clip(robot.upper, -np.pi, np.pi)
+    wide = hi - lo < 1e-3  # unset or tiny limits: use a full turn
+    lo, hi = np.where(wide, -np.pi, lo), np.where(wide, np.pi, hi)
+    q = rng.uniform(lo, hi, size=(n_states, n))
+    qd = rng.uniform(-2.0, 2.0, size=(n_states, n))
+    qdd = rng.uniform(-5.0, 5.0, size=(n_states, n))
+    return q, qd, qdd
+
+
+class RigidBodyRegressor(TransformerMixin, BaseEstimator):
+    """Regressor features :math:`\\phi(x)` of the physical torque model.
+
+    Maps joint states ``x = [q, qd, qdd]`` to the rows of the linear model
+    :math:`\\tau = \\Phi(x)\\,\\pi` (paper Eq. 8-10; see
+    :mod:`sklearn_gpcd.dynamics.regressor`): pinocchio's rigid-body regressor
+    plus per-joint rotor-inertia, Coulomb, viscous and offset columns,
+    optionally reduced to the base (identifiable) parameters and expressed
+    in motor-current units (Eq. 4). These are the features of the parametric
+    kernel and mean of the semi-parametric GP.
+
+    Parameters
+    ----------
+    robot : str, path or Robot, default="ur10"
+        Built-in name, URDF path or :class:`~sklearn_gpcd.robots.Robot`.
+    joint : int, default=None
+        0-based joint whose torque rows to return, shape ``(n, p_l)``
+        (columns identically zero for that joint are dropped, decided in
+        ``fit``). ``None`` returns every joint stacked joint by joint:
+        shape ``(n * n_joints, p)``, row ``l * n + k`` is joint ``l`` of
+        sample ``k`` (pair it with ``Y.ravel(order="F")`` for a target array
+        ``Y`` of shape ``(n, n_joints)``).
+    friction : tuple of str or None, default=("coulomb", "viscous")
+        Friction columns per joint: Coulomb :math:`\\mathrm{sign}(\\dot q_l)`
+        and/or viscous :math:`\\dot q_l` (always in that order).
+    rotor_inertia : bool, default=True
+        Add a :math:`\\ddot q_l` column per joint (reflected rotor inertia,
+        Eq. 4). pinocchio's regressor lacks this term, ``rnea`` includes it.
+    offset : bool, default=False
+        Add a constant column per joint.
+    base_parameters : bool, default=True
+        Keep only independent columns (QR with column pivoting of the
+        regressor stacked over random states drawn in ``fit``); see
+        ``base_parameters_``.
+    rank_tol : float, default=None
+        Relative rank tolerance: pivot ``i`` is independent when
+        :math:`|R_{ii}| > \\text{rank\\_tol}\\,|R_{00}|`; ``None`` means
+        ``max(W.shape) * eps``.
+    sigma_v : float, default=None
+        If set, friction columns are zeroed where :math:`|\\dot q_l| <
+        \\sigma_v` (the paper's :math:`\\bar\\phi`, Eq. 17).
+    currents : bool, default=False
+        Divide joint ``l``'s rows by ``robot.torque_constants[l]`` so the
+        model predicts motor currents [A] (Eq. 4).
+    random_state : int, RandomState or None, default=0
+        Seed of the random states used for the base-parameter reduction.
+
+    Attributes
+    ----------
+    robot_ : Robot
+        The resolved robot.
+    n_joints_ : int
+    n_features_in_ : int
+        Columns of ``X`` seen in ``fit`` (at least ``3 * n_joints``; columns
+        past ``[q, qd, qdd]`` are ignored).
+    feature_names_in_ : ndarray of str
+        Defined when ``X`` has string column names.
+    parameter_names_ : list of str
+        Names of the full parameter vector :math:`\\pi` (see
+        :func:`~sklearn_gpcd.dynamics.parameter_names`).
+    base_parameters_ : dict
+        ``indices`` (independent columns of the full regressor),
+        ``mapping`` ``K`` of shape ``(n_base, n_parameters)`` with
+        :math:`\\Phi_{base}\\,(K\\pi) = \\Phi\\,\\pi`, ``names``, ``rank`` and
+        ``tol`` (absolute threshold on :math:`|R_{ii}|`). Identity mapping
+        when ``base_parameters=False``.
+    columns_ : ndarray of int
+        Columns of the full regressor returned by ``transform``.
+    parameter_mapping_ : ndarray of shape (n_features_out, n_parameters)
+        Rows of ``K`` for ``columns_``: ``transform(X) @ (parameter_mapping_
+        @ pi)`` are the torques (currents) of the selected joint(s).
+    friction_columns_ : ndarray of int
+        Output columns holding friction terms (to apply Eq. 17 elsewhere).
+
+    Notes
+    -----
+    The estimator needs at least ``3 * n_joints`` (18 for UR arms) input
+    columns in the :mod:`sklearn_gpcd._layout` order.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.dynamics import RigidBodyRegressor
+    >>> X = np.random.default_rng(0).normal(size=(5, 18))
+    >>> phi = RigidBodyRegressor("ur10e", joint=1).fit(X)
+    >>> phi.transform(X).shape[0]
+    5
+    >>> phi.get_feature_names_out()[:2].tolist()
+    ['link1_mx', 'link1_my']
+    """
+
+    def __init__(self, robot="ur10", joint=None, friction=FRICTION_TERMS, rotor_inertia=True,
+                 offset=False, base_parameters=True, rank_tol=None, sigma_v=None,
+                 currents=False, random_state=0):
+        self.robot = robot
+        self.joint = joint
+        self.friction = friction
+        self.rotor_inertia = rotor_inertia
+        self.offset = offset
+        self.base_parameters = base_parameters
+        self.rank_tol = rank_tol
+        self.sigma_v = sigma_v
+        self.currents = currents
+        self.random_state = random_state
+
+    # ------------------------------------------------------------ helpers
+    def _check_params(self, robot):
+        n = robot.n_joints
+        if self.joint is not None:
+            if not isinstance(self.joint, (int, np.integer)) or isinstance(self.joint, bool):
+                raise TypeError(f"joint must be an int or None, got {self.joint!r}")
+            if not 0 <= self.joint < n:
+                raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
+        if self.sigma_v is not None and not (np.isfinite(self.sigma_v) and self.sigma_v >= 0):
+            raise ValueError(f"sigma_v must be a non-negative number or None, got {self.sigma_v!r}")
+        if self.rank_tol is not None and not (np.isfinite(self.rank_tol) and self.rank_tol > 0):
+            raise ValueError(f"rank_tol must be a positive number or None, got {self.rank_tol!r}")
+        if self.currents and robot.torque_constants is None:
+            raise ValueError(
+                f"currents=True needs torque constants, robot {robot.name!r} has none: "
+                "use load_robot(name, torque_constants=[...])"
+            )
+        return check_friction(self.friction)
+
+    def _check_columns(self, X, n):
+        if X.shape[1] < 3 * n:
+            raise ValueError(
+                f"X has {X.shape[1]} columns, but robot {self.robot_.name!r} needs at least "
+                f"{3 * n}: [q, qd, qdd] of {n} joints (see sklearn_gpcd._layout)"
+            )
+
+    def _split(self, X):
+        n = self.n_joints_
+        return (X[:, block_columns("q", n)], X[:, block_columns("qd", n)],
+                X[:, block_columns("qdd", n)])
+
+    def _regressor(self, q, qd, qdd, sigma_v):
+        return full_regressor(self.robot_, q, qd, qdd, rotor_inertia=self.rotor_inertia,
+                              friction=self.friction_, offset=self.offset, sigma_v=sigma_v)
+
+    # ---------------------------------------------------------------- API
+    def fit(self, X, y=None):
+        """Resolve the robot and find the output columns.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            Joint states in the :mod:`sklearn_gpcd._layout` order (only used
+            for validation; the column selection uses random states).
+        y : None
+            Ignored.
+
+        Returns
+        -------
+        self : RigidBodyRegressor
+        """
+        X = validate_data(self, X, dtype=np.float64)
+        self.robot_ = resolve_robot(self.robot)
+        self.friction_ = self._check_params(self.robot_)
+        n = self.n_joints_ = self.robot_.n_joints
+        self._check_columns(X, n)
+        self.parameter_names_ = parameter_names(n, self.rotor_inertia, self.friction_, self.offset)
+        p = len(self.parameter_names_)
+
+        n_states = max(_MIN_IDENTIFICATION_STATES, -(-3 * p // n))
+        Phi = self._regressor(*_random_states(self.robot_, n_states, self.random_state), None)
+        if self.base_parameters:
+            info = base_parameters(Phi.reshape(-1, p), self.rank_tol)
+        else:
+            info = {"indices": np.arange(p), "dependent": np.array([], dtype=int),
+                    "mapping": np.eye(p), "rank": p, "tol": 0.0}
+        info["names"] = [self.parameter_names_[i] for i in info["indices"]]
+        self.base_parameters_ = info
+
+        keep = np.arange(info["rank"])
+        if self.joint is not None:
+            rows = Phi[:, self.joint, info["indices"]]
+            scale = np.abs(Phi).max()
+            keep = np.flatnonzero(np.abs(rows).max(axis=0) > 1e-12 * scale)
+        self.columns_ = info["indices"][keep]
+        self.parameter_mapping_ = info["mapping"][keep]
+        names = np.asarray(self.parameter_names_, dtype=object)[self.columns_]
+        self._feature_names_out = names
+        is_friction = np.array([name.split("_")[0] in FRICTION_TERMS for name in names], dtype=bool)
+        self.friction_columns_ = np.flatnonzero(is_friction)
+        return self
+
+    def transform(self, X):
+        """Regressor rows of the selected joint(s).
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_features)
+            Joint states; columns ``[q, qd, qdd]`` are used.
+
+        Returns
+        -------
+        Phi : ndarray of shape (n_samples, n_features_out) or \
+(n_samples * n_joints, n_features_out)
+            One row per sample for ``joint=l``; joint-by-joint blocks of
+            ``n_samples`` rows for ``joint=None``.
+        """
+        check_is_fitted(self)
+        X = validate_data(self, X, dtype=np.float64, reset=False)
+        Phi = self._regressor(*self._split(X), self.sigma_v)[:, :, self.columns_]
+        if self.currents:
+            Phi = Phi / self.robot_.torque_constants[None, :, None]
+        if self.joint is not None:
+            return Phi[:, self.joint, :]
+        return Phi.transpose(1, 0, 2).reshape(-1, Phi.shape[2])
+
+    def get_feature_names_out(self, input_features=None):
+        """Names of the output columns (full-parameter names, e.g. ``link2_mx``).
+
+        A base-parameter column is named after the independent parameter it
+        keeps; the others it absorbs are in ``base_parameters_["mapping"]``.
+
+        Parameters
+        ----------
+        input_features : array-like of str, default=None
+            Only checked for length against ``n_features_in_``.
+
+        Returns
+        -------
+        names : ndarray of str
+        """
+        check_is_fitted(self)
+        if input_features is not None:
+            input_features = np.asarray(input_features)
+            if len(input_features) != self.n_features_in_:
+                raise ValueError(
+                    f"input_features has {len(input_features)} names, expected "
+                    f"{self.n_features_in_}"
+                )
+            if hasattr(self, "feature_names_in_") and not np.array_equal(
+                input_features, self.feature_names_in_
+            ):
+                raise ValueError("input_features differ from feature_names_in_")
+        return self._feature_names_out.copy()
+
+    def project_parameters(self, pi):
+        """Map a full parameter vector to this transformer's output columns.
+
+        Parameters
+        ----------
+        pi : array-like of shape (n_parameters,)
+            Ordered like ``parameter_names_`` (see
+            :func:`~sklearn_gpcd.dynamics.parameter_vector`).
+
+        Returns
+        -------
+        beta : ndarray of shape (n_features_out,)
+            ``transform(X) @ beta`` reproduces the model torques (currents).
+        """
+        check_is_fitted(self)
+        pi = np.asarray(pi, dtype=float).reshape(-1)
+        if pi.shape != (len(self.parameter_names_),):
+            raise ValueError(
+                f"pi needs {len(self.parameter_names_)} values ordered like parameter_names_, "
+                f"got {pi.shape[0]}"
+            )
+        return self.parameter_mapping_ @ pi
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.required = False
+        return tags
