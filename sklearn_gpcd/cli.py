@@ -1,0 +1,157 @@
+"""The ``gpcd`` command.
+
+Subcommands
+-----------
+``gpcd reproduce [--quick] -o DIR``
+    The paper's experiments end to end on the built-in simulator (the main job).
+``gpcd simulate --robot ROBOT --scenario NAME -o FILE.csv``
+    Write a simulated recording as a UR RTDE CSV.
+``gpcd robots``
+    List the built-in robot models.
+
+Every option that names a robot (``--robot``) takes a built-in name (``ur10``,
+``ur10e``, ...) or the path of a URDF file.
+"""
+
+import argparse
+import sys
+import time
+
+__all__ = ["main", "build_parser"]
+
+
+def _robot_arg(value):
+    """Resolve ``--robot`` at parse time so a bad name fails with usage help."""
+    from .robots import load_robot
+
+    try:
+        return load_robot(value)
+    except (ValueError, OSError) as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _cmd_reproduce(args):
+    from .experiments import reproduce
+
+    reproduce(
+        args.output,
+        quick=args.quick,
+        robot=args.robot,
+        random_state=args.seed,
+        n_jobs=args.n_jobs,
+        verbose=not args.quiet,
+    )
+    return 0
+
+
+def _cmd_simulate(args):
+    from . import datasets
+    from .io import write_rtde_csv
+
+    makers = {
+        "d1": datasets.make_d1,
+        "d2": datasets.make_d2,
+        "joint1-cyclic": datasets.make_joint1_cyclic,
+        "interaction": datasets.make_interaction_test,
+    }
+    start = time.perf_counter()
+    recording = makers[args.scenario](robot=args.robot, random_state=args.seed)
+    write_rtde_csv(recording, args.output)
+    print(
+        f"wrote {recording.n_samples} samples ({recording.duration:.1f} s simulated) "
+        f"to {args.output} in {time.perf_counter() - start:.1f} s"
+    )
+    return 0
+
+
+def _cmd_robots(args):
+    from .robots import list_robots, load_robot
+
+    for name in list_robots():
+        robot = load_robot(name)
+        print(f"{name:8s} {robot.n_joints} joints")
+    return 0
+
+
+def build_parser():
+    """The argument parser of the ``gpcd`` command.
+
+    Returns
+    -------
+    parser : argparse.ArgumentParser
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.cli import build_parser
+    >>> args = build_parser().parse_args(["reproduce", "--quick", "-o", "out"])
+    >>> args.quick, args.output
+    (True, 'out')
+    """
+    parser = argparse.ArgumentParser(
+        prog="gpcd",
+        description="Proprioceptive collision detection with Gaussian Processes.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    rep = sub.add_parser(
+        "reproduce",
+        help="run the paper's experiments on the built-in simulator",
+        description="Simulate D1, D2, the joint-1 cyclic and the interaction tests, train "
+        "P_f, SP_S and SP_P, and write DIR/report.md, figures and DIR/results.json.",
+    )
+    rep.add_argument("-o", "--output", default="gpcd-results", help="output folder")
+    rep.add_argument("--quick", action="store_true", help="small data sets (minutes)")
+    rep.add_argument("--robot", type=_robot_arg, default="ur10",
+                     help="built-in name or URDF path")
+    rep.add_argument("--seed", type=int, default=0, help="random seed")
+    rep.add_argument("--n-jobs", type=int, default=None, help="parallel jobs (joblib)")
+    rep.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    rep.set_defaults(func=_cmd_reproduce)
+
+    sim = sub.add_parser("simulate", help="write a simulated recording as UR RTDE CSV")
+    sim.add_argument("--robot", type=_robot_arg, default="ur10",
+                     help="built-in name or URDF path")
+    sim.add_argument(
+        "--scenario",
+        choices=["d1", "d2", "joint1-cyclic", "interaction"],
+        default="interaction",
+    )
+    sim.add_argument("--seed", type=int, default=0)
+    sim.add_argument("-o", "--output", required=True, help="CSV file to write")
+    sim.set_defaults(func=_cmd_simulate)
+
+    rob = sub.add_parser("robots", help="list the built-in robots")
+    rob.set_defaults(func=_cmd_robots)
+    return parser
+
+
+def main(argv=None):
+    """Entry point of the ``gpcd`` command.
+
+    Parameters
+    ----------
+    argv : list of str, default=None
+        Arguments without the program name; ``None`` reads ``sys.argv``.
+
+    Returns
+    -------
+    status : int
+        Process exit status.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.cli import main
+    >>> main(["robots"])  # doctest: +ELLIPSIS
+    ur3 ...
+    0
+    """
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except (ValueError, OSError) as exc:
+        print(f"gpcd {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
