@@ -15,6 +15,13 @@ from ._version import __version__
 _EXPORTS = {
     "Recording": "io",
     "load_recording": "io",
+    "load_recordings": "io",
+    "read_rtde_csv": "io",
+    "write_rtde_csv": "io",
+    "read_csv": "io",
+    "read_npz": "io",
+    "read_rosbag": "io",
+    "RecordingWarning": "io",
     "load_robot": "robots",
     "Robot": "robots",
     "list_robots": "robots",

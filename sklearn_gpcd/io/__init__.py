@@ -1,5 +1,44 @@
-"""Robot recordings: one :class:`Recording` type, readers and writers."""
+"""Robot recordings: one :class:`Recording` type, readers and writers.
 
+=========================  ==================================================
+:func:`load_recording`     any format, detected from suffix and content
+:func:`load_recordings`    many files, folders or glob patterns
+:func:`read_rtde_csv`      UR RTDE CSV (ur_rtde / UR ``record.py``)
+:func:`write_rtde_csv`     the same format, exact float round trip
+:func:`read_csv`           any delimited text through a column map or preset
+:func:`read_npz`           ``.npz`` archives through a key map
+:func:`read_rosbag`        ROS 1 / ROS 2 ``sensor_msgs/JointState`` (optional
+                           ``rosbags`` package)
+=========================  ==================================================
+
+All readers keep the logged (irregular) sampling, drop malformed rows,
+out-of-order time stamps and kinematic glitches with one
+:class:`RecordingWarning` per file (row numbers in
+``metadata["dropped_rows"]``), and raise ValueError naming file, column and
+row for input that cannot be repaired.
+"""
+
+from ._validation import RecordingWarning
+from .columns import COLUMN_PRESETS, ColumnPreset
+from .load import detect_format, load_recording, load_recordings
+from .npz import read_npz
 from .recording import JOINT_SIGNALS, Recording
+from .rosbag import read_rosbag
+from .rtde import read_rtde_csv, write_rtde_csv
+from .table import read_csv
 
-__all__ = ["JOINT_SIGNALS", "Recording"]
+__all__ = [
+    "COLUMN_PRESETS",
+    "ColumnPreset",
+    "JOINT_SIGNALS",
+    "Recording",
+    "RecordingWarning",
+    "detect_format",
+    "load_recording",
+    "load_recordings",
+    "read_csv",
+    "read_npz",
+    "read_rosbag",
+    "read_rtde_csv",
+    "write_rtde_csv",
+]

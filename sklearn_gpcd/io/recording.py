@@ -144,6 +144,43 @@ class Recording:
         """
         return [k for k in JOINT_SIGNALS if getattr(self, k) is not None]
 
+    def equals(self, other, atol=0.0):
+        """True when ``other`` holds the same samples (``name`` and ``metadata`` aside).
+
+        Compares ``time``, every per-joint signal (present in both or in
+        neither), ``labels`` and ``units``; values may differ by ``atol``.
+
+        Parameters
+        ----------
+        other : Recording
+        atol : float, default=0.0
+            Absolute tolerance on every value.
+
+        Returns
+        -------
+        equal : bool
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn_gpcd.io import Recording
+        >>> a = Recording(time=[0.0, 1.0], q=[[0.0], [1.0]], qd=[[0.0], [0.0]],
+        ...               current=[[1.0], [1.0]])
+        >>> a.equals(a.replace(name="copy")), a.equals(a.replace(time=[0.0, 2.0]))
+        (True, False)
+        """
+        if not isinstance(other, Recording) or self.units != other.units:
+            return False
+        for key in ("time",) + JOINT_SIGNALS + ("labels",):
+            mine, theirs = getattr(self, key), getattr(other, key)
+            if (mine is None) != (theirs is None):
+                return False
+            if mine is None:
+                continue
+            if mine.shape != theirs.shape or not np.allclose(mine, theirs, rtol=0.0, atol=atol):
+                return False
+        return True
+
     def replace(self, **changes):
         """A copy with some fields replaced (validated again)."""
         return replace(self, **changes)

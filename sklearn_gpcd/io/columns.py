@@ -1,0 +1,262 @@
+"""Column maps: which file columns hold which :class:`Recording` field.
+
+A *column map* is a dict from Recording field names (``"time"``, ``"q"``,
+``"qd"``, ``"current"``, ``"qdd"``, ``"target_q"``, ``"target_qd"``,
+``"target_qdd"``, ``"target_current"``, ``"target_torque"``, ``"labels"``)
+to columns, each given as
+
+- a 0-based index (``0``) or a header name (``"timestamp"``);
+- a sequence of them (``range(1, 7)``, ``[1, 2, 3]``, ``["q0", "q1"]``);
+- a name *prefix* (``"actual_q"``) that expands to the header's consecutive
+  ``actual_q_0, actual_q_1, ...`` columns, as UR RTDE names vector entries.
+
+``time``, ``q``, ``qd`` and ``current`` are required. A column map can also
+be the name of a preset from :data:`COLUMN_PRESETS`, which picks its layout
+from the file's field count.
+"""
+
+from dataclasses import dataclass, field
+from numbers import Integral
+
+from .recording import JOINT_SIGNALS
+
+#: Fields a column map may name.
+FIELDS = ("time",) + JOINT_SIGNALS + ("labels",)
+#: Fields every column map must name.
+REQUIRED_FIELDS = ("time", "q", "qd", "current")
+#: Fields that are one column, not one per joint.
+SCALAR_FIELDS = ("time", "labels")
+
+
+@dataclass(frozen=True)
+class ColumnPreset:
+    """A named family of headerless layouts, chosen by the field count.
+
+    Parameters
+    ----------
+    name : str
+        Preset name, the key in :data:`COLUMN_PRESETS`.
+    layouts : dict
+        Field count -> column map (0-based indices).
+    robot : str, default=""
+        Robot the files come from (stored in ``metadata["robot"]``).
+    description : str, default=""
+        Where the layout is documented.
+    ignored : dict, default={}
+        Field count -> columns deliberately left unread (stored in
+        ``metadata["ignored_columns"]``).
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.io import COLUMN_PRESETS
+    >>> preset = COLUMN_PRESETS["ur10e_mamedov"]
+    >>> sorted(preset.layouts)
+    [19, 25, 31]
+    >>> preset.layout(19, "f.csv")["current"]
+    range(13, 19)
+    """
+
+    name: str
+    layouts: dict
+    robot: str = ""
+    description: str = ""
+    ignored: dict = field(default_factory=dict)
+
+    def layout(self, n_fields, source=""):
+        """Column map for a file with ``n_fields`` fields per line.
+
+        Parameters
+        ----------
+        n_fields : int
+            Fields per line of the file.
+        source : str, default=""
+            File name for the error message.
+
+        Returns
+        -------
+        column_map : dict
+        """
+        if n_fields not in self.layouts:
+            known = ", ".join(str(n) for n in sorted(self.layouts))
+            raise ValueError(
+                f"{source}: column preset {self.name!r} has no layout for {n_fields} fields "
+                f"per line (known: {known})"
+            )
+        return self.layouts[n_fields]
+
+
+_UR_BASE = {"time": 0, "q": range(1, 7), "qd": range(7, 13), "current": range(13, 19)}
+
+#: UR10e logs of Mamedov et al. (github.com/shamilmamedov/dynamic_calibration),
+#: headerless comma-separated: t, q(6), qd(6), i(6) [, i_des(6), tau_des(6)].
+#: The 25-field files (collision_detection_data_2020) end with 6 columns of
+#: unknown meaning, which are ignored.
+UR10E_MAMEDOV = ColumnPreset(
+    name="ur10e_mamedov",
+    layouts={
+        31: {**_UR_BASE, "target_current": range(19, 25), "target_torque": range(25, 31)},
+        25: dict(_UR_BASE),
+        19: dict(_UR_BASE),
+    },
+    robot="ur10e",
+    description=(
+        "UR10e, headerless: t [s], q [rad], qd [rad/s], i [A], then either nothing (19 "
+        "fields), 6 unknown columns that are ignored (25 fields) or i_des [A] and "
+        "tau_des [Nm] (31 fields)"
+    ),
+    ignored={25: list(range(19, 25))},
+)
+
+#: Named column maps for :func:`sklearn_gpcd.io.read_csv`.
+COLUMN_PRESETS = {UR10E_MAMEDOV.name: UR10E_MAMEDOV}
+
+
+def get_preset(name):
+    """The :class:`ColumnPreset` called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`COLUMN_PRESETS`.
+
+    Returns
+    -------
+    preset : ColumnPreset
+
+    Examples
+    --------
+    >>> get_preset("ur10e_mamedov").robot
+    'ur10e'
+    """
+    try:
+        return COLUMN_PRESETS[name]
+    except KeyError:
+        known = ", ".join(repr(k) for k in COLUMN_PRESETS)
+        raise ValueError(f"unknown column preset {name!r}; known: {known}") from None
+
+
+def _as_items(spec, key):
+    if isinstance(spec, (str, Integral)):
+        return [spec], True
+    if isinstance(spec, slice):
+        if spec.stop is None:
+            raise TypeError(f"column map entry {key!r}: a slice needs an explicit stop")
+        return list(range(*spec.indices(spec.stop))), False
+    try:
+        items = list(spec)
+    except TypeError:
+        raise TypeError(
+            f"column map entry {key!r} must be an int, a str or a sequence of them, "
+            f"got {type(spec).__name__}"
+        ) from None
+    for item in items:
+        if not isinstance(item, (str, Integral)):
+            raise TypeError(
+                f"column map entry {key!r} holds {item!r}; expected column indices or names")
+    return items, False
+
+
+def resolve_column_map(column_map, n_fields, names=None, source="", n_joints=None):
+    """Column indices and labels of every field in ``column_map``.
+
+    Parameters
+    ----------
+    column_map : dict
+        Field -> column spec (see the module docstring).
+    n_fields : int
+        Fields per line in the file.
+    names : list of str, default=None
+        Header names; None for a headerless file.
+    source : str, default=""
+        File name for messages.
+    n_joints : int, default=None
+        Joints a name prefix must expand to; None takes the count found for
+        ``q``.
+
+    Returns
+    -------
+    indices : dict
+        Field -> list of 0-based column indices.
+    labels : dict
+        Field -> list of column labels for messages: the quoted header name,
+        or ``"9 (qd[2])"`` (index and field) without a header.
+
+    Examples
+    --------
+    >>> idx, lab = resolve_column_map({"time": "timestamp", "q": "actual_q",
+    ...                                "qd": [3, 4], "current": range(5, 7)},
+    ...                               7, names=["timestamp", "actual_q_0", "actual_q_1",
+    ...                                         "x", "y", "i0", "i1"])
+    >>> idx["q"], lab["qd"]
+    ([1, 2], ["'x'", "'y'"])
+    """
+    unknown = [k for k in column_map if k not in FIELDS]
+    if unknown:
+        raise ValueError(
+            f"{source}: column map names unknown field(s) {unknown}; valid fields: "
+            f"{', '.join(FIELDS)}"
+        )
+    missing_fields = [k for k in REQUIRED_FIELDS if column_map.get(k) is None]
+    if missing_fields:
+        raise ValueError(
+            f"{source}: column map lacks required field(s) {missing_fields} "
+            f"(every recording needs {', '.join(REQUIRED_FIELDS)})"
+        )
+    lookup = {name: i for i, name in enumerate(names)} if names is not None else None
+    order = ["q"] + [k for k in column_map if k != "q" and column_map[k] is not None]
+    indices, labels, missing = {}, {}, []
+    for key in order:
+        items, scalar = _as_items(column_map[key], key)
+        cols = []
+        for item in items:
+            if isinstance(item, Integral):
+                item = int(item)
+                if not -n_fields <= item < n_fields:
+                    raise ValueError(
+                        f"{source}: column map asks for column {item} ({key}) but the file "
+                        f"has {n_fields} columns (0-based indices 0..{n_fields - 1})"
+                    )
+                cols.append(item % n_fields)
+            elif lookup is None:
+                raise ValueError(
+                    f"{source}: column map names column {item!r} ({key}) but the file has "
+                    "no header; use 0-based column indices"
+                )
+            elif item in lookup:
+                cols.append(lookup[item])
+            elif scalar and key not in SCALAR_FIELDS:
+                found = _expand_prefix(item, lookup, n_joints)
+                cols.extend(lookup[n] for n in found if n in lookup)
+                missing.extend((n, key) for n in found if n not in lookup)
+            else:
+                missing.append((item, key))
+        if key in SCALAR_FIELDS and len(cols) + sum(k == key for _, k in missing) != 1:
+            raise ValueError(f"{source}: column map entry {key!r} must name exactly one column")
+        if key == "q" and n_joints is None and not missing:
+            n_joints = len(cols)
+        indices[key] = cols
+        labels[key] = [
+            repr(names[c]) if names is not None else _default_label(key, j, c)
+            for j, c in enumerate(cols)
+        ]
+    if missing:
+        listed = ", ".join(f"{name!r} ({key})" for name, key in missing)
+        shown = ", ".join(names[:8]) + (", ..." if len(names) > 8 else "")
+        raise ValueError(f"{source}: missing column(s) {listed}; the header has: {shown}")
+    return indices, labels
+
+
+def _expand_prefix(prefix, lookup, n_joints):
+    """Names ``prefix_0 .. prefix_{n-1}``; n from the header when not given."""
+    if n_joints is None:
+        n_joints = 0
+        while f"{prefix}_{n_joints}" in lookup:
+            n_joints += 1
+        n_joints = max(n_joints, 1)
+    return [f"{prefix}_{j}" for j in range(n_joints)]
+
+
+def _default_label(key, joint, column):
+    if key in SCALAR_FIELDS:
+        return f"{column} ({key})"
+    return f"{column} ({key}[{joint}])"

@@ -1,0 +1,144 @@
+"""NumPy ``.npz`` archives read through a key map."""
+
+import zipfile
+from numbers import Integral
+from pathlib import Path
+
+import numpy as np
+
+from ._validation import finalize_recording
+from .columns import FIELDS, REQUIRED_FIELDS, SCALAR_FIELDS
+
+
+def read_npz(
+    path,
+    key_map=None,
+    *,
+    n_joints=None,
+    units="A",
+    time_scale=1.0,
+    name=None,
+    max_dropped=0.05,
+    max_joint_speed=10.0,
+    min_samples=2,
+):
+    """Read a ``.npz`` archive into a :class:`Recording`.
+
+    Rows are cleaned by the same rules as :func:`read_csv` (out-of-order
+    time stamps and kinematic glitches dropped with one
+    :class:`RecordingWarning`, NaN/inf an error); messages count rows from 0.
+
+    Parameters
+    ----------
+    path : str or Path
+        Archive written by :func:`numpy.savez` (no pickled objects).
+    key_map : dict, default=None
+        Recording field -> archive key, or ``(key, columns)`` to take columns
+        (an index, a range or a list) of a 2-D array, e.g.
+        ``{"time": ("data", 0), "q": ("data", range(1, 7)), ...}``. None maps
+        every field to the key of the same name (``time``, ``q``, ``qd``,
+        ``current``, ``target_current``, ...) when present.
+    n_joints : int, default=None
+        Joints the robot has; another count is an error.
+    units : str, default="A"
+        Unit of ``current``.
+    time_scale : float, default=1.0
+        Factor turning the time values into seconds.
+    name : str, default=None
+        Recording name; the file name when None.
+    max_dropped : float, default=0.05
+        Largest fraction of rows each cleaning step may drop.
+    max_joint_speed : float or None, default=10.0
+        Glitch filter speed limit [rad/s]; None disables it.
+    min_samples : int, default=2
+        Fewest valid samples accepted.
+
+    Returns
+    -------
+    recording : Recording
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import read_npz
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "log.npz"
+    >>> np.savez(path, time=[0.0, 0.01, 0.02], q=np.zeros((3, 2)),
+    ...          qd=np.zeros((3, 2)), current=np.ones((3, 2)))
+    >>> read_npz(path).n_joints
+    2
+    """
+    source = str(path)
+    if not Path(path).is_file():
+        raise ValueError(f"{source}: no such file")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            arrays = {key: archive[key] for key in archive.files}
+    except (ValueError, OSError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{source}: not a readable .npz archive ({exc})") from None
+    if not arrays:
+        raise ValueError(f"{source}: file is empty (no arrays)")
+    if key_map is None:
+        key_map = {f: f for f in FIELDS if f in arrays}
+    missing = [f for f in REQUIRED_FIELDS if key_map.get(f) is None]
+    if missing:
+        raise ValueError(
+            f"{source}: key map lacks required field(s) {missing}; the archive holds "
+            f"{sorted(arrays)}"
+        )
+    columns, labels = {}, {}
+    for field, spec in key_map.items():
+        if spec is None:
+            continue
+        if field not in FIELDS:
+            raise ValueError(f"{source}: key map names unknown field {field!r}; valid: {FIELDS}")
+        columns[field], labels[field] = _take(source, arrays, field, spec)
+    n = columns["time"].shape[0]
+    for field, values in columns.items():
+        if values.shape[0] != n:
+            raise ValueError(
+                f"{source}: {labels[field][0]} has {values.shape[0]} rows, time has {n}")
+    if n == 0:
+        raise ValueError(f"{source}: file is empty (0 rows)")
+    columns["time"] = columns["time"] * time_scale
+    return finalize_recording(
+        source, columns, np.arange(n), column_labels=labels, kind="row", n_joints=n_joints,
+        units=units, name=Path(path).name if name is None else name,
+        metadata={"format": "npz", "key_map": {k: v for k, v in key_map.items()}},
+        max_dropped=max_dropped, max_joint_speed=max_joint_speed, min_samples=min_samples)
+
+
+def _take(source, arrays, field, spec):
+    key, cols = (spec if isinstance(spec, tuple) else (spec, None))
+    if key not in arrays:
+        raise ValueError(
+            f"{source}: missing key {key!r} (for {field}); the archive holds {sorted(arrays)}")
+    values = arrays[key]
+    if not np.issubdtype(values.dtype, np.number) and values.dtype != bool:
+        raise ValueError(
+            f"{source}: key {key!r} (for {field}) holds {values.dtype} data, not numbers")
+    values = values.astype(float)
+    if values.ndim == 0 or values.ndim > 2:
+        raise ValueError(
+            f"{source}: key {key!r} (for {field}) must be 1-D or 2-D, got shape {values.shape}")
+    if cols is not None:
+        if values.ndim != 2:
+            raise ValueError(f"{source}: key {key!r} is 1-D; cannot take columns {cols!r}")
+        cols = [int(cols)] if isinstance(cols, Integral) else [int(c) for c in cols]
+        width = values.shape[1]
+        bad = [c for c in cols if not -width <= c < width]
+        if bad:
+            raise ValueError(
+                f"{source}: key {key!r} has {width} columns; missing column(s) {bad} "
+                f"(for {field})")
+        values = values[:, cols]
+        names = [f"{key!r}[:, {c}]" for c in cols]
+    else:
+        names = ([f"{key!r}[:, {c}]" for c in range(values.shape[1])] if values.ndim == 2
+                 else [repr(key)])
+    if field in SCALAR_FIELDS:
+        if values.ndim == 2 and values.shape[1] != 1:
+            raise ValueError(
+                f"{source}: {field} needs one column, {key!r} gives {values.shape[1]}")
+        return values.reshape(-1), names
+    return (values if values.ndim == 2 else values[:, None]), names
