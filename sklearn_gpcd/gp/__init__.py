@@ -1,0 +1,21 @@
+"""Semi-parametric Gaussian Process regression (Dalla Libera et al., Sec. III-IV).
+
+* :class:`ParametricMean` -- the rigid-body + friction mean with deterministic
+  parameters (Eq. 8-10, :math:`\\bar\\phi` of Eq. 17);
+* :class:`SemiParametricGPRegressor` -- one GP per output on the residual of
+  the mean, hyperparameters by maximum marginal likelihood;
+* :func:`make_p_f`, :func:`make_sp_s`, :func:`make_sp_p` -- the paper's three
+  estimators P_f, SP_S and SP_P built from a feature layout.
+"""
+
+from .factories import make_p_f, make_sp_p, make_sp_s
+from .mean import ParametricMean
+from .regressor import SemiParametricGPRegressor
+
+__all__ = [
+    "SemiParametricGPRegressor",
+    "ParametricMean",
+    "make_p_f",
+    "make_sp_s",
+    "make_sp_p",
+]

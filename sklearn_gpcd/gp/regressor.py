@@ -1,0 +1,425 @@
+"""Semi-parametric Gaussian Process regressor of Dalla Libera et al. (2019)."""
+
+import numbers
+
+import numpy as np
+from joblib import Parallel, delayed
+from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
+from sklearn.utils import check_random_state
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from ..kernels import resolve_columns
+from ._likelihood import _log_marginal_likelihood
+from ._optimize import _check_optimizer, _fit_hyperparameters
+from ._posterior import _Posterior, target_scaling
+from ._support import SUPPORT_SELECTIONS, select_support
+
+
+def _default_kernel():
+    """``ConstantKernel(1.0) * RBF(1.0) + WhiteKernel(1.0)``."""
+    return ConstantKernel(1.0) * RBF(1.0) + WhiteKernel(1.0)
+
+
+class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
+    r"""Gaussian Process regression around a parametric mean, one GP per output.
+
+    Each output column (e.g. the current of joint :math:`\ell`) is modelled
+    independently (Sec. III-A) as
+
+    .. math::
+
+        y = m(x) + f(x) + e, \qquad f \sim \mathcal{GP}(0, k_\theta),
+        \quad e \sim \mathcal N(0, \alpha),
+
+    where :math:`m(x) = \bar\phi(x) w` is the parametric mean with
+    deterministic parameters (option (i) of Sec. III-A, Eq. 10 and 17), fitted
+    first on all training rows, and the GP models the residual
+    :math:`y - m(x)` with the kernel of Eq. 11 (SP_S) or Eq. 16-17 (SP_P).
+    Hyperparameters maximise the log marginal likelihood (type-II ML); the
+    posterior may be conditioned on a support subset of ``n_support`` rows
+    (the paper's :math:`D_{SDP}`). With ``mean=None`` this is exactly
+    :class:`sklearn.gaussian_process.GaussianProcessRegressor` applied to
+    each output column.
+
+    Parameters
+    ----------
+    kernel : kernel or list of kernels, default=None
+        Covariance of the GP, one for all outputs or one per output. Column
+        names in :class:`~sklearn_gpcd.kernels.ARDRBF` or
+        :class:`~sklearn_gpcd.kernels.QuasiStaticGate` are resolved against
+        the column names of ``X``. None means
+        ``ConstantKernel(1.0) * RBF(1.0) + WhiteKernel(1.0)``.
+    mean : regressor or list of regressors, default=None
+        Parametric mean (typically :class:`ParametricMean`), one for all
+        outputs or one per output; cloned and fitted before the GP. None means
+        a zero mean.
+    alpha : float or ndarray of shape (n_samples,), default=1e-10
+        Value added to the diagonal of the kernel matrix (jitter or known
+        noise variance), as in scikit-learn's GPR.
+    optimizer : "fmin_l_bfgs_b", callable or None, default="fmin_l_bfgs_b"
+        Maximiser of the log marginal likelihood. A callable has signature
+        ``optimizer(obj_func, initial_theta, bounds) -> (theta_opt, f_min)``
+        where ``obj_func(theta, eval_gradient=True)`` returns the negative log
+        marginal likelihood and its gradient. None keeps the initial
+        hyperparameters.
+    n_restarts_optimizer : int, default=0
+        Extra optimizer runs from theta drawn log-uniformly within the bounds.
+    normalize_y : bool, default=False
+        Standardise the residual ``y - m(x)`` before fitting the GP.
+    n_support : int or None, default=None
+        Number of training rows the GP is fitted and conditioned on (all
+        rows when None). The parametric mean always uses all rows.
+    support_selection : {"random", "greedy"}, default="random"
+        How the support rows are chosen: uniformly at random, or by
+        farthest-point traversal in the metric of the initial kernel
+        :math:`d(x, x')^2 = k(x,x) + k(x',x') - 2k(x,x')` (deterministic
+        given ``random_state``, which draws the first row).
+    sigma_v : float > 0 or None, default=None
+        Quasi-static velocity threshold of the paper. When set, it overrides
+        every ``sigma_v`` parameter inside the (cloned) kernels and means, so
+        one value tunes the gates and the :math:`\bar\phi` masks of all
+        outputs, e.g. ``GridSearchCV(pipe, {"gp__sigma_v": [...]})``.
+    n_jobs : int or None, default=None
+        Number of outputs fitted in parallel (joblib).
+    random_state : int, RandomState instance or None, default=None
+        Draws the optimizer restarts and the support rows. An int gives every
+        output the same stream, so a multi-output fit equals one fit per
+        column with that ``random_state``.
+    verbose : int, default=0
+        Print one line per fitted output when > 0.
+
+    Attributes
+    ----------
+    kernel_ : kernel or list of kernels
+        Kernel with the fitted hyperparameters (a list when
+        ``n_outputs_ > 1``).
+    mean_ : regressor, list of regressors or None
+        Fitted parametric mean(s).
+    log_marginal_likelihood_value_ : float or ndarray of shape (n_outputs,)
+        Log marginal likelihood of ``kernel_.theta`` per output.
+    support_indices_ : ndarray of shape (n_support,) or list of ndarray
+        Training rows the GP of each output is conditioned on.
+    n_outputs_ : int
+        Number of output columns.
+    n_features_in_ : int
+        Number of columns of ``X``.
+    feature_names_in_ : ndarray of str
+        Column names of ``X``, when it has string column names.
+
+    See Also
+    --------
+    ParametricMean : the parametric part.
+    make_sp_p : the paper's proposed estimator built from a feature layout.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor
+    >>> rng = np.random.RandomState(0)
+    >>> X = rng.uniform(-2, 2, size=(40, 1))
+    >>> y = 1.5 * X[:, 0] + np.sin(3 * X[:, 0]) + 0.01 * rng.randn(40)
+    >>> gp = SemiParametricGPRegressor(mean=ParametricMean(), random_state=0)
+    >>> gp.fit(X, y).mean_.coef_.round(2)   # linear part w
+    array([1.23])
+    >>> mean, std = gp.predict(X[:2], return_std=True)
+    >>> bool(np.allclose(mean, y[:2], atol=0.05))
+    True
+    """
+
+    def __init__(
+        self,
+        kernel=None,
+        mean=None,
+        *,
+        alpha=1e-10,
+        optimizer="fmin_l_bfgs_b",
+        n_restarts_optimizer=0,
+        normalize_y=False,
+        n_support=None,
+        support_selection="random",
+        sigma_v=None,
+        n_jobs=None,
+        random_state=None,
+        verbose=0,
+    ):
+        self.kernel = kernel
+        self.mean = mean
+        self.alpha = alpha
+        self.optimizer = optimizer
+        self.n_restarts_optimizer = n_restarts_optimizer
+        self.normalize_y = normalize_y
+        self.n_support = n_support
+        self.support_selection = support_selection
+        self.sigma_v = sigma_v
+        self.n_jobs = n_jobs
+        self.random_state = random_state
+        self.verbose = verbose
+
+    def fit(self, X, y):
+        """Fit the parametric mean, then the GP hyperparameters and posterior.
+
+        Parameters
+        ----------
+        X : array-like or DataFrame of shape (n_samples, n_features)
+            Inputs, e.g. the augmented layout of :mod:`sklearn_gpcd._layout`.
+        y : array-like of shape (n_samples,) or (n_samples, n_outputs)
+            Targets; one independent GP per column.
+
+        Returns
+        -------
+        self : SemiParametricGPRegressor
+        """
+        X_raw = X
+        X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, dtype=np.float64)
+        self._check_params()
+        Y = y.reshape(len(y), -1)
+        self.n_outputs_ = Y.shape[1]
+        alpha = self._check_alpha(len(y))
+        kernels, means = self._prepare_models()
+        X_mean = X_raw if hasattr(X_raw, "columns") else X  # keep names for the mean
+        fits = Parallel(n_jobs=self.n_jobs)(
+            delayed(_fit_output)(
+                kernel, mean, X, X_mean, Y[:, j], alpha, seed, self._gp_params()
+            )
+            for j, (kernel, mean, seed) in enumerate(zip(kernels, means, self._seeds()))
+        )
+        self._outputs = fits
+        pick = (lambda v: v[0]) if self.n_outputs_ == 1 else list
+        self.kernel_ = pick([fit.posterior.kernel for fit in fits])
+        self.mean_ = pick([fit.mean for fit in fits])
+        self.support_indices_ = pick([fit.support for fit in fits])
+        lml = np.array([fit.lml for fit in fits])
+        self.log_marginal_likelihood_value_ = lml[0] if self.n_outputs_ == 1 else lml
+        if self.verbose > 0:
+            for j, fit in enumerate(fits):
+                print(f"[{type(self).__name__}] output {j}: log-marginal-likelihood "
+                      f"{fit.lml:.6g}, kernel {fit.posterior.kernel}")
+        return self
+
+    def predict(self, X, return_std=False, return_cov=False):
+        """Posterior mean (and std or covariance) at ``X``.
+
+        Parameters
+        ----------
+        X : array-like or DataFrame of shape (n_samples, n_features)
+            Query points, with the columns seen in :meth:`fit`.
+        return_std : bool, default=False
+            Also return the posterior standard deviation of :math:`m + f`
+            (the parametric mean is deterministic; noise in the kernel, e.g.
+            a ``WhiteKernel``, is included as in scikit-learn).
+        return_cov : bool, default=False
+            Also return the posterior covariance (not chunked: its size is
+            ``n_samples**2``).
+
+        Returns
+        -------
+        y_mean : ndarray of shape (n_samples,) or (n_samples, n_outputs)
+        y_std : ndarray of shape (n_samples,) or (n_samples, n_outputs)
+            Only when ``return_std`` is True.
+        y_cov : ndarray of shape (n_samples, n_samples) or \
+                (n_samples, n_samples, n_outputs)
+            Only when ``return_cov`` is True.
+        """
+        if return_std and return_cov:
+            raise ValueError("At most one of return_std or return_cov can be requested.")
+        check_is_fitted(self)
+        X_raw = X
+        X = validate_data(self, X, reset=False, dtype=np.float64)
+        X_mean = X_raw if hasattr(X_raw, "columns") else X
+        preds = [fit.predict(X, X_mean, return_std, return_cov) for fit in self._outputs]
+        if not (return_std or return_cov):
+            return self._stack(preds)
+        return self._stack([p[0] for p in preds]), self._stack([p[1] for p in preds])
+
+    def log_marginal_likelihood(self, theta=None, eval_gradient=False, output=0):
+        """Log marginal likelihood of the residual GP of one output.
+
+        Parameters
+        ----------
+        theta : array-like of shape (n_theta,), default=None
+            Log-hyperparameters of ``kernel_`` (of output ``output``). None
+            returns ``log_marginal_likelihood_value_``.
+        eval_gradient : bool, default=False
+            Also return the gradient with respect to theta (needs theta).
+        output : int, default=0
+            Output column whose GP is evaluated.
+
+        Returns
+        -------
+        log_likelihood : float
+        log_likelihood_gradient : ndarray of shape (n_theta,)
+            Only when ``eval_gradient`` is True.
+        """
+        check_is_fitted(self)
+        if theta is None:
+            if eval_gradient:
+                raise ValueError("Gradient can only be evaluated for theta != None.")
+            return self.log_marginal_likelihood_value_
+        if not 0 <= output < self.n_outputs_:
+            raise ValueError(f"output={output} is not in [0, {self.n_outputs_}).")
+        post = self._outputs[output].posterior
+        theta = np.asarray(theta, dtype=float)
+        if theta.shape != post.kernel.theta.shape:
+            raise ValueError(
+                f"theta has shape {theta.shape}, expected {post.kernel.theta.shape} "
+                f"for {post.kernel}."
+            )
+        return _log_marginal_likelihood(
+            theta, post.kernel, post.X, post.y_train, post.alpha, eval_gradient
+        )
+
+    # -- helpers -----------------------------------------------------------
+
+    def _stack(self, arrays):
+        """Stack per-output results on a last axis; squeeze a single output."""
+        return arrays[0] if self.n_outputs_ == 1 else np.stack(arrays, axis=-1)
+
+    def _gp_params(self):
+        return {
+            "n_support": self.n_support,
+            "support_selection": self.support_selection,
+            "normalize_y": self.normalize_y,
+            "optimizer": self.optimizer,
+            "n_restarts_optimizer": self.n_restarts_optimizer,
+        }
+
+    def _seeds(self):
+        """One seed per output, drawn up front so results ignore ``n_jobs``."""
+        if isinstance(self.random_state, numbers.Integral):
+            return [self.random_state] * self.n_outputs_
+        rng = check_random_state(self.random_state)
+        return rng.randint(np.iinfo(np.int32).max, size=self.n_outputs_).tolist()
+
+    def _check_params(self):
+        _check_optimizer(self.optimizer)
+        if not (isinstance(self.n_restarts_optimizer, numbers.Integral)
+                and self.n_restarts_optimizer >= 0):
+            raise ValueError(
+                f"n_restarts_optimizer must be an int >= 0, got {self.n_restarts_optimizer!r}."
+            )
+        if self.n_support is not None and not (
+            isinstance(self.n_support, numbers.Integral) and self.n_support >= 1
+        ):
+            raise ValueError(f"n_support must be an int >= 1 or None, got {self.n_support!r}.")
+        if self.support_selection not in SUPPORT_SELECTIONS:
+            raise ValueError(
+                f"support_selection must be one of {SUPPORT_SELECTIONS}, "
+                f"got {self.support_selection!r}."
+            )
+        if self.sigma_v is not None and not (
+            isinstance(self.sigma_v, numbers.Real) and self.sigma_v > 0
+        ):
+            raise ValueError(f"sigma_v must be a float > 0 or None, got {self.sigma_v!r}.")
+
+    def _check_alpha(self, n_samples):
+        alpha = np.asarray(self.alpha, dtype=float)
+        if alpha.ndim == 1 and len(alpha) == 1:
+            alpha = alpha[0]
+        if alpha.ndim > 1 or (alpha.ndim == 1 and len(alpha) != n_samples):
+            raise ValueError(
+                f"alpha must be a float or an array of shape ({n_samples},), "
+                f"got shape {alpha.shape}."
+            )
+        if not np.all(np.isfinite(alpha)) or np.any(alpha < 0):
+            raise ValueError("alpha must be finite and >= 0.")
+        return alpha
+
+    def _prepare_models(self):
+        """Per-output clones of kernel and mean, with sigma_v and column names set."""
+        kernels = _per_output(self.kernel, self.n_outputs_, "kernel")
+        means = _per_output(self.mean, self.n_outputs_, "mean")
+        kernels = [_default_kernel() if k is None else clone(k) for k in kernels]
+        means = [None if m is None else _check_mean(clone(m)) for m in means]
+        if self.sigma_v is not None:
+            n_set = sum(_set_sigma_v(obj, self.sigma_v) for obj in kernels + means)
+            if n_set == 0:
+                raise ValueError(
+                    f"sigma_v={self.sigma_v} was given but no kernel or mean has a "
+                    "`sigma_v` parameter to set."
+                )
+        names = getattr(self, "feature_names_in_", None)
+        kernels = [
+            resolve_columns(k, feature_names=names, n_features=self.n_features_in_)
+            for k in kernels
+        ]
+        return kernels, means
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True
+        return tags
+
+
+class _OutputFit:
+    """Fitted model of one output: mean, support rows, GP posterior, LML."""
+
+    def __init__(self, mean, support, posterior, lml):
+        self.mean = mean
+        self.support = support
+        self.posterior = posterior
+        self.lml = lml
+
+    def predict(self, X, X_mean, return_std, return_cov):
+        gp = self.posterior.predict(X, return_std=return_std, return_cov=return_cov)
+        m = 0.0 if self.mean is None else np.asarray(self.mean.predict(X_mean)).ravel()
+        if return_std or return_cov:
+            return gp[0] + m, gp[1]
+        return gp + m
+
+
+def _fit_output(kernel, mean, X, X_mean, y, alpha, seed, params):
+    """Fit y = m(x) + f(x) + e for one output (Eq. 17 when built by make_sp_p).
+
+    1. m: the parametric mean, fitted on all rows (option (i), Sec. III-A);
+    2. the support rows D_SDP are chosen for the GP on the residual y - m;
+    3. kernel hyperparameters by type-II ML on the (normalised) residual;
+    4. posterior: Cholesky factor and weights cached for prediction.
+    """
+    rng = check_random_state(seed)
+    if mean is not None:
+        mean = mean.fit(X_mean, y)
+        y = y - np.asarray(mean.predict(X_mean)).ravel()
+    support = select_support(kernel, X, params["n_support"], params["support_selection"], rng)
+    X_s, r_s = X[support], y[support]
+    alpha_s = alpha[support] if np.ndim(alpha) else alpha
+    y_mean, y_std = target_scaling(r_s, params["normalize_y"])
+    kernel_, lml = _fit_hyperparameters(
+        kernel, X_s, (r_s - y_mean) / y_std, alpha_s,
+        params["optimizer"], params["n_restarts_optimizer"], rng,
+    )
+    posterior = _Posterior(kernel_, X_s, r_s, alpha_s, y_mean, y_std)
+    return _OutputFit(mean, support, posterior, lml)
+
+
+def _per_output(value, n_outputs, name):
+    """Repeat a single object for every output, or check a list's length."""
+    if isinstance(value, (list, tuple)):
+        if len(value) != n_outputs:
+            raise ValueError(
+                f"{name} is a list of {len(value)} items but y has {n_outputs} "
+                f"output column(s); give one {name} per output or a single {name}."
+            )
+        return list(value)
+    return [value] * n_outputs
+
+
+def _check_mean(mean):
+    if not (hasattr(mean, "fit") and hasattr(mean, "predict")):
+        raise TypeError(
+            f"mean must be a regressor with fit/predict or None, got {type(mean).__name__}."
+        )
+    return mean
+
+
+def _set_sigma_v(obj, sigma_v):
+    """Set every parameter named ``sigma_v`` (at any depth) of ``obj``.
+
+    Returns the number of parameters set (0 for None).
+    """
+    if obj is None:
+        return 0
+    keys = [k for k in obj.get_params(deep=True) if k.split("__")[-1] == "sigma_v"]
+    if keys:
+        obj.set_params(**dict.fromkeys(keys, sigma_v))
+    return len(keys)
