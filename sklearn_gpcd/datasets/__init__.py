@@ -1,0 +1,62 @@
+"""Built-in robot simulator and the paper's data sets (Sec. III-C, Sec. V).
+
+:class:`RobotSimulator` runs a built-in robot (pinocchio ABA) under a UR-like
+1 kHz joint servo with motor currents, Stribeck friction and real stiction,
+sensor noise, external contacts and injected effects, and logs a
+:class:`~sklearn_gpcd.io.Recording` at 125 Hz. The ``make_*`` generators
+build the paper's experiments on it.
+"""
+
+from .contacts import Contact, contact_labels
+from .effects import (
+    CurrentDelay,
+    CurrentOffset,
+    FrictionChange,
+    JointSpring,
+    Payload,
+    TorqueConstantError,
+)
+from .friction import JointFriction, default_friction
+from .generators import (
+    make_d1,
+    make_d2,
+    make_interaction_test,
+    make_joint1_cyclic,
+    reference_d1,
+    reference_d2,
+    reference_interaction_test,
+    reference_joint1_cyclic,
+)
+from .servo import ServoGains, feedforward_torque, servo_gains
+from .simulator import RobotSimulator, simulate
+from .trajectory import JointTrajectory
+from .workspace import Hemisphere, inverse_kinematics
+
+__all__ = [
+    "Contact",
+    "CurrentDelay",
+    "CurrentOffset",
+    "FrictionChange",
+    "Hemisphere",
+    "JointFriction",
+    "JointSpring",
+    "JointTrajectory",
+    "Payload",
+    "RobotSimulator",
+    "ServoGains",
+    "TorqueConstantError",
+    "contact_labels",
+    "default_friction",
+    "feedforward_torque",
+    "inverse_kinematics",
+    "make_d1",
+    "make_d2",
+    "make_interaction_test",
+    "make_joint1_cyclic",
+    "reference_d1",
+    "reference_d2",
+    "reference_interaction_test",
+    "reference_joint1_cyclic",
+    "servo_gains",
+    "simulate",
+]
