@@ -1,8 +1,5 @@
 """Tests of sklearn_gpcd.robots: built-in UR models, URDF loading, real data."""
 
-import importlib.metadata
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -37,39 +34,6 @@ def dh_chain(q, params, upto=None):
             break
         T = T @ standard_dh(qi, d, a, alpha)
     return T
-
-
-def example_robot_data_urdf(relative):
-    """Path of a file shipped by example-robot-data, or None.
-
-    The PyPI wheel of example-robot-data 6 installs only data files (no
-    importable ``example_robot_data`` module), so fall back to the
-    distribution's file list when the module is missing.
-    """
-    if importlib.util.find_spec("example_robot_data") is not None:
-        import example_robot_data
-
-        try:
-            return Path(example_robot_data.getModelPath(relative)) / relative.lstrip("/")
-        except Exception:  # pragma: no cover - depends on the installed version
-            pass
-    try:
-        dist = importlib.metadata.distribution("example-robot-data")
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in dist.files or []:
-        if str(f).endswith(relative):
-            path = Path(dist.locate_file(f))
-            return path if path.is_file() else None
-    return None
-
-
-@pytest.fixture(scope="module")
-def ur10_urdf():
-    path = example_robot_data_urdf("ur_description/urdf/ur10_robot.urdf")
-    if path is None:
-        pytest.skip("example-robot-data (UR10 URDF) not installed")
-    return path
 
 
 # ----------------------------------------------------------- loading API
