@@ -47,6 +47,15 @@ _EXPORTS = {
     "make_p_f": "gp",
     "make_sp_s": "gp",
     "make_sp_p": "gp",
+    "CollisionDetector": "detection",
+    "StreamingMonitor": "detection",
+    "CollisionThresholdCV": "detection",
+    "stack_currents": "detection",
+    "nmse": "metrics",
+    "event_recall": "metrics",
+    "detection_delay": "metrics",
+    "false_alarms_per_hour": "metrics",
+    "plot_monitoring": "plotting",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -1,0 +1,25 @@
+"""Collision detection on the current residual (Dalla Libera et al., Sec. II-III).
+
+* :class:`CollisionDetector` -- scikit-learn outlier detector: regressor of the
+  collision-free currents, monitoring signal, thresholds ``sigma_CD``;
+* :class:`StreamingMonitor` -- the same decisions one sample at a time, with
+  bounded memory and a compiled single-sample GP prediction;
+* :class:`CollisionThresholdCV` -- tunes thresholds, ``sigma_v`` and filter
+  settings by grouped cross-validation over labelled recordings;
+* :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
+"""
+
+from .detector import CollisionDetector, default_regressor, stack_currents
+from .model_selection import CollisionThresholdCV, DetectionRefit, select_candidate
+from .streaming import MonitorStatus, StreamingMonitor
+
+__all__ = [
+    "CollisionDetector",
+    "CollisionThresholdCV",
+    "DetectionRefit",
+    "MonitorStatus",
+    "StreamingMonitor",
+    "default_regressor",
+    "select_candidate",
+    "stack_currents",
+]

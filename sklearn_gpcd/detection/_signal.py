@@ -1,0 +1,180 @@
+"""Causal post-processing of the monitoring signal: low-pass filter, debounce.
+
+Both operations are causal and carry state from one sample to the next, so
+batch processing (:class:`~sklearn_gpcd.detection.CollisionDetector`) and
+tick-by-tick processing (:class:`~sklearn_gpcd.detection.StreamingMonitor`)
+give the same numbers. Rows of a batch are one time series per *segment*;
+the state restarts at every segment start (a new recording, or a gap left by
+dropped rows).
+"""
+
+import numpy as np
+from scipy.signal import butter, lfilter, lfilter_zi
+
+
+def lowpass_coefficients(cutoff, sample_time, order=1):
+    """Coefficients ``(b, a)`` of a causal low-pass filter.
+
+    The paper notes that in moving phases the residual ``s = i - i_hat`` is
+    high-frequency (Sec. IV-C, Fig. 2) and "might be easily canceled with a
+    low pass filter". Two filters are offered:
+
+    - ``order=1``: the exact discretisation of a first-order lag with time
+      constant ``tau = 1 / (2 pi f_c)``,
+
+      .. math:: y_k = y_{k-1} + \\beta (u_k - y_{k-1}),
+                \\quad \\beta = 1 - e^{-2 \\pi f_c T};
+
+    - ``order=2``: a second-order Butterworth filter (bilinear transform).
+
+    Parameters
+    ----------
+    cutoff : float
+        Cut-off frequency ``f_c`` in Hz, ``0 < f_c < 1 / (2 T)``.
+    sample_time : float
+        Sampling period ``T`` in seconds.
+    order : {1, 2}, default=1
+        Filter order.
+
+    Returns
+    -------
+    b, a : ndarray
+        Numerator and denominator, ``a[0] == 1``, both of length ``order + 1``.
+
+    Examples
+    --------
+    >>> b, a = lowpass_coefficients(10.0, 0.008)
+    >>> round(float(b.sum() / a.sum()), 12)  # unit DC gain
+    1.0
+    """
+    nyquist = 0.5 / sample_time
+    if not 0.0 < cutoff < nyquist:
+        raise ValueError(
+            f"filter_cutoff must lie in (0, {nyquist:g}) Hz, the Nyquist band for "
+            f"sample_time={sample_time:g} s; got {cutoff!r}"
+        )
+    if order == 1:
+        beta = 1.0 - np.exp(-2.0 * np.pi * cutoff * sample_time)
+        return np.array([beta, 0.0]), np.array([1.0, beta - 1.0])
+    if order == 2:
+        b, a = butter(2, cutoff, btype="low", fs=1.0 / sample_time)
+        return b / a[0], a / a[0]
+    raise ValueError(f"filter_order must be 1 or 2, got {order!r}")
+
+
+def segment_starts(n_samples, groups=None, keep=None):
+    """Row indices where the signal state restarts.
+
+    Parameters
+    ----------
+    n_samples : int
+        Number of rows.
+    groups : array-like of shape (n_samples,), default=None
+        Recording id of each row; a new segment starts where it changes.
+    keep : ndarray of bool, default=None
+        Rows kept before the starts are computed (``None`` keeps all). A gap of
+        dropped rows also starts a new segment. Indices refer to the kept rows.
+
+    Returns
+    -------
+    starts : ndarray of int
+        Sorted segment starts, always beginning with 0 (empty if no rows).
+
+    Examples
+    --------
+    >>> segment_starts(6, groups=[0, 0, 1, 1, 1, 2]).tolist()
+    [0, 2, 5]
+    >>> segment_starts(5, keep=np.array([1, 1, 0, 1, 1], bool)).tolist()
+    [0, 2]
+    """
+    new = np.zeros(n_samples, dtype=bool)
+    if n_samples:
+        new[0] = True
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != (n_samples,):
+            raise ValueError(f"groups must have shape ({n_samples},), got {groups.shape}")
+        new[1:] |= groups[1:] != groups[:-1]
+    if keep is not None:
+        gap = np.zeros(n_samples, dtype=bool)
+        gap[1:] = ~keep[:-1]
+        new = (new | gap)[keep]
+    return np.flatnonzero(new)
+
+
+def filter_segments(u, b, a, starts):
+    """Apply the IIR filter ``(b, a)`` along axis 0, restarting per segment.
+
+    Each segment starts in the steady state of its first sample
+    (``scipy.signal.lfilter_zi``), so a constant offset passes unchanged and
+    there is no start-up transient.
+
+    Parameters
+    ----------
+    u : ndarray of shape (n_samples, n_joints)
+        Input signal.
+    b, a : ndarray
+        Filter coefficients from :func:`lowpass_coefficients`.
+    starts : ndarray of int
+        Segment starts from :func:`segment_starts`.
+
+    Returns
+    -------
+    y : ndarray of shape (n_samples, n_joints)
+
+    Examples
+    --------
+    >>> b, a = lowpass_coefficients(1.0, 0.01)
+    >>> y = filter_segments(np.ones((3, 1)), b, a, np.array([0]))
+    >>> np.allclose(y, 1.0)
+    True
+    """
+    y = np.empty_like(u)
+    zi = lfilter_zi(b, a)
+    bounds = np.append(starts, u.shape[0])
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        seg = u[lo:hi]
+        y[lo:hi], _ = lfilter(b, a, seg, axis=0, zi=zi[:, None] * seg[0])
+    return y
+
+
+def debounce_segments(ratio, min_duration, starts):
+    """Running minimum over the last ``min_duration`` samples, per segment.
+
+    A joint fires only when its ratio ``|m_l| / scale_l`` has exceeded the
+    threshold for ``min_duration`` consecutive samples. That event equals
+    "the minimum of the ratio over the last ``min_duration`` samples exceeds
+    the threshold", so debouncing is a causal erosion of the ratio and the
+    decision stays a plain threshold test on the debounced ratio. The first
+    ``min_duration - 1`` samples of each segment see zeros before them and
+    cannot fire.
+
+    Parameters
+    ----------
+    ratio : ndarray of shape (n_samples, n_joints)
+        Non-negative ratios.
+    min_duration : int
+        Window length in samples (1 = no debounce).
+    starts : ndarray of int
+        Segment starts.
+
+    Returns
+    -------
+    debounced : ndarray of shape (n_samples, n_joints)
+
+    Examples
+    --------
+    >>> r = np.array([[2.0], [3.0], [1.0], [5.0], [6.0]])
+    >>> debounce_segments(r, 2, np.array([0]))[:, 0].tolist()
+    [0.0, 2.0, 1.0, 1.0, 5.0]
+    """
+    if min_duration <= 1:
+        return ratio
+    out = np.empty_like(ratio)
+    bounds = np.append(starts, ratio.shape[0])
+    pad = np.zeros((min_duration - 1, ratio.shape[1]))
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        padded = np.concatenate([pad, ratio[lo:hi]])
+        windows = np.lib.stride_tricks.sliding_window_view(padded, min_duration, axis=0)
+        out[lo:hi] = windows.min(axis=-1)
+    return out

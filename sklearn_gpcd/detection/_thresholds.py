@@ -1,0 +1,112 @@
+"""Rules that turn training residuals into collision thresholds sigma_CD.
+
+The paper leaves the design of the threshold ``sigma_CD`` open ("might be set
+using standard rules, like cross-validation", Sec. III). Every rule here
+works on the ratio ``r_l = |m_l| / scale_l`` of the monitoring signal ``m_l``
+of joint ``l`` to a per-joint scale, and returns a common level ``gamma``:
+a joint fires when ``r_l > gamma``, i.e. ``|m_l| > gamma * scale_l =
+sigma_CD,l``. The detector stores ``offset_ = -gamma``.
+"""
+
+import numpy as np
+
+
+def rms_scale(signal):
+    """Root mean square of each column, 1 where the column is all zero.
+
+    Parameters
+    ----------
+    signal : ndarray of shape (n_samples, n_joints)
+
+    Returns
+    -------
+    scale : ndarray of shape (n_joints,)
+
+    Examples
+    --------
+    >>> rms_scale(np.array([[3.0, 0.0], [-3.0, 0.0]])).tolist()
+    [3.0, 1.0]
+    """
+    scale = np.sqrt(np.mean(np.square(signal), axis=0))
+    return np.where(scale > 0.0, scale, 1.0)
+
+
+def contamination_level(peak, contamination):
+    """Level ``gamma`` that flags a fraction ``contamination`` of the samples.
+
+    Follows :class:`sklearn.ensemble.IsolationForest`: the offset is the
+    ``100 * contamination`` percentile of the training scores ``-peak``, so
+    that exactly that fraction of the training samples has a negative
+    decision function (up to ties).
+
+    Parameters
+    ----------
+    peak : ndarray of shape (n_samples,)
+        Largest debounced ratio over the joints, per sample.
+    contamination : float in (0, 0.5]
+        Expected fraction of flagged training samples.
+
+    Returns
+    -------
+    gamma : float
+
+    Examples
+    --------
+    >>> contamination_level(np.arange(10.0), 0.1)
+    8.1
+    """
+    return -float(np.percentile(-peak, 100.0 * contamination))
+
+
+def false_alarm_level(peak, starts, sample_time, rate):
+    """Smallest level ``gamma`` whose alarm-onset rate stays within ``rate``.
+
+    An alarm onset is a sample with ``peak > gamma`` whose predecessor in the
+    same segment has ``peak <= gamma`` (or that opens a segment). Sample
+    ``t`` is an onset exactly when ``gamma`` lies in ``[prev_t, peak_t)``, so
+    the onset count at every level is a difference of two counts found by
+    binary search. The returned level is the smallest candidate (0 or a
+    value of ``peak``) such that this level and every higher one give at most
+    ``rate`` onsets per hour of training data; the count is not monotone in
+    the level (raising it can split one alarm into two), hence "every higher
+    one".
+
+    Parameters
+    ----------
+    peak : ndarray of shape (n_samples,)
+        Largest debounced ratio over the joints, per sample (non-negative).
+    starts : ndarray of int
+        Segment starts (see :func:`~sklearn_gpcd.detection._signal.segment_starts`).
+    sample_time : float
+        Sampling period in seconds.
+    rate : float
+        Allowed alarm onsets per hour.
+
+    Returns
+    -------
+    gamma : float
+
+    Examples
+    --------
+    >>> peak = np.array([0.0, 2.0, 0.0, 1.0, 0.0])   # two bumps
+    >>> hours = 5 * 1.0 / 3600
+    >>> false_alarm_level(peak, np.array([0]), 1.0, rate=1.5 / hours)
+    1.0
+    >>> false_alarm_level(peak, np.array([0]), 1.0, rate=0.0)
+    2.0
+    """
+    prev = np.empty_like(peak)
+    prev[1:] = peak[:-1]
+    prev[starts] = 0.0
+    rising = prev < peak
+    lows = np.sort(prev[rising])
+    highs = np.sort(peak[rising])
+    candidates = np.unique(np.append(peak, 0.0))
+    onsets = np.searchsorted(lows, candidates, side="right") - np.searchsorted(
+        highs, candidates, side="right"
+    )
+    hours = peak.shape[0] * sample_time / 3600.0
+    too_many = np.flatnonzero(onsets > rate * hours)
+    if too_many.size == 0:
+        return float(candidates[0])
+    return float(candidates[too_many[-1] + 1])

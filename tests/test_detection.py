@@ -1,0 +1,519 @@
+"""CollisionDetector, StreamingMonitor, CollisionThresholdCV and plot_monitoring."""
+
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.gaussian_process import GaussianProcessRegressor
+from sklearn.gaussian_process.kernels import RBF, DotProduct, WhiteKernel
+from sklearn.gaussian_process.kernels import ConstantKernel as C
+from sklearn.linear_model import LinearRegression, Ridge
+from sklearn.model_selection import GridSearchCV, GroupKFold
+from sklearn.neighbors import KNeighborsRegressor
+from sklearn.utils.estimator_checks import parametrize_with_checks
+
+from sklearn_gpcd._layout import column_index
+from sklearn_gpcd.detection import (
+    CollisionDetector,
+    CollisionThresholdCV,
+    DetectionRefit,
+    MonitorStatus,
+    StreamingMonitor,
+    select_candidate,
+    stack_currents,
+)
+from sklearn_gpcd.detection._compiled import compile_predictor
+from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor, make_sp_p
+from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate
+from sklearn_gpcd.metrics import contact_events, detection_scorers, event_recall
+
+SIGMA_V = 1e-2
+
+
+# ----------------------------------------------------------------- helpers
+def augmented_run(n_samples, n_joints, rng, period=0.008):
+    """Inputs x^a (Eq. 13) and currents of a move-rest-move-rest run.
+
+    Every joint rests (|qd| = 0, all gates open) in the 2nd and 4th quarter.
+    """
+    t = np.arange(n_samples) * period
+    phase = rng.uniform(0, np.pi, n_joints)
+    moving = (np.arange(n_samples) // (n_samples // 4)) % 2 == 0
+    qd = np.where(moving[:, None], np.cos(t[:, None] + phase), 0.0)
+    q = np.cumsum(qd, axis=0) * period
+    qdd = np.gradient(qd, period, axis=0)
+    e_q = 1e-3 * np.sin(3 * t[:, None] + phase)
+    de_q = np.gradient(e_q, period, axis=0)
+    clean = 2.0 * np.sin(q) + 0.5 * np.tanh(50 * qd) + 0.1 * qdd
+    i_c = clean + 0.05
+    X = np.hstack([q, qd, qdd, e_q, de_q, i_c])
+    current = clean + 0.02 * rng.normal(size=clean.shape)
+    return X, current
+
+
+def bumpy_run(rng, n_samples=1500, bumps=((200, 40), (600, 40), (1000, 30), (1300, 30))):
+    """One-joint run, current = f(q, qd) + noise, with known additive bumps."""
+    t = np.arange(n_samples) * 0.008
+    q = np.sin(0.7 * t) + 0.3 * np.sin(2.3 * t + rng.uniform(0, 1))
+    qd = np.gradient(q, 0.008)
+    current = 1.5 * np.sin(q) + 0.8 * qd + 0.02 * rng.normal(size=n_samples)
+    labels = np.zeros(n_samples, dtype=int)
+    for k, (start, length) in enumerate(bumps):
+        current[start : start + length] += 0.4
+        labels[start : start + length] = k + 1
+    return np.column_stack([q, qd]), current, labels
+
+
+def small_sp_p(n_joints, **params):
+    return make_sp_p(None, n_joints, sigma_v=SIGMA_V, n_support=60, random_state=0, **params)
+
+
+# ------------------------------------------------------- estimator checks
+@parametrize_with_checks(
+    [
+        CollisionDetector(Ridge()),
+        CollisionDetector(
+            GaussianProcessRegressor(RBF() + WhiteKernel(), optimizer=None), normalize="std"
+        ),
+        CollisionDetector(Ridge(), contamination=0.05),
+    ]
+)
+def test_sklearn_compatible(estimator, check):
+    check(estimator)
+
+
+# ------------------------------------------------------------ the detector
+def test_detects_every_bump_and_stays_quiet_elsewhere(rng):
+    X_train, i_train, _ = bumpy_run(rng, bumps=())
+    X_train, i_train = X_train[::3], i_train[::3]  # 500 samples keep the GP fit quick
+    X_test, i_test, labels = bumpy_run(rng)
+    # fixed hyperparameters (normalised units) keep the test fast and deterministic
+    kernel = C(1.0) * RBF([1.0, 2.0]) + WhiteKernel(1e-3)
+    det = CollisionDetector(
+        GaussianProcessRegressor(kernel, normalize_y=True, optimizer=None),
+        threshold="std", k=5.0, normalize="std", filter_cutoff=5.0, min_duration=3,
+    ).fit(stack_currents(X_train, i_train))
+    pred = det.predict(stack_currents(X_test, i_test))
+    alarms = pred == -1
+    assert event_recall(labels, alarms) == 1.0
+    # clean stretches: 30 samples (filter and debounce lag) away from any bump
+    near = np.zeros_like(alarms)
+    for start, stop in zip(*contact_events(labels)):
+        near[start : stop + 30] = True
+    assert not alarms[~near].any()
+
+
+def test_each_threshold_rule_sets_its_level(rng):
+    X, current = augmented_run(800, 2, rng)
+    Z = stack_currents(X, current)
+    det = CollisionDetector(Ridge(), n_joints=2, contamination=0.02).fit(Z)
+    assert np.mean(det.predict(Z) == -1) == pytest.approx(0.02, abs=1 / 800)
+    assert np.allclose(det.thresholds_, -det.offset_ * det.scale_)
+    # scale_ = RMS of the training residual per joint
+    residual = current - det.regressor_.predict(X)
+    assert np.allclose(det.scale_, np.sqrt(np.mean(residual**2, axis=0)))
+
+    det = CollisionDetector(
+        Ridge(), n_joints=2, threshold="false_alarm_rate", false_alarm_rate=600.0
+    ).fit(Z)
+    alarms = det.predict(Z) == -1
+    onsets = np.sum(alarms[1:] & ~alarms[:-1]) + alarms[0]
+    hours = 800 * 0.008 / 3600
+    assert onsets <= 600.0 * hours  # at most 1 onset in 6.4 s
+    det.set_params(false_alarm_rate=0.0).fit(Z)
+    assert not (det.predict(Z) == -1).any()
+
+    kernel = C(1.0) * RBF(np.full(12, 3.0)) + WhiteKernel(1e-2)
+    gp = GaussianProcessRegressor(kernel, optimizer=None)
+    det = CollisionDetector(gp, n_joints=2, threshold="std", k=4.0, normalize="std").fit(Z)
+    assert det.offset_ == -4.0 and np.allclose(det.thresholds_, 4.0)
+    det = CollisionDetector(gp, n_joints=2, threshold="std", k=4.0).fit(Z)
+    _, std = det.regressor_.predict(X, return_std=True)
+    assert np.allclose(det.thresholds_, 4.0 * np.sqrt(np.mean(std**2, axis=0)))
+
+
+def test_predict_joints_names_the_bumped_joint(rng):
+    X, current = augmented_run(800, 2, rng)
+    det = CollisionDetector(Ridge(), n_joints=2, contamination=0.001)
+    det.fit(stack_currents(X, current))
+    bumped = current.copy()
+    bumped[300:320, 1] += 3.0
+    Z = stack_currents(X, bumped)
+    fired = det.predict_joints(Z)
+    assert fired[300:320, 1].all() and not fired[300:320, 0].any()
+    assert np.array_equal(fired.any(axis=1), det.predict(Z) == -1)
+    assert np.allclose(det.decision_function(Z), det.score_samples(Z) - det.offset_)
+
+
+def test_labels_leave_contacts_out_of_training(rng):
+    X, current, labels = bumpy_run(rng)
+    Z = stack_currents(X, current)
+    with_labels = CollisionDetector(LinearRegression()).fit(Z, labels=labels)
+    clean_only = CollisionDetector(LinearRegression()).fit(Z[labels == 0])
+    assert np.allclose(with_labels.regressor_.coef_, clean_only.regressor_.coef_)
+    with pytest.raises(ValueError, match="no collision-free row"):
+        CollisionDetector(LinearRegression()).fit(Z, labels=np.ones(len(Z)))
+
+
+def test_groups_restart_the_filter_and_debounce(rng):
+    X, current, _ = bumpy_run(rng)
+    Z = stack_currents(X, current)
+    det = CollisionDetector(
+        LinearRegression(), filter_cutoff=3.0, filter_order=2, min_duration=4
+    ).fit(Z)
+    groups = np.repeat([0, 1, 2], [500, 400, 600])
+    joint = det.score_samples(Z, groups=groups)
+    parts = [det.score_samples(Z[groups == g]) for g in range(3)]
+    assert np.allclose(joint, np.concatenate(parts))
+    assert not np.allclose(joint, det.score_samples(Z))
+
+
+def test_filter_and_debounce_change_the_signal_as_documented(rng):
+    X, current, _ = bumpy_run(rng)
+    Z = stack_currents(X, current)
+    plain = CollisionDetector(LinearRegression()).fit(Z)
+    filtered = CollisionDetector(LinearRegression(), filter_cutoff=2.0).fit(Z)
+    raw = plain.monitoring_signal(Z)
+    smooth = filtered.monitoring_signal(Z)
+    assert np.std(np.diff(smooth.signal[:, 0])) < 0.5 * np.std(np.diff(raw.signal[:, 0]))
+    debounced = CollisionDetector(LinearRegression(), min_duration=3).fit(Z)
+    ratio = np.abs(raw.residual[:, 0]) / debounced.scale_[0]
+    expected = np.minimum(np.minimum(ratio[2:], ratio[1:-1]), ratio[:-2])
+    assert np.allclose(debounced.monitoring_signal(Z).ratio[2:, 0], expected)
+    assert np.all(debounced.monitoring_signal(Z).ratio[:2] == 0.0)
+
+
+def test_default_regressor_is_sp_p(rng):
+    X, current = augmented_run(120, 1, rng)
+    det = CollisionDetector(sigma_v=0.05).fit(stack_currents(X, current))
+    assert isinstance(det.regressor_, SemiParametricGPRegressor)
+    assert det.regressor_.sigma_v == 0.05
+    gate = det.regressor_.kernel_.k1.k1.k2
+    assert isinstance(gate, QuasiStaticGate) and gate.sigma_v == 0.05
+
+
+@pytest.mark.parametrize(
+    "params, match",
+    [
+        ({"threshold": "quantile"}, "threshold must be one of"),
+        ({"contamination": 0.7}, "contamination must be"),
+        ({"min_duration": 0}, "min_duration must be"),
+        ({"filter_order": 3}, "filter_order must be"),
+        ({"filter_cutoff": 100.0}, "filter_cutoff must lie in"),
+        ({"normalize": "std"}, "return_std"),
+        ({"sigma_v": 0.1}, "no sigma_v parameter"),
+        ({"n_joints": 2}, "at least 3 columns"),
+    ],
+)
+def test_invalid_settings_name_the_problem(params, match, rng):
+    Z = rng.normal(size=(50, 2))
+    with pytest.raises(ValueError, match=match):
+        CollisionDetector(Ridge(), **params).fit(Z)
+
+
+# -------------------------------------------------------------- streaming
+def _stream_matches_batch(det, Z, groups=None):
+    monitor = StreamingMonitor(det)
+    out = monitor.replay(Z, groups=groups)
+    batch = det.monitoring_signal(Z, groups=groups)
+    assert np.array_equal(out.prediction, det.predict(Z, groups=groups))
+    # a GP mean sums weights of both signs: agreement to conditioning precision
+    assert np.allclose(out.residual, batch.residual, rtol=1e-7, atol=1e-7)
+    assert np.allclose(out.ratio, batch.ratio, rtol=1e-6, atol=1e-6)
+    assert np.array_equal(out.alarms, batch.alarms)
+    return monitor, out
+
+
+@pytest.mark.parametrize("filter_order", [1, 2])
+def test_streaming_equals_batch_with_sp_p(filter_order, rng):
+    X, current = augmented_run(800, 2, rng)
+    det = CollisionDetector(
+        small_sp_p(2), n_joints=2, contamination=0.01,
+        filter_cutoff=8.0, filter_order=filter_order, min_duration=3,
+    ).fit(stack_currents(X[::2], current[::2]))
+    test_current = current + 0.01 * rng.normal(size=current.shape)
+    test_current[100:140, 0] += 1.5  # contact while moving
+    test_current[300:340, 1] -= 1.5  # contact at rest
+    Z = stack_currents(X, test_current)
+    groups = np.repeat([0, 1], 400)
+    monitor, out = _stream_matches_batch(det, Z, groups)
+    assert monitor.predictor_kind == "gaussian_process"
+    assert (out.prediction[100:140] == -1).any() and (out.prediction[300:340] == -1).any()
+    assert set(out.status) <= {"ok", "collision"}
+
+
+@pytest.mark.parametrize(
+    "regressor, kind",
+    [
+        (Ridge(), "linear"),
+        (KNeighborsRegressor(5), "generic"),
+        (GaussianProcessRegressor(C(1.0) * RBF([3.0] * 6) + WhiteKernel(0.01), optimizer=None),
+         "gaussian_process"),
+    ],
+)
+def test_streaming_equals_batch_for_other_regressors(regressor, kind, rng):
+    X, current = augmented_run(300, 1, rng)
+    det = CollisionDetector(regressor, contamination=0.05, filter_cutoff=5.0, min_duration=2)
+    det.fit(stack_currents(X, current))
+    monitor, _ = _stream_matches_batch(det, stack_currents(X, current + 0.05))
+    assert monitor.predictor_kind == kind
+
+
+def test_streaming_with_std_normalisation(rng):
+    X, current = augmented_run(200, 1, rng)
+    gp = GaussianProcessRegressor(C(1.0) * RBF([3.0] * 6) + WhiteKernel(0.01), optimizer=None)
+    det = CollisionDetector(gp, normalize="std", threshold="std", k=3.0).fit(
+        stack_currents(X, current)
+    )
+    _stream_matches_batch(det, stack_currents(X, current + 0.03))
+
+
+def test_sensor_fault_is_reported_and_skipped(rng):
+    X, current = augmented_run(400, 2, rng)
+    det = CollisionDetector(
+        Ridge(), n_joints=2, contamination=0.02, filter_cutoff=5.0, min_duration=3
+    ).fit(stack_currents(X, current))
+    Z = stack_currents(X, current)
+    bad = [50, 51, 200]
+    Z_faulty = Z.copy()
+    Z_faulty[50, 3] = np.nan
+    Z_faulty[51, -1] = np.inf
+    Z_faulty[200, 0] = np.nan
+    monitor = StreamingMonitor(det)
+    out = monitor.replay(Z_faulty)
+    assert list(out.status[bad]) == ["sensor_fault"] * 3
+    assert out.status[52] in ("ok", "collision") and out.status[201] in ("ok", "collision")
+    assert np.all(out.prediction[bad] == 0) and not out.alarms[bad].any()
+    # the faulty ticks are skipped: the rest equals batch predict without them
+    keep = np.setdiff1d(np.arange(len(Z)), bad)
+    assert np.array_equal(out.prediction[keep], det.predict(Z[keep]))
+    assert monitor.n_faults == 3 and monitor.n_ticks == len(Z)
+    # a missing sample, then recovery
+    assert monitor.update(None) is MonitorStatus.SENSOR_FAULT
+    assert np.isnan(monitor.residual).all()
+    assert monitor.update(Z[10]) in (MonitorStatus.OK, MonitorStatus.COLLISION)
+    assert np.isfinite(monitor.residual).all()
+
+
+def test_streaming_accepts_inputs_and_currents_separately(rng):
+    X, current = augmented_run(200, 2, rng)
+    det = CollisionDetector(Ridge(), n_joints=2).fit(stack_currents(X, current))
+    a, b = StreamingMonitor(det), StreamingMonitor(det)
+    for x, i in zip(X[:20], current[:20]):
+        assert a.update(x, current=i) == b.update(np.r_[x, i])
+        assert np.array_equal(a.residual, b.residual)
+    with pytest.raises(ValueError, match="14 values"):
+        a.update(X[0])
+    with pytest.raises(ValueError, match="current must have 2 values"):
+        a.update(X[0], current=[1.0])
+
+
+# ------------------------------------------------------- compiled predictor
+def test_compiled_gp_matches_predict_with_mean_gates_and_products(rng):
+    X, current = augmented_run(300, 2, rng)
+    n = 2
+    kernels = []
+    for joint in range(n):
+        gate = QuasiStaticGate(
+            C(0.5) * ARDRBF(np.ones(6 * n), columns=list(range(6 * n))),
+            velocity_column=column_index("qd", joint, n), sigma_v=SIGMA_V,
+        )
+        kinetic = C(1.0) * ARDRBF(np.ones(2), columns=[0, 1]) * RBF(np.ones(6 * n))
+        kernels.append(gate + kinetic + 0.1 * DotProduct() + WhiteKernel(0.01))
+    means = [
+        ParametricMean(friction_columns=[column_index("qd", j, n)],
+                       velocity_column=column_index("qd", j, n), sigma_v=SIGMA_V)
+        for j in range(n)
+    ]
+    gp = SemiParametricGPRegressor(kernels, means, optimizer=None, n_support=150,
+                                   random_state=0).fit(X, current)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no fallback
+        predictor = compile_predictor(gp, 6 * n, n)
+    assert predictor.kind == "gaussian_process"
+    assert len(predictor.generic) == n  # the DotProduct summands
+    got = np.array([predictor.predict_one(x, np.empty(n)) for x in X])
+    assert np.allclose(got, gp.predict(X), rtol=1e-8, atol=1e-8)
+
+
+def test_compiled_predictor_falls_back_when_it_disagrees(rng, monkeypatch):
+    X, current = augmented_run(100, 1, rng)
+    gp = GaussianProcessRegressor(RBF(np.ones(6))).fit(X, current[:, 0])
+    monkeypatch.setattr(gp, "alpha_", gp.alpha_ * 2.0)  # compiled path reads alpha_
+    monkeypatch.setattr(gp, "predict", lambda Z: np.zeros(len(Z)))
+    with pytest.warns(RuntimeWarning, match="falls back"):
+        predictor = compile_predictor(gp, 6, 1)
+    assert predictor.kind == "generic"
+
+
+# ----------------------------------------------------------- tuning by CV
+def _labelled_recordings(rng, n_recordings=3):
+    parts = [bumpy_run(rng) for _ in range(n_recordings)]
+    X = np.vstack([p[0] for p in parts])
+    current = np.concatenate([p[1] for p in parts])
+    labels = np.concatenate([p[2] + 10 * k * (p[2] > 0) for k, p in enumerate(parts)])
+    groups = np.repeat(np.arange(n_recordings), [len(p[2]) for p in parts])
+    return stack_currents(X, current), labels, groups
+
+
+class _RecordingFolds(GroupKFold):
+    """GroupKFold that records the test groups of every split."""
+
+    seen = []
+
+    def split(self, X, y=None, groups=None):
+        for train, test in super().split(X, y, groups):
+            assert not set(groups[train]) & set(groups[test])
+            self.seen.append(np.unique(groups[test]).tolist())
+            yield train, test
+
+
+def test_threshold_cv_scores_candidates_and_applies_the_rule(rng):
+    Z, labels, groups = _labelled_recordings(rng)
+    grid = {"contamination": [0.001, 0.2], "filter_cutoff": [None, 4.0], "min_duration": [1, 3]}
+    search = CollisionThresholdCV(
+        CollisionDetector(LinearRegression()), grid, cv=_RecordingFolds(3), max_delay=0.2
+    ).fit(Z, labels, groups=groups)
+    assert sorted(sum(_RecordingFolds.seen, [])) == [0, 1, 2]
+    res = search.cv_results_
+    assert len(res["params"]) == 8 and search.n_splits_ == 3
+    assert search.best_index_ == select_candidate(
+        res["mean_test_recall"], res["mean_test_false_alarms_per_hour"],
+        res["mean_test_delay"], max_delay=0.2,
+    )
+    best = search.best_index_
+    assert res["mean_test_recall"][best] == 1.0
+    assert res["mean_test_delay"][best] <= 0.2
+    assert search.best_params_["contamination"] == 0.001  # 0.2 floods with alarms
+    # one candidate re-scored by hand on fold 0
+    train, test = next(GroupKFold(3).split(Z, labels, groups))
+    det = CollisionDetector(LinearRegression(), **res["params"][best])
+    det.fit(Z[train], labels=labels[train], groups=groups[train])
+    alarms = det.predict(Z[test], groups=groups[test]) == -1
+    recall = event_recall(labels[test], alarms, max_delay=0.2, sample_time=0.008,
+                          groups=groups[test])
+    assert res["split0_test_recall"][best] == pytest.approx(recall)
+    assert np.array_equal(search.predict(Z), search.best_estimator_.predict(Z))
+
+
+def test_threshold_cv_refits_the_regressor_for_sigma_v(rng):
+    X, current = augmented_run(240, 1, rng)
+    labels = np.zeros(240, dtype=int)
+    current[50:70, 0] += 1.0
+    labels[50:70] = 1
+    current[170:190, 0] += 1.0
+    labels[170:190] = 2
+    search = CollisionThresholdCV(
+        CollisionDetector(make_sp_p(None, 1, n_support=40, optimizer=None)),
+        {"sigma_v": [0.01, 0.1], "min_duration": [1, 2]}, cv=2,
+    ).fit(stack_currents(X, current), labels, groups=np.repeat([0, 1], 120))
+    assert search.best_estimator_.regressor_.sigma_v == search.best_params_["sigma_v"]
+    assert np.all(np.isfinite(search.cv_results_["mean_test_recall"]))
+
+
+def test_threshold_cv_needs_several_recordings(rng):
+    Z, labels, _ = _labelled_recordings(rng, 1)
+    with pytest.raises(ValueError, match="at least 2 recordings"):
+        CollisionThresholdCV(CollisionDetector(Ridge()), {"k": [1.0]}).fit(
+            Z, labels, groups=np.zeros(len(Z))
+        )
+
+
+def test_grid_search_with_detection_scorers(rng):
+    Z, labels, groups = _labelled_recordings(rng)
+    search = GridSearchCV(
+        CollisionDetector(LinearRegression()),
+        {"contamination": [0.001, 0.2]},
+        scoring=detection_scorers(max_delay=0.2),
+        refit=DetectionRefit(max_delay=0.2),
+        cv=GroupKFold(3),
+    ).fit(Z, labels, groups=groups, labels=labels)
+    assert search.best_params_ == {"contamination": 0.001}
+    assert search.cv_results_["mean_test_recall"][search.best_index_] == 1.0
+
+
+# ------------------------------------------------------- simulated robot
+@pytest.fixture(scope="module")
+def interaction_runs():
+    datasets = pytest.importorskip("sklearn_gpcd.datasets")
+    features = pytest.importorskip("sklearn_gpcd.features")
+    reference, contacts = datasets.reference_interaction_test(
+        n_turns=0.5, rest_duration=12.0, random_state=0
+    )
+    train = [datasets.simulate(reference, random_state=s, name="free") for s in (2, 3, 4)]
+    test = datasets.simulate(reference, contacts=contacts, random_state=1, name="pushes")
+    X_train, i_train = features.make_inputs(train)
+    X_test, i_test = features.make_inputs(test)
+    groups = np.repeat(np.arange(3), [r.n_samples for r in train])
+    rest_start = 1.0 + (reference.duration - 1.0 - 12.0)  # lead + circle
+    return (stack_currents(X_train, i_train), groups, stack_currents(X_test, i_test),
+            test, rest_start)
+
+
+def test_interaction_test_on_the_simulator(interaction_runs):
+    """Paper Sec. V-B: four pushes on link 1, two moving and two at rest."""
+    Z_train, groups, Z_test, test, rest_start = interaction_runs
+    det = CollisionDetector(
+        make_sp_p(None, 6, n_support=120, random_state=0, n_jobs=2), n_joints=6,
+        threshold="false_alarm_rate", false_alarm_rate=1.0, filter_cutoff=2.0, min_duration=3,
+    ).fit(Z_train, groups=groups)
+    fired = det.predict_joints(Z_test)
+    alarms = fired.any(axis=1)
+    labels = test.labels
+    assert event_recall(labels, alarms) == 1.0  # every push, during the push
+    assert fired[labels > 0, 0].any() and not fired[labels > 0, 1:].any()
+    # Collision-free rest: from the end of the circle to the last push, except
+    # the 3rd push and the 1 s in which the servo pulls the arm back after it.
+    # (After the last push the arm holds a new stiction equilibrium that the
+    # push-free training runs never visited, and the detector keeps flagging
+    # it; that stretch is the collision's aftermath, not checked here.)
+    starts, stops = contact_events(labels)
+    free_rest = (test.time >= rest_start) & (test.time < test.time[starts[-1]]) & (labels == 0)
+    for stop in stops:
+        after = test.time[stop - 1]
+        free_rest &= ~((test.time >= after) & (test.time < after + 1.0))
+    assert free_rest.sum() > 500
+    assert not alarms[free_rest].any()
+    # and the streaming monitor agrees, sample for sample
+    _stream_matches_batch(det, Z_test)
+
+
+# ---------------------------------------------------------------- plotting
+def test_plot_monitoring_draws_fig3(rng):
+    matplotlib = pytest.importorskip("matplotlib")
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sklearn_gpcd.plotting import plot_monitoring
+
+    X, current, labels = bumpy_run(rng)
+    det = CollisionDetector(LinearRegression()).fit(stack_currents(X, current), labels=labels)
+    out = det.monitoring_signal(stack_currents(X, current))
+    time = np.arange(len(X)) * 0.008
+    axes = plot_monitoring(time, current, out.predicted, X[:, 1], out.signal,
+                           det.thresholds_, labels=labels)
+    assert len(axes) == 3
+    assert len(axes[0].patches) == 4  # one grey span per contact, on each panel
+    band = axes[2].collections[0].get_paths()[0].vertices[:, 1]
+    assert np.isclose(band.max(), det.thresholds_[0])
+    with pytest.raises(ValueError, match="joint=3"):
+        plot_monitoring(time, current[:, None], out.predicted, X[:, 1], out.signal, 0.1,
+                        joint=3)
+    plt.close("all")
+
+
+def test_named_columns_reach_the_regressor(rng):
+    pd = pytest.importorskip("pandas")
+    X, current = augmented_run(200, 1, rng)
+    names = ["q_0", "qd_0", "qdd_0", "e_q_0", "de_q_0", "i_c_0", "i_0"]
+    frame = pd.DataFrame(stack_currents(X, current), columns=names)
+    kernel = C(1.0) * ARDRBF([3.0, 3.0], columns=["q_0", "qd_0"]) + WhiteKernel(0.01)
+    det = CollisionDetector(SemiParametricGPRegressor(kernel, optimizer=None))
+    det.fit(frame)
+    assert list(det.regressor_.feature_names_in_) == names[:-1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "X does not have valid feature names"
+        monitor = StreamingMonitor(det)
+        out = monitor.replay(frame.to_numpy())
+    assert monitor.predictor_kind == "gaussian_process"
+    assert np.array_equal(out.prediction, det.predict(frame))
