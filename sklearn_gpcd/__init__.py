@@ -56,6 +56,10 @@ _EXPORTS = {
     "detection_delay": "metrics",
     "false_alarms_per_hour": "metrics",
     "plot_monitoring": "plotting",
+    "DynamicsDiagnosis": "diagnosis",
+    "DiagnosedModel": "diagnosis",
+    "residual_breakdown": "diagnosis",
+    "align_recordings": "diagnosis",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -73,6 +73,46 @@ def _cmd_robots(args):
     return 0
 
 
+def _cmd_diagnose(args):
+    """``gpcd diagnose``: name the physics the robot model misses (see sklearn_gpcd.diagnosis)."""
+    from .diagnosis import DynamicsDiagnosis
+    from .io import load_recording
+
+    def split(text, what):
+        if text is None:
+            return None
+        try:
+            return [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
+        except ValueError:
+            raise ValueError(f"{what} must be comma-separated numbers, got {text!r}") from None
+
+    def load(paths):
+        return [load_recording(path) for path in paths] if paths else None
+
+    torque_constants = split(args.torque_constants, "--torque-constants")
+    friction = None
+    if args.coulomb is not None or args.viscous is not None:
+        n = args.robot.n_joints
+        friction = {"coulomb": split(args.coulomb, "--coulomb") or [0.0] * n,
+                    "viscous": split(args.viscous, "--viscous") or [0.0] * n}
+    effects = "all" if args.effects is None else [e.strip() for e in args.effects.split(",")]
+    start = time.perf_counter()
+    train, test = load(args.train), load(args.test)
+    diagnosis = DynamicsDiagnosis(args.robot, torque_constants=torque_constants,
+                                  friction=friction, effects=effects)
+    diagnosis.fit(train, simulated=load(args.simulated))
+    report = diagnosis.report(test, load(args.test_simulated))
+    print(report.text())
+    if args.json:
+        report.to_json(args.json)
+        print(f"\nwrote {args.json}")
+    if args.plot:
+        report.plot(args.plot)
+        print(f"wrote {args.plot}")
+    print(f"done in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
 def build_parser():
     """The argument parser of the ``gpcd`` command.
 
@@ -122,6 +162,33 @@ def build_parser():
 
     rob = sub.add_parser("robots", help="list the built-in robots")
     rob.set_defaults(func=_cmd_robots)
+
+    dia = sub.add_parser(
+        "diagnose",
+        help="find the physics the robot model misses in real recordings",
+        description="Compare recordings (UR RTDE CSV, other CSV, NPZ, ROS bags) with the "
+        "nominal model of --robot, name the missing effects (payload, friction terms, torque "
+        "constants, ...) with their parameters, and show the nMSE before/after on --test.",
+    )
+    dia.add_argument("train", nargs="+", help="training recordings")
+    dia.add_argument("--robot", type=_robot_arg, default="ur10",
+                     help="built-in name or URDF path")
+    dia.add_argument("--torque-constants", default=None,
+                     help="comma-separated Nm/A per joint (default: the robot's)")
+    dia.add_argument("--coulomb", default=None,
+                     help="known nominal Coulomb friction, comma-separated Nm per joint")
+    dia.add_argument("--viscous", default=None,
+                     help="known nominal viscous friction, comma-separated Nm s/rad per joint")
+    dia.add_argument("--effects", default=None,
+                     help="comma-separated effect names to test (default: all)")
+    dia.add_argument("--test", nargs="+", default=None, help="held-out recordings")
+    dia.add_argument("--simulated", nargs="+", default=None,
+                     help="simulated runs of the training trajectories (pair mode)")
+    dia.add_argument("--test-simulated", nargs="+", default=None,
+                     help="simulated runs of the test trajectories (pair mode)")
+    dia.add_argument("--json", default=None, help="write the report as JSON here")
+    dia.add_argument("--plot", default=None, help="write the figure here (PNG, PDF, ...)")
+    dia.set_defaults(func=_cmd_diagnose)
     return parser
 
 

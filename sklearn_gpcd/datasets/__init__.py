@@ -7,6 +7,14 @@ sensor noise, external contacts and injected effects, and logs a
 build the paper's experiments on it.
 """
 
+from ._extra_effects import (
+    FrictionDelta,
+    GravityTilt,
+    LinkMass,
+    RotorInertiaChange,
+    delay_logged_current,
+    friction_drift,
+)
 from .contacts import Contact, contact_labels
 from .effects import (
     CurrentDelay,
@@ -33,6 +41,12 @@ from .trajectory import JointTrajectory
 from .workspace import Hemisphere, inverse_kinematics
 
 __all__ = [
+    "FrictionDelta",
+    "GravityTilt",
+    "LinkMass",
+    "RotorInertiaChange",
+    "delay_logged_current",
+    "friction_drift",
     "Contact",
     "CurrentDelay",
     "CurrentOffset",

@@ -1,0 +1,142 @@
+"""Real data: is the payload of the loaded UR10e runs diagnosed, and how heavy is it?
+
+Data: ``ur10e_mamedov/identification_data`` (Mamedov et al. 2020; no
+redistribution licence, read in place, never copied). Files with "load" in
+the name carry a payload (``ur-20_01_13-load_2600.csv``: presumably 2.6 kg,
+the data README says nothing more); ``ur-20_01_31-unload.csv`` and the
+``*harm50sec.csv`` runs without "Load" are unloaded.
+
+Two protocols, both against the built-in (unloaded) UR10e model:
+
+A. *direct*: each loaded run against the published model and torque
+   constants, no friction known (friction is reported as missing too);
+B. *calibrated*: the unloaded runs are diagnosed first (friction, rotor
+   inertia, ... of the real robot) and each loaded run is diagnosed
+   against that refined model; the unloaded runs themselves serve as
+   controls (leave-one-out calibration).
+
+Run ``python benchmarks/real_payload_diagnosis.py [--data DIR] [--json OUT]``.
+Exits 0 with a message when the data is absent.
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from sklearn_gpcd.diagnosis import DynamicsDiagnosis
+from sklearn_gpcd.io import RecordingWarning, load_recording
+from sklearn_gpcd.robots import load_robot
+
+UNLOADED = ("ur-20_02_19_14harm50sec.csv", "ur-20_02_19_15harm50sec.csv",
+            "ur-20_01_31-unload.csv")
+LOADED = ("ur-20_02_19_14harm50secLoad.csv", "ur-20_02_19_15harm50secLoad.csv",
+          "ur-20_01_31-load.csv", "ur-20_01_13-load_2600.csv")
+#: Held-out pairs: same payload mounting (centre of mass found alike).
+HELDOUT = {"ur-20_02_19_14harm50secLoad.csv": "ur-20_01_31-load.csv",
+           "ur-20_01_31-load.csv": "ur-20_02_19_14harm50secLoad.csv"}
+
+
+def data_folder(explicit):
+    if explicit:
+        return Path(explicit)
+    root = os.environ.get("GPCD_REAL_DATA")
+    root = Path(root) if root else Path(__file__).resolve().parents[1] / ".." / "shared" / \
+        "data" / "real"
+    return root / "ur10e_mamedov" / "identification_data"
+
+
+def payload_of(diagnosis):
+    for effect in diagnosis.effects_:
+        if effect.name == "payload":
+            p = effect.parameters
+            return {"mass": p["mass"][0], "mass_std": p["mass"][1],
+                    "com": [p[k][0] for k in ("com_x", "com_y", "com_z")],
+                    "evidence_t": effect.evidence.t if effect.evidence else None}
+    return None
+
+
+def summary(diagnosis):
+    return sorted({f"{e.name}" for e in diagnosis.effects_})
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", default=None, help="identification_data folder")
+    parser.add_argument("--json", default=None, help="write all numbers here")
+    args = parser.parse_args(argv)
+    folder = data_folder(args.data)
+    if not all((folder / name).is_file() for name in UNLOADED + LOADED):
+        print(f"real data not found in {folder}: skipped")
+        return 0
+    warnings.simplefilter("ignore", RecordingWarning)
+    start = time.perf_counter()
+    recs = {name: load_recording(folder / name) for name in UNLOADED + LOADED}
+    robot = load_robot("ur10e")
+    results = {"direct": {}, "calibrated": {}, "controls": {}, "seconds": {}}
+
+    print("A. direct: loaded run vs the published UR10e model (no friction known)")
+    t0 = time.perf_counter()
+    for name in LOADED:
+        diag = DynamicsDiagnosis(robot).fit(recs[name])
+        results["direct"][name] = {"payload": payload_of(diag), "effects": summary(diag)}
+        pay = payload_of(diag)
+        print(f"   {name:36s} payload {pay['mass']:.2f} +- {pay['mass_std']:.2f} kg"
+              if pay else f"   {name:36s} no payload found")
+    results["seconds"]["direct"] = time.perf_counter() - t0
+
+    print("B. calibrated: unloaded runs first, then each loaded run against that model")
+    t0 = time.perf_counter()
+    base = DynamicsDiagnosis(robot).fit([recs[n] for n in UNLOADED])
+    results["calibration_effects"] = summary(base)
+    results["seconds"]["calibration"] = time.perf_counter() - t0
+    print(f"   calibration found: {', '.join(summary(base))} "
+          f"({results['seconds']['calibration']:.1f} s)")
+    t0 = time.perf_counter()
+    for name in LOADED:
+        diag = DynamicsDiagnosis(base_model=base.model_).fit(recs[name])
+        entry = {"payload": payload_of(diag), "effects": summary(diag),
+                 "nmse_before_train": diag.nmse_train_before_.tolist(),
+                 "nmse_after_train": diag.nmse_train_after_.tolist()}
+        if name in HELDOUT:
+            scores = diag.evaluate(recs[HELDOUT[name]])
+            entry["heldout"] = {"recording": HELDOUT[name], "nmse_before": scores["nmse_before"],
+                                "nmse_after": scores["nmse_after"]}
+        results["calibrated"][name] = entry
+        pay = entry["payload"]
+        line = (f"   {name:36s} payload {pay['mass']:.2f} +- {pay['mass_std']:.2f} kg, "
+                f"com {np.round(pay['com'], 3).tolist()} m" if pay else
+                f"   {name:36s} no payload found")
+        print(line + f"; effects: {', '.join(entry['effects'])}")
+        if "heldout" in entry:
+            h = entry["heldout"]
+            print(f"      held-out on {h['recording']}: nMSE "
+                  f"{np.round(h['nmse_before'], 4).tolist()} -> "
+                  f"{np.round(h['nmse_after'], 4).tolist()}")
+    results["seconds"]["loaded"] = time.perf_counter() - t0
+
+    print("   controls (unloaded run vs a model calibrated on the other unloaded runs):")
+    t0 = time.perf_counter()
+    for name in UNLOADED:
+        others = [recs[n] for n in UNLOADED if n != name]
+        calib = DynamicsDiagnosis(robot).fit(others)
+        diag = DynamicsDiagnosis(base_model=calib.model_).fit(recs[name])
+        results["controls"][name] = {"payload": payload_of(diag), "effects": summary(diag)}
+        pay = payload_of(diag)
+        print(f"   {name:36s} " + (f"payload {pay['mass']:.2f} kg (!)" if pay else
+                                  "no payload") + f"; effects: {', '.join(summary(diag)) or '-'}")
+    results["seconds"]["controls"] = time.perf_counter() - t0
+    results["seconds"]["total"] = time.perf_counter() - start
+    print(f"total {results['seconds']['total']:.1f} s")
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,350 @@
+"""The diagnosis estimator: locate, name, model and show missing physics."""
+
+import numbers
+import time as _time
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
+
+from .align import align_recordings
+from .effects import effect_library
+from .locate import residual_breakdown
+from .model import joint_fit
+from .nominal import NominalModel, Signals, check_recordings
+from .selection import MIN_GAIN, MIN_T, build_candidates, fold_index, fold_statistics, \
+    forward_selection
+
+
+def _nmse(current, prediction, mask):
+    """Per-joint nMSE (paper Eq. 18) over ``mask``; NaN where the current is constant."""
+    try:
+        from ..metrics import nmse
+    except ImportError:  # pragma: no cover - metrics is part of the package
+        nmse = None
+    if nmse is not None:
+        return np.asarray(nmse(current, prediction, mask=mask), dtype=float)
+    out = np.full(current.shape[1], np.nan)
+    for j in range(current.shape[1]):
+        t, p = current[mask[:, j], j], prediction[mask[:, j], j]
+        if t.size and np.var(t) > 0:
+            out[j] = np.mean((t - p) ** 2) / np.var(t)
+    return out
+
+
+class DynamicsDiagnosis(BaseEstimator):
+    """Find the physics a nominal robot model is missing, from recordings.
+
+    Given a nominal model ("the simulation": a robot, its torque constants and
+    optionally its known friction) and real recordings, :meth:`fit`
+
+    1. **locates** the residual between measured and nominal current by
+       joint, regime, configuration region and time
+       (:func:`~sklearn_gpcd.diagnosis.residual_breakdown`);
+    2. **names** the missing effects: every effect of the library
+       (:mod:`~sklearn_gpcd.diagnosis.effects`) competes in a greedy forward
+       selection scored on held-out time blocks
+       (:mod:`~sklearn_gpcd.diagnosis.selection`); an effect is kept only
+       when it reliably lowers the held-out error;
+    3. **models** them: the selected effects are refitted jointly into a
+       :class:`~sklearn_gpcd.diagnosis.DiagnosedModel`, usable as the GP's
+       parametric mean;
+    4. **shows** the improvement: :meth:`evaluate` gives the per-joint nMSE
+       before/after on held-out recordings and :meth:`report` a text/JSON
+       report and figure.
+
+    Instead of a model, the reference can be a simulated run of the same
+    trajectory per real recording (``simulated`` in :meth:`fit`); it is
+    time-aligned by :func:`~sklearn_gpcd.diagnosis.align_recordings`. The
+    robot is still needed for the effects' columns.
+
+    Parameters
+    ----------
+    robot : str, path or Robot, default="ur10"
+        Built-in robot name, URDF path or :class:`~sklearn_gpcd.robots.Robot`
+        (its ``model.armature`` holds the nominal rotor inertias).
+    torque_constants : array-like of shape (n_joints,), default=None
+        Nominal ``K`` [Nm/A]; None reads ``robot.torque_constants``.
+    friction : None, dict, JointFriction-like or callable, default=None
+        Known nominal friction (see :class:`NominalModel`). Without it,
+        Coulomb/viscous friction are reported as missing.
+    effects : "all" or list of str or Effect, default="all"
+        Effects to test (names of :data:`~sklearn_gpcd.diagnosis.effects.EFFECTS`).
+    sigma_rest : float, default=1e-3
+        Rows where a joint is slower than this [rad/s] are left out of that
+        joint's fit (sticking friction is not a function of the state).
+    rest_guard : float, default=0.04
+        Rows within this many seconds of such a rest are left out of the fit
+        of effects that need it (a delayed log mixes in the holding current
+        of the stuck joint; see ``Effect.rest_guard``) and of every effect
+        once one of them is selected.
+    sigma_v : float, default=1e-2
+        Quasi-static threshold for the regime breakdown (paper Eq. 15).
+    n_splits : int, default=5
+        Time blocks per recording = cross-validation folds.
+    min_gain : float, default=0.02
+        Minimum share of the held-out error of its joints an effect must
+        remove to be selected.
+    min_t : float, default=3.0
+        Minimum t-statistic of its per-fold gains.
+    max_effects : int, default=None
+        Upper bound on the number of selected effects.
+    base_model : DiagnosedModel, default=None
+        A model refined by an earlier diagnosis (e.g. on unloaded runs) to
+        diagnose against: its prediction is the reference current, and
+        ``robot``, ``torque_constants`` and ``friction`` are taken from it.
+
+    Attributes
+    ----------
+    nominal_ : NominalModel
+    model_ : DiagnosedModel
+        Nominal model plus the fitted effects.
+    effects_ : list of FittedEffect
+        The missing effects found (empty when nothing is missing).
+    breakdown_ : ResidualBreakdown
+        Residual of the nominal model on the training recordings.
+    breakdown_after_ : ResidualBreakdown
+        Residual of the refined model on the training recordings.
+    history_ : list of list of Step
+        Evidence of every candidate at every forward step.
+    n_candidates_ : int
+        Candidates tested (effect x joint/link x nonlinear setting).
+    training_summary_ : dict
+        Recordings, samples, duration, and time spent.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> from sklearn_gpcd.robots import load_robot
+    >>> from sklearn_gpcd.diagnosis import DynamicsDiagnosis, NominalModel
+    >>> robot = load_robot("ur10")
+    >>> t = np.arange(0, 20, 0.01)
+    >>> q = 0.5 * np.sin(np.outer(t, [0.5, 0.7, 0.9, 1.1, 1.3, 1.5]))
+    >>> q += [0, -1.5, 1.5, -1.5, -1.5, 0]
+    >>> qd = np.gradient(q, t, axis=0); qdd = np.gradient(qd, t, axis=0)
+    >>> i = NominalModel(robot).current(q, qd, qdd) + 0.5 * np.sign(qd) / robot.torque_constants
+    >>> rec = Recording(time=t, q=q, qd=qd, qdd=qdd, current=i + 0.01 * np.sin(50 * t)[:, None])
+    >>> diag = DynamicsDiagnosis(robot, effects=["coulomb_friction", "payload"]).fit(rec)
+    >>> sorted({e.name for e in diag.effects_})
+    ['coulomb_friction']
+    """
+
+    def __init__(self, robot="ur10", torque_constants=None, friction=None, effects="all",
+                 sigma_rest=1e-3, rest_guard=0.04, sigma_v=1e-2, n_splits=5,
+                 min_gain=MIN_GAIN, min_t=MIN_T,
+                 max_effects=None, base_model=None):
+        self.robot = robot
+        self.torque_constants = torque_constants
+        self.friction = friction
+        self.effects = effects
+        self.sigma_rest = sigma_rest
+        self.rest_guard = rest_guard
+        self.sigma_v = sigma_v
+        self.n_splits = n_splits
+        self.min_gain = min_gain
+        self.min_t = min_t
+        self.max_effects = max_effects
+        self.base_model = base_model
+
+    # ------------------------------------------------------------ helpers
+    def _check_params(self):
+        for name in ("sigma_rest", "rest_guard", "sigma_v", "min_t"):
+            value = getattr(self, name)
+            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
+        if not (isinstance(self.min_gain, numbers.Real) and 0 <= self.min_gain < 1):
+            raise ValueError(f"min_gain must be in [0, 1), got {self.min_gain!r}")
+        if not (isinstance(self.n_splits, numbers.Integral) and self.n_splits >= 2):
+            raise ValueError(f"n_splits must be an integer >= 2, got {self.n_splits!r}")
+        if self.max_effects is not None and not (
+                isinstance(self.max_effects, numbers.Integral) and self.max_effects >= 0):
+            raise ValueError(f"max_effects must be None or an integer >= 0, got "
+                             f"{self.max_effects!r}")
+
+    def _references(self, recordings, simulated, what):
+        """Aligned simulated currents (or the base model's) for each recording."""
+        if simulated is None:
+            if self.base_model is not None:
+                return list(self.base_model.predict(list(recordings))), None
+            return None, None
+        sims = check_recordings(simulated, self.nominal_.n_joints, f"{what} (simulated)")
+        if len(sims) != len(recordings):
+            raise ValueError(
+                f"{what}: {len(recordings)} real recordings but {len(sims)} simulated runs; "
+                "pass one simulated run per real recording"
+            )
+        pairs = [align_recordings(s, r) for s, r in zip(sims, recordings)]
+        return [p[0] for p in pairs], [p[1] for p in pairs]
+
+    def _signals(self, recordings, simulated, what):
+        recordings = check_recordings(recordings, self.nominal_.n_joints, what)
+        references, lags = self._references(recordings, simulated, what)
+        return Signals.from_recordings(self.nominal_, recordings, references), lags
+
+    def _mask(self, signals, guard=False):
+        """Rows used per joint: moving (and with ``guard``, not within ``rest_guard`` of a rest)."""
+        rest = np.abs(signals.qd) < self.sigma_rest
+        if not guard or signals.time is None or not self.rest_guard:
+            return ~rest
+        near = rest.copy()
+        for seg in np.unique(signals.segment):
+            rows = np.flatnonzero(signals.segment == seg)
+            step = float(np.median(np.diff(signals.time[rows]))) if rows.size > 1 else 1.0
+            width = int(np.ceil(self.rest_guard / step)) if step > 0 else 0
+            if width == 0:
+                continue
+            kernel = np.ones(2 * width + 1)
+            for j in range(signals.n_joints):
+                hits = np.convolve(rest[rows, j].astype(float), kernel, mode="same")
+                near[rows, j] = hits > 0.5
+        return ~near
+
+    # ---------------------------------------------------------------- API
+    def fit(self, recordings, simulated=None):
+        """Locate, name and model what the nominal model is missing.
+
+        Parameters
+        ----------
+        recordings : Recording or list of Recording
+            Real (measured) recordings.
+        simulated : Recording or list of Recording, default=None
+            One simulated run of the same trajectory per real recording; its
+            time-aligned current replaces the nominal model's prediction.
+
+        Returns
+        -------
+        self : DynamicsDiagnosis
+        """
+        start = _time.perf_counter()
+        self._check_params()
+        if self.base_model is not None:
+            if not hasattr(self.base_model, "predict_signals"):
+                raise TypeError("base_model must be a DiagnosedModel (e.g. an earlier "
+                                f"diagnosis' model_), got {type(self.base_model).__name__}")
+            self.nominal_ = self.base_model.nominal
+        else:
+            self.nominal_ = NominalModel(self.robot, self.torque_constants, self.friction)
+        library = effect_library(self.effects)
+        signals, lags = self._signals(recordings, simulated, "recordings")
+        mask = self._mask(signals)
+        units = self.units_ = check_recordings(recordings, self.nominal_.n_joints)[0].units
+        residual = signals.current - signals.reference
+        self.breakdown_ = residual_breakdown(signals, residual, self.sigma_v, self.sigma_rest,
+                                             units=units)
+        prepared = _time.perf_counter()
+
+        candidates, design = build_candidates(signals, self.nominal_, library)
+        folds = fold_index(signals, self.n_splits)
+        stats = fold_statistics(candidates, design, residual, mask, folds, self.n_splits,
+                                signals.current)
+        guarded_mask, guarded = mask, None
+        if any(c.effect.rest_guard for c in candidates):
+            guarded_mask = self._mask(signals, guard=True)
+            guarded = fold_statistics(candidates, design, residual, guarded_mask, folds,
+                                      self.n_splits, signals.current)
+        selected, self.history_ = forward_selection(
+            stats, candidates, self.min_gain, self.min_t, self.max_effects, guarded)
+        selection_done = _time.perf_counter()
+        if any(s.candidate.effect.rest_guard for s in selected):
+            mask = guarded_mask
+        self.model_ = joint_fit(signals, self.nominal_, selected, mask)
+        self.effects_ = self.model_.effects
+        after = signals.current - self.model_.predict_signals(signals)
+        self.breakdown_after_ = residual_breakdown(signals, after, self.sigma_v, self.sigma_rest,
+                                                   units=units)
+        self.n_candidates_ = len(candidates)
+        self.nmse_train_before_ = _nmse(signals.current, signals.reference, mask)
+        self.nmse_train_after_ = _nmse(signals.current, self.model_.predict_signals(signals),
+                                       mask)
+        end = _time.perf_counter()
+        self.training_summary_ = {
+            "recordings": list(signals.names),
+            "n_samples": int(signals.n_samples),
+            "duration": float(sum(signals.time[signals.segment == s][-1]
+                                  for s in np.unique(signals.segment))),
+            "alignment_lags": lags,
+            "seconds": {"prepare": prepared - start, "select": selection_done - prepared,
+                        "fit": end - selection_done, "total": end - start},
+        }
+        return self
+
+    def predict(self, recordings, simulated=None):
+        """Refined currents of recordings (see :meth:`DiagnosedModel.predict`).
+
+        Parameters
+        ----------
+        recordings : Recording or list of Recording
+        simulated : Recording or list of Recording, default=None
+            Paired simulated runs (when the diagnosis was fitted with them).
+
+        Returns
+        -------
+        current : ndarray or list of ndarray
+        """
+        check_is_fitted(self, "model_")
+        single = not isinstance(recordings, (list, tuple))
+        recs = check_recordings(recordings, self.nominal_.n_joints)
+        refs, _ = self._references(recs, None if simulated is None else
+                                   ([simulated] if single else simulated), "recordings")
+        out = self.model_.predict(recs, refs)
+        return out[0] if single else out
+
+    def evaluate(self, recordings, simulated=None):
+        """Held-out nMSE per joint before (nominal) and after (refined model).
+
+        The main figures are over the samples where the joint moves
+        (``|qd| >= sigma_rest``); ``*_all`` use every sample (where a
+        sticking joint's holding current is unpredictable by any model of
+        the state).
+
+        Parameters
+        ----------
+        recordings : Recording or list of Recording
+            Held-out recordings.
+        simulated : Recording or list of Recording, default=None
+            Paired simulated runs.
+
+        Returns
+        -------
+        scores : dict
+            ``nmse_before``, ``nmse_after``, ``nmse_before_all``,
+            ``nmse_after_all`` (lists, one per joint), ``n_samples``,
+            ``recordings``.
+        """
+        check_is_fitted(self, "model_")
+        if simulated is not None and not isinstance(simulated, (list, tuple)):
+            simulated = [simulated]
+        signals, _ = self._signals(recordings, simulated, "test recordings")
+        mask = self._mask(signals)
+        after = self.model_.predict_signals(signals)
+        every = np.ones_like(mask)
+        return {
+            "recordings": list(signals.names),
+            "n_samples": int(signals.n_samples),
+            "nmse_before": _nmse(signals.current, signals.reference, mask).tolist(),
+            "nmse_after": _nmse(signals.current, after, mask).tolist(),
+            "nmse_before_all": _nmse(signals.current, signals.reference, every).tolist(),
+            "nmse_after_all": _nmse(signals.current, after, every).tolist(),
+        }
+
+    def report(self, test=None, test_simulated=None):
+        """The diagnosis report (text, JSON, figure).
+
+        Parameters
+        ----------
+        test : Recording or list of Recording, default=None
+            Held-out recordings for the before/after nMSE; None uses the
+            training recordings (in-sample, said so in the report).
+        test_simulated : Recording or list of Recording, default=None
+            Paired simulated runs of ``test``.
+
+        Returns
+        -------
+        report : DiagnosisReport
+        """
+        from .report import DiagnosisReport
+
+        check_is_fitted(self, "model_")
+        scores = None if test is None else self.evaluate(test, test_simulated)
+        return DiagnosisReport.from_diagnosis(self, scores)

@@ -1,0 +1,785 @@
+"""The library of named physical effects a nominal model may be missing.
+
+Every effect adds a term to the predicted current of some joints that is
+linear in a few parameters :math:`\\theta`:
+
+.. math::
+
+    i_\\ell = \\hat i_\\ell + \\sum_{e} D_{e,\\ell}(x)\\, \\theta_e ,
+
+where :math:`\\hat i` is the nominal (reference) current and the columns
+:math:`D_{e,\\ell}` are torques divided by the torque constant
+:math:`K_\\ell` (so :math:`\\theta_e` is in physical units), the nominal
+current itself (torque constant), ones (current offset) or its time
+derivative (time delay, first order in the delay; the final fit iterates
+the exact shift to a fixed point). The
+Stribeck velocity is a nonlinear parameter found by a 1-D search, and the
+payload's centre of mass enters its inertia quadratically (fixed point).
+
+=====================  ======================================================
+``coulomb_friction``   :math:`\\Delta F_c\\,\\mathrm{sign}(\\dot q_\\ell)`, per joint
+``viscous_friction``   :math:`\\Delta F_v\\,\\dot q_\\ell`, per joint
+``stribeck_friction``  :math:`\\Delta F_s\\,\\mathrm{sign}(\\dot q_\\ell)
+                       e^{-(\\dot q_\\ell/v_s)^2}`, per joint; :math:`v_s` by
+                       1-D search
+``rotor_inertia``      :math:`\\Delta J\\,\\ddot q_\\ell`, per joint
+``payload``            point mass ``m`` with centre of mass ``c`` at the flange:
+                       last link's regressor times a fixed map of ``(m, m c)``
+``link_mass``          extra mass at a link's nominal centre of mass plus a
+                       first-moment change ``(dm, d(m c))``, links 1..n-2
+``gravity_tilt``       base tilted by small roll/pitch: gravity torques of unit
+                       gravity along base x and y
+``torque_constant``    :math:`c\\,\\hat i_\\ell`: true constant is
+                       :math:`K_\\ell / (1 + c)`, per joint
+``current_offset``     constant current bias, per joint
+``time_delay``         logged current lags by ``d``:
+                       :math:`-d\\, d\\hat i/dt` (all joints, one ``d``)
+``joint_spring``       :math:`-k(q_\\ell - q_0)`, per joint
+``friction_drift``     Coulomb and viscous levels changing linearly with time
+                       since the start of the recording (warm-up), per joint
+=====================  ======================================================
+
+Each effect is a small class with :meth:`Effect.targets` (the joints or links
+it may act on), :meth:`Effect.design` (the columns) and
+:meth:`Effect.physical` (parameters with uncertainty in physical units).
+"""
+
+import numpy as np
+import pinocchio as pin
+
+#: Standard gravity [m/s^2] used to convert gravity components into tilt angles.
+STANDARD_GRAVITY = 9.81
+#: Velocity [rad/s] below which a joint counts as resting in predictions.
+REST_VELOCITY = 1e-3
+#: Default grid of logged-current delays [s] searched by ``time_delay``.
+DELAYS = (-0.016, -0.008, 0.004, 0.008, 0.016, 0.032, 0.064)
+#: Default grid of Stribeck velocities [rad/s] searched by ``stribeck_friction``.
+STRIBECK_VELOCITIES = tuple(np.geomspace(0.004, 0.25, 10).round(5))
+
+
+def _delta(func, theta, cov, eps=1e-7):
+    """Values of ``func(theta)`` and their std by the delta method (numeric Jacobian)."""
+    theta = np.asarray(theta, dtype=float)
+    value = np.asarray(func(theta), dtype=float)
+    jac = np.empty((value.size, theta.size))
+    for k in range(theta.size):
+        step = eps * max(1.0, abs(theta[k]))
+        shifted = theta.copy()
+        shifted[k] += step
+        jac[:, k] = (np.asarray(func(shifted), dtype=float).ravel() - value.ravel()) / step
+    var = np.einsum("ij,jk,ik->i", jac, cov, jac)
+    return value.ravel(), np.sqrt(np.maximum(var, 0.0))
+
+
+def _per_joint_column(signals, joint, values):
+    """One-joint design: ``{joint: values / K_joint}`` with ``values`` of shape (n, k)."""
+    values = np.asarray(values, dtype=float).reshape(signals.n_samples, -1)
+    return {joint: values / signals.torque_constants[joint]}
+
+
+class Effect:
+    """Base class of a named effect: a group of regressor columns.
+
+    Subclasses set the class attributes and implement :meth:`design` and,
+    when the parameters are not reported as fitted, :meth:`physical`.
+
+    Attributes
+    ----------
+    name : str
+        Identifier used in reports and JSON (``"payload"``).
+    title : str
+        Plain-words description.
+    per_joint : bool
+        True when the effect acts on one joint at a time.
+    parameter_names : tuple of str
+        Names of the physical parameters :meth:`physical` reports.
+    units : tuple of str
+        Their units.
+    needs_time : bool
+        True when the columns depend on time (not a function of the state).
+    rest_guard : bool
+        True when rows next to a joint's rest must be left out of its fit.
+    """
+
+    name = ""
+    title = ""
+    per_joint = True
+    parameter_names = ()
+    units = ()
+    needs_time = False
+    rest_guard = False
+
+    def targets(self, nominal):
+        """What the effect may act on: joints for per-joint effects, else ``[None]``.
+
+        Parameters
+        ----------
+        nominal : NominalModel
+
+        Returns
+        -------
+        targets : list
+        """
+        return list(range(nominal.n_joints)) if self.per_joint else [None]
+
+    def settings_grid(self):
+        """Values of the nonlinear settings tried in the selection (``[{}]`` if none)."""
+        return [{}]
+
+    def design(self, signals, nominal, target, **settings):
+        """Columns of the effect.
+
+        Parameters
+        ----------
+        signals : Signals
+        nominal : NominalModel
+        target : int or None
+            Joint (per-joint effects), link (``link_mass``) or None.
+        **settings
+            Nonlinear settings (e.g. ``stribeck_velocity``).
+
+        Returns
+        -------
+        columns : dict
+            ``{joint: ndarray of shape (n_samples, n_params)}`` for each joint
+            whose current the effect changes.
+        """
+        raise NotImplementedError
+
+    def prediction(self, signals, nominal, target, theta, settings):
+        """The effect's term in the predicted current, shape (n_samples, n_joints).
+
+        ``design(...) @ theta`` by default.
+        """
+        out = np.zeros((signals.n_samples, signals.n_joints))
+        for j, cols in self.design(signals, nominal, target, **settings).items():
+            out[:, j] = cols @ theta
+        return out
+
+    def physical(self, theta, cov, target, settings, nominal):
+        """Physical parameters with standard deviations.
+
+        Parameters
+        ----------
+        theta : ndarray of shape (n_params,)
+            Fitted column coefficients.
+        cov : ndarray of shape (n_params, n_params)
+            Their covariance.
+        target, settings, nominal
+            As in :meth:`design`.
+
+        Returns
+        -------
+        params : dict
+            ``{name: (value, std)}`` in :attr:`parameter_names` order.
+        """
+        std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, theta, std)}
+
+    def refine(self, objective, settings):
+        """Improve the nonlinear settings given ``objective(settings) -> loss``.
+
+        The default has nothing to refine and returns ``settings``.
+        """
+        return settings
+
+    def sentence(self, params, joints):
+        """One plain-words sentence about the fitted effect (see subclasses)."""
+        values = ", ".join(f"{k} = {_pm(*v)}" for k, v in params.items())
+        return f"{self.title} ({values})"
+
+    def __repr__(self):
+        return f"{type(self).__name__}()"
+
+
+def _pm(value, std, digits=3):
+    """``value +- std`` with a sensible number of digits."""
+    return f"{value:.{digits}g} +- {std:.2g}"
+
+
+def _joint_list(joints):
+    joints = list(joints)
+    if len(joints) == 1:
+        return f"joint {joints[0]}"
+    return "joints " + ", ".join(map(str, joints))
+
+
+class CoulombFriction(Effect):
+    """Missing Coulomb friction :math:`\\Delta F_c\\,\\mathrm{sign}(\\dot q_\\ell)` [Nm].
+
+    Examples
+    --------
+    >>> CoulombFriction().parameter_names
+    ('delta_coulomb',)
+    """
+
+    name = "coulomb_friction"
+    title = "Coulomb (dry) friction"
+    parameter_names = ("delta_coulomb",)
+    units = ("Nm",)
+
+    def design(self, signals, nominal, target, **settings):
+        return _per_joint_column(signals, target, np.sign(signals.qd[:, target]))
+
+    def sentence(self, params, joints):
+        value, std = params["delta_coulomb"]
+        word = "more" if value > 0 else "less"
+        return (f"{_joint_list(joints)} has {abs(value):.3g} +- {std:.2g} Nm {word} dry "
+                "(Coulomb) friction than the model")
+
+
+class ViscousFriction(Effect):
+    """Missing viscous friction :math:`\\Delta F_v\\,\\dot q_\\ell` [Nm s/rad].
+
+    Examples
+    --------
+    >>> ViscousFriction().units
+    ('Nm s/rad',)
+    """
+
+    name = "viscous_friction"
+    title = "viscous friction"
+    parameter_names = ("delta_viscous",)
+    units = ("Nm s/rad",)
+
+    def design(self, signals, nominal, target, **settings):
+        return _per_joint_column(signals, target, signals.qd[:, target])
+
+    def sentence(self, params, joints):
+        value, std = params["delta_viscous"]
+        word = "more" if value > 0 else "less"
+        return (f"{_joint_list(joints)} has {abs(value):.3g} +- {std:.2g} Nm s/rad {word} "
+                "viscous friction than the model")
+
+
+class StribeckFriction(Effect):
+    """Missing low-speed friction peak (Stribeck effect).
+
+    .. math::
+
+        \\tau = \\Delta F_s\\, \\mathrm{sign}(\\dot q_\\ell)\\,
+            e^{-(\\dot q_\\ell / v_s)^2}
+
+    linear in the amplitude :math:`\\Delta F_s` [Nm] for a fixed Stribeck
+    velocity :math:`v_s` [rad/s]; the selection tries ``velocities`` and the
+    final fit refines :math:`v_s` by a bounded 1-D search on
+    :math:`\\log v_s` (its standard deviation from the curvature of the
+    weighted sum of squares there).
+
+    Parameters
+    ----------
+    velocities : sequence of float, default=STRIBECK_VELOCITIES
+        Grid of Stribeck velocities [rad/s].
+
+    Examples
+    --------
+    >>> len(StribeckFriction().settings_grid())
+    10
+    """
+
+    name = "stribeck_friction"
+    title = "Stribeck (low-speed) friction peak"
+    parameter_names = ("delta_stribeck", "stribeck_velocity")
+    units = ("Nm", "rad/s")
+
+    def __init__(self, velocities=STRIBECK_VELOCITIES):
+        self.velocities = velocities
+
+    def settings_grid(self):
+        return [{"stribeck_velocity": float(v)} for v in self.velocities]
+
+    def design(self, signals, nominal, target, stribeck_velocity=0.02, **ignored):
+        qd = signals.qd[:, target]
+        peak = np.sign(qd) * np.exp(-((qd / stribeck_velocity) ** 2))
+        return _per_joint_column(signals, target, peak)
+
+    def physical(self, theta, cov, target, settings, nominal):
+        return {"delta_stribeck": (float(theta[0]), float(np.sqrt(max(cov[0, 0], 0.0)))),
+                "stribeck_velocity": (float(settings["stribeck_velocity"]),
+                                      float(settings.get("stribeck_velocity_std", np.nan)))}
+
+    def refine(self, objective, settings):
+        from scipy.optimize import minimize_scalar
+
+        v0 = settings["stribeck_velocity"]
+        lo, hi = np.log(v0 / 2.0), np.log(v0 * 2.0)
+        def f(s):
+            return objective({"stribeck_velocity": float(np.exp(s))})
+
+        res = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3})
+        # std of log v_s from the curvature of the weighted SSE (a chi-square)
+        h = 0.05
+        curvature = (f(res.x + h) + f(res.x - h) - 2.0 * f(res.x)) / h**2
+        v = float(np.exp(res.x))
+        std = v * np.sqrt(2.0 / curvature) if curvature > 0 else np.nan
+        return {"stribeck_velocity": v, "stribeck_velocity_std": float(std)}
+
+    def sentence(self, params, joints):
+        value, std = params["delta_stribeck"]
+        vs = params["stribeck_velocity"][0]
+        word = "higher" if value > 0 else "lower"
+        return (f"{_joint_list(joints)} has a {word} breakaway (Stribeck) friction peak: "
+                f"{abs(value):.3g} +- {std:.2g} Nm below about {vs:.3g} rad/s")
+
+
+class RotorInertia(Effect):
+    """Missing reflected rotor inertia :math:`\\Delta J\\,\\ddot q_\\ell` [kg m^2] (Eq. 4).
+
+    Examples
+    --------
+    >>> RotorInertia().name
+    'rotor_inertia'
+    """
+
+    name = "rotor_inertia"
+    title = "reflected rotor (motor and gear) inertia"
+    parameter_names = ("delta_rotor_inertia",)
+    units = ("kg m^2",)
+
+    def design(self, signals, nominal, target, **settings):
+        return _per_joint_column(signals, target, signals.qdd[:, target])
+
+    def sentence(self, params, joints):
+        value, std = params["delta_rotor_inertia"]
+        word = "more" if value > 0 else "less"
+        return (f"{_joint_list(joints)} has {abs(value):.3g} +- {std:.2g} kg m^2 {word} "
+                "reflected rotor inertia than the model")
+
+
+def _point_mass_parameters(mass, first_moment, origin, rotation=np.eye(3), quadratic=None):
+    """Dynamic parameters (pinocchio order) of a point mass, linearised in (m, m c).
+
+    The mass ``m`` sits at ``x = origin + R c`` of the link frame, so
+    :math:`h = m x = m\\,\\mathrm{origin} + R (m c)` and, about the link
+    frame origin, :math:`I = m(|x|^2 \\mathbb 1 - x x^T)`. Writing
+    :math:`m x x^T = m\\,o o^T + o (R h_c)^T + (R h_c) o^T + m R c c^T R^T`
+    with :math:`h_c = m c`, every term but the last is linear in
+    :math:`(m, h_c)`; the last (second order in the offset ``c``) is dropped,
+    or taken from ``quadratic`` (a fixed ``c``) when given.
+    """
+    o = np.asarray(origin, dtype=float)
+    hc = rotation @ np.asarray(first_moment, dtype=float)
+    outer = mass * np.outer(o, o) + np.outer(o, hc) + np.outer(hc, o)
+    if quadratic is not None:
+        c = rotation @ np.asarray(quadratic, dtype=float)
+        outer = outer + mass * np.outer(c, c)
+    inertia = np.trace(outer) * np.eye(3) - outer
+    h = mass * o + hc
+    return np.array([mass, h[0], h[1], h[2], inertia[0, 0], inertia[0, 1], inertia[1, 1],
+                     inertia[0, 2], inertia[1, 2], inertia[2, 2]])
+
+
+def _shared_columns(signals, link_columns, mapping):
+    """``{joint: Y_link @ mapping / K}`` for the joints the link's parameters move."""
+    cols = np.einsum("njp,pk->njk", link_columns, mapping)
+    cols = cols / signals.torque_constants[None, :, None]
+    scale = np.abs(cols).max() if cols.size else 0.0
+    return {j: cols[:, j, :] for j in range(cols.shape[1])
+            if scale > 0 and np.abs(cols[:, j, :]).max() > 1e-9 * scale}
+
+
+class PayloadEffect(Effect):
+    """A payload at the flange: mass ``m`` and centre of mass ``c`` (flange frame).
+
+    Its torques are the last link's rigid-body regressor times the dynamic
+    parameters of a point mass at the flange (``flange_frame`` placement
+    ``(R, p)`` in the last joint frame), which are linear in ``(m, m c)``
+    when the term ``m c c^T`` of the inertia about the joint origin is
+    neglected (see :func:`_point_mass_parameters`). The payload's own
+    rotational inertia about its centre of mass is neglected as well (a
+    compact payload; both terms are second order in its size). The final
+    fit re-evaluates the ``m c c^T`` term at the fitted ``c`` (fixed point).
+
+    Parameters (physical): ``mass`` [kg], ``com_x``, ``com_y``, ``com_z``
+    [m] in the flange frame.
+
+    Examples
+    --------
+    >>> PayloadEffect().parameter_names
+    ('mass', 'com_x', 'com_y', 'com_z')
+    """
+
+    name = "payload"
+    title = "payload at the flange"
+    per_joint = False
+    parameter_names = ("mass", "com_x", "com_y", "com_z")
+    units = ("kg", "m", "m", "m")
+
+    def _mapping(self, nominal, com=None):
+        robot = nominal.robot
+        frame = robot.model.frames[robot.flange_frame_id]
+        placement = frame.placement
+        link = int(frame.parentJoint) - 1
+        basis = np.eye(4)
+        mapping = np.column_stack([
+            _point_mass_parameters(b[0], b[1:], placement.translation, placement.rotation,
+                                   None if com is None or k > 0 else com)
+            for k, b in enumerate(basis)])
+        return link, mapping
+
+    def design(self, signals, nominal, target, com=None):
+        link, mapping = self._mapping(nominal, com)
+        Y = signals.rigid_body_regressor(nominal.robot.model)
+        return _shared_columns(signals, Y[:, :, 10 * link:10 * link + 10], mapping)
+
+    def physical(self, theta, cov, target, settings, nominal):
+        def convert(t):
+            m = t[0]
+            return np.concatenate([[m], t[1:] / m if m != 0 else np.full(3, np.nan)])
+
+        values, stds = _delta(convert, theta, cov)
+        return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
+
+    def refine(self, objective, settings):
+        return settings  # the m c c^T fixed point is done by joint_fit
+
+    def sentence(self, params, joints):
+        m, sm = params["mass"]
+        com = ", ".join(f"{params[k][0]:.3f}" for k in ("com_x", "com_y", "com_z"))
+        return (f"a payload of {m:.3g} +- {sm:.2g} kg is carried at the flange "
+                f"(centre of mass at ({com}) m in the flange frame)")
+
+
+class LinkMass(Effect):
+    """A link heavier or lighter than the model (e.g. cables, a tool bracket).
+
+    Parameters of link ``k``: ``delta_mass`` [kg], added at the link's
+    nominal centre of mass ``c_k`` (with its point-mass inertia about the
+    joint origin), and a first-moment change ``delta_first_moment_x/y/z``
+    [kg m] in the link frame (the centre of mass moving). Linear in the
+    link's 10 inertial parameters: ``Y_k @ [dm [1, c_k, I(c_k)] + [0, dh, 0]]``.
+
+    Only links ``1 .. n-2`` (0-based) are candidates: the mass of link 0
+    does not load the (vertical) base joint, and a change of the last link is
+    the ``payload`` effect. A payload whose centre of mass lies on the last
+    joint's axis loads the joints like a mass on link ``n-2``; the selection
+    then prefers the payload (listed first, same size).
+
+    Examples
+    --------
+    >>> LinkMass().name
+    'link_mass'
+    """
+
+    name = "link_mass"
+    title = "link mass"
+    per_joint = False
+    parameter_names = ("delta_mass", "delta_first_moment_x", "delta_first_moment_y",
+                       "delta_first_moment_z")
+    units = ("kg", "kg m", "kg m", "kg m")
+
+    def targets(self, nominal):
+        return list(range(1, nominal.n_joints - 1))
+
+    def design(self, signals, nominal, target, **settings):
+        com = nominal.robot.model.inertias[target + 1].lever
+        mapping = np.column_stack([_point_mass_parameters(1.0, np.zeros(3), com)]
+                                  + [np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)])
+        Y = signals.rigid_body_regressor(nominal.robot.model)
+        return _shared_columns(signals, Y[:, :, 10 * target:10 * target + 10], mapping)
+
+    def sentence(self, params, joints):
+        m, sm = params["delta_mass"]
+        word = "heavier" if m > 0 else "lighter"
+        return f"a link is {abs(m):.3g} +- {sm:.2g} kg {word} than the model"
+
+
+class GravityTilt(Effect):
+    """The robot base is tilted: gravity is not along the base's -z axis.
+
+    For a base rotated by small roll ``a`` (about x) and pitch ``b`` (about
+    y), gravity in the base frame is :math:`g_b = R^T g \\approx
+    (g_0 b, -g_0 a, -g_0)`; gravity torques are linear in the gravity
+    vector, so the columns are the generalized gravity torques for unit
+    gravity along base x and y and the coefficients are
+    :math:`(g_0 b, -g_0 a)` (exact to first order in the angles).
+
+    Parameters (physical): ``roll``, ``pitch`` [rad].
+
+    Examples
+    --------
+    >>> GravityTilt().parameter_names
+    ('roll', 'pitch')
+    """
+
+    name = "gravity_tilt"
+    title = "tilted robot base (gravity direction)"
+    per_joint = False
+    parameter_names = ("roll", "pitch")
+    units = ("rad", "rad")
+
+    def design(self, signals, nominal, target, **settings):
+        if "gravity_tilt" not in signals._cache:
+            signals._cache["gravity_tilt"] = self._columns(signals, nominal)
+        return signals._cache["gravity_tilt"]
+
+    def _columns(self, signals, nominal):
+        model = pin.Model(nominal.robot.model)
+        cols = np.empty((signals.n_samples, signals.n_joints, 2))
+        for k, direction in enumerate(np.eye(3)[:2]):
+            model.gravity = pin.Motion(direction, np.zeros(3))  # unit gravity along x or y
+            data = model.createData()
+            for i, q in enumerate(signals.q):
+                cols[i, :, k] = pin.computeGeneralizedGravity(model, data, q)
+        cols /= signals.torque_constants[None, :, None]
+        scale = np.abs(cols).max()
+        return {j: cols[:, j, :] for j in range(signals.n_joints)
+                if np.abs(cols[:, j, :]).max() > 1e-9 * scale}
+
+    def physical(self, theta, cov, target, settings, nominal):
+        g0 = STANDARD_GRAVITY
+        values, stds = _delta(lambda t: np.array([-t[1] / g0, t[0] / g0]), theta, cov)
+        return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
+
+    def sentence(self, params, joints):
+        roll, pitch = (np.degrees(params[k][0]) for k in ("roll", "pitch"))
+        sr, sp = (np.degrees(params[k][1]) for k in ("roll", "pitch"))
+        return (f"the robot base is tilted: roll {roll:.2f} +- {sr:.2f} deg, "
+                f"pitch {pitch:.2f} +- {sp:.2f} deg")
+
+
+class TorqueConstant(Effect):
+    """A wrong torque constant: current scaled per joint.
+
+    If the true constant is :math:`K_\\ell s`, the current is
+    :math:`\\tau/(K_\\ell s) = \\hat i_\\ell (1 + c)` with
+    :math:`c = 1/s - 1`: the column is the reference current itself.
+    Reported: ``scale`` ``s`` (true / nominal) and ``torque_constant``
+    [Nm/A].
+
+    Examples
+    --------
+    >>> TorqueConstant().parameter_names
+    ('scale', 'torque_constant')
+    """
+
+    name = "torque_constant"
+    title = "torque constant"
+    parameter_names = ("scale", "torque_constant")
+    units = ("", "Nm/A")
+
+    def design(self, signals, nominal, target, **settings):
+        return {target: signals.reference[:, [target]]}
+
+    def physical(self, theta, cov, target, settings, nominal):
+        k = nominal.torque_constants[target]
+        values, stds = _delta(lambda t: np.array([1 / (1 + t[0]), k / (1 + t[0])]), theta, cov)
+        return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
+
+    def sentence(self, params, joints):
+        s, ss = params["scale"]
+        k, sk = params["torque_constant"]
+        return (f"the torque constant of {_joint_list(joints)} is {k:.4g} +- {sk:.2g} Nm/A, "
+                f"{100 * (s - 1):+.1f} % off the nominal value")
+
+
+class CurrentOffset(Effect):
+    """A constant bias of the logged current (sensor offset) [A].
+
+    Examples
+    --------
+    >>> CurrentOffset().units
+    ('A',)
+    """
+
+    name = "current_offset"
+    title = "current sensor offset"
+    parameter_names = ("offset",)
+    units = ("A",)
+
+    def design(self, signals, nominal, target, **settings):
+        return {target: np.ones((signals.n_samples, 1))}
+
+    def sentence(self, params, joints):
+        value, std = params["offset"]
+        return f"the current of {_joint_list(joints)} is offset by {value:.3g} +- {std:.2g} A"
+
+
+class TimeDelay(Effect):
+    """The logged current lags the motion by ``d`` seconds (all joints).
+
+    If the logged current is :math:`i(t) = i^*(t - d)`, with :math:`i^*` the
+    current that drives the joints, its residual against the reference is
+    :math:`\\hat i(t - d) - \\hat i(t)` wherever the joint moved at
+    :math:`t - d`. The column is :math:`(\\hat i(t - d) - \\hat i(t)) / d`
+    with coefficient ``d`` (about :math:`-\\dot{\\hat i}` for small ``d``);
+    the selection tries the ``delays`` grid, the final fit iterates ``d`` to
+    a fixed point (a 1-D search).
+
+    Parameters
+    ----------
+    delays : sequence of float, default=DELAYS
+        Grid of delays [s] tried by the selection (negative: the current
+        leads). Right after a rest
+    the logged current is the holding current of the stuck joint, which no
+    model of the state knows: those rows are left out (``rest_guard``, see
+    :class:`~sklearn_gpcd.diagnosis.DynamicsDiagnosis`), and predictions
+    shift the reference only where the joint moved ``d`` seconds earlier.
+    Needs time stamps.
+
+    Examples
+    --------
+    >>> TimeDelay().needs_time
+    True
+    """
+
+    name = "time_delay"
+    title = "time delay of the logged current"
+    per_joint = False
+    parameter_names = ("delay",)
+    units = ("s",)
+    needs_time = True
+    rest_guard = True
+
+    def __init__(self, delays=DELAYS):
+        self.delays = delays
+
+    def settings_grid(self):
+        return [{"delay": float(d)} for d in self.delays]
+
+    def refine(self, objective, settings):
+        return settings  # fixed point done by joint_fit
+
+    def design(self, signals, nominal, target, delay=None, **settings):
+        if signals.reference_rate is None:
+            raise ValueError("time_delay needs time stamps (recordings, not bare states)")
+        if delay:
+            cols = (_shift(signals, signals.reference, delay) - signals.reference) / delay
+        else:
+            cols = -signals.reference_rate
+        return {j: cols[:, [j]] for j in range(signals.n_joints)}
+
+    def prediction(self, signals, nominal, target, theta, settings):
+        if signals.time is None:
+            raise ValueError("time_delay needs time stamps (recordings, not bare states)")
+        delay = float(theta[0])
+        term = _shift(signals, signals.reference, delay) - signals.reference
+        # where the joint was at rest d seconds ago the reference misses the
+        # holding current: leave the reference unshifted there
+        moving_then = np.abs(_shift(signals, signals.qd, delay)) >= REST_VELOCITY
+        return np.where(moving_then & (np.abs(signals.qd) >= REST_VELOCITY), term, 0.0)
+
+    def sentence(self, params, joints):
+        value, std = params["delay"]
+        word = "lags" if value > 0 else "leads"
+        return (f"the logged current {word} the motion by {1000 * abs(value):.3g} +- "
+                f"{1000 * std:.2g} ms")
+
+
+def _shift(signals, values, delay):
+    """``values(t - delay)`` per recording, linear interpolation, edges held."""
+    out = np.empty_like(values)
+    for seg in np.unique(signals.segment):
+        rows = np.flatnonzero(signals.segment == seg)
+        t = signals.time[rows]
+        for j in range(values.shape[1]):
+            out[rows, j] = np.interp(t - delay, t, values[rows, j])
+    return out
+
+
+class JointSpring(Effect):
+    """A spring (e.g. a cable or a gravity compensator) on a joint: :math:`-k(q_\\ell - q_0)`.
+
+    The motor must add :math:`k(q_\\ell - q_0)` to hold against it: columns
+    ``[q_l, 1] / K`` with coefficients ``(k, -k q_0)``; reported
+    ``stiffness`` ``k`` [Nm/rad] and ``rest_position`` ``q_0`` [rad].
+
+    Examples
+    --------
+    >>> JointSpring().parameter_names
+    ('stiffness', 'rest_position')
+    """
+
+    name = "joint_spring"
+    title = "joint spring"
+    parameter_names = ("stiffness", "rest_position")
+    units = ("Nm/rad", "rad")
+
+    def design(self, signals, nominal, target, **settings):
+        q = signals.q[:, target]
+        return _per_joint_column(signals, target, np.column_stack([q, np.ones_like(q)]))
+
+    def physical(self, theta, cov, target, settings, nominal):
+        values, stds = _delta(lambda t: np.array([t[0], -t[1] / t[0] if t[0] else np.nan]),
+                              theta, cov)
+        return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
+
+    def sentence(self, params, joints):
+        k, sk = params["stiffness"]
+        q0 = params["rest_position"][0]
+        return (f"{_joint_list(joints)} behaves as if a spring of {k:.3g} +- {sk:.2g} Nm/rad "
+                f"pulled it towards {q0:.3g} rad")
+
+
+class FrictionDrift(Effect):
+    """Friction changing linearly with time (warm-up of the gearbox grease).
+
+    Columns ``[t sign(qd_l), t qd_l] / K`` with ``t`` the time since the
+    start of the recording; reported ``coulomb_rate`` [Nm/s] and
+    ``viscous_rate`` [Nm s/rad per s]. Needs time stamps.
+
+    Examples
+    --------
+    >>> FrictionDrift().needs_time
+    True
+    """
+
+    name = "friction_drift"
+    title = "friction drifting with time"
+    parameter_names = ("coulomb_rate", "viscous_rate")
+    units = ("Nm/s", "Nm s/rad/s")
+    needs_time = True
+
+    def design(self, signals, nominal, target, **settings):
+        if signals.time is None:
+            raise ValueError("friction_drift needs time stamps (recordings, not bare states)")
+        qd, t = signals.qd[:, target], signals.time
+        return _per_joint_column(signals, target, np.column_stack([t * np.sign(qd), t * qd]))
+
+    def sentence(self, params, joints):
+        rate, std = params["coulomb_rate"]
+        word = "rises" if rate > 0 else "falls"
+        return (f"the friction of {_joint_list(joints)} {word} over time by {abs(rate) * 60:.3g} "
+                f"+- {std * 60:.2g} Nm per minute (Coulomb level)")
+
+
+#: The effect library, in order of prior plausibility: on ties within one
+#: standard error the selection prefers the effect listed first.
+EFFECTS = (CoulombFriction, ViscousFriction, StribeckFriction, PayloadEffect, TorqueConstant,
+           CurrentOffset, RotorInertia, GravityTilt, TimeDelay, JointSpring, FrictionDrift,
+           LinkMass)
+
+
+def effect_library(names="all"):
+    """Instances of the named effects, in library order.
+
+    Parameters
+    ----------
+    names : "all" or iterable of str or Effect, default="all"
+        Effect names (``"payload"``, ...) or :class:`Effect` instances.
+
+    Returns
+    -------
+    effects : list of Effect
+
+    Examples
+    --------
+    >>> [e.name for e in effect_library(["payload", "coulomb_friction"])]
+    ['coulomb_friction', 'payload']
+    """
+    known = {cls.name: cls for cls in EFFECTS}
+    if isinstance(names, str):
+        if names != "all":
+            names = [names]
+        else:
+            return [cls() for cls in EFFECTS]
+    out = []
+    for item in names:
+        if isinstance(item, Effect):
+            out.append(item)
+        elif item in known:
+            out.append(known[item]())
+        else:
+            raise ValueError(f"unknown effect {item!r}; known effects: {list(known)}")
+    order = {cls.name: k for k, cls in enumerate(EFFECTS)}
+    return sorted(out, key=lambda e: order.get(e.name, len(order)))

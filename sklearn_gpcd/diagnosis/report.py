@@ -1,0 +1,312 @@
+"""The diagnosis report: plain-words text, JSON and figure."""
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: t-statistic thresholds of the words used for the evidence.
+CONFIDENCE_WORDS = ((10.0, "very strong"), (5.0, "strong"), (0.0, "moderate"))
+
+
+def confidence(t):
+    """Plain word for a t-statistic of the held-out gains.
+
+    Examples
+    --------
+    >>> confidence(12.0), confidence(6.0), confidence(3.5)
+    ('very strong', 'strong', 'moderate')
+    """
+    t = np.inf if t is None else t
+    for threshold, word in CONFIDENCE_WORDS:
+        if t >= threshold:
+            return word
+    return "weak"
+
+
+def _num(x):
+    x = float(x)
+    return None if not np.isfinite(x) else x
+
+
+def _group(effects):
+    """Per-joint effects of one name merged; shared effects kept apart."""
+    groups = {}
+    for fitted in effects:
+        key = fitted.name if fitted.effect.per_joint else (fitted.name, fitted.target)
+        groups.setdefault(key, []).append(fitted)
+    return list(groups.values())
+
+
+def _entry(group):
+    """JSON entry of a group of fitted effects (see DiagnosisReport.to_dict)."""
+    first = group[0]
+    effect = first.effect
+    names = effect.parameter_names
+    units = dict(zip(names, effect.units))
+    explained = sum(f.explained_ss for f in group)
+    nominal = sum(f.nominal_ss for f in group)
+    evidence = [f.evidence.to_dict() if f.evidence is not None else {} for f in group]
+    if effect.per_joint:
+        order = np.argsort([f.target for f in group])
+        group = [group[i] for i in order]
+        evidence = [evidence[i] for i in order]
+        joints = [int(f.target) for f in group]
+        params = {n: [_num(f.parameters[n][0]) for f in group] for n in names}
+        stds = {n: [_num(f.parameters[n][1]) for f in group] for n in names}
+        keys = evidence[0].keys() if evidence and evidence[0] else []
+        ev = {k: [e.get(k) for e in evidence] for k in keys}
+        ev["criterion"] = evidence[0].get("criterion") if evidence and evidence[0] else None
+    else:
+        joints = [int(j) for j in first.joints]
+        params = {n: _num(first.parameters[n][0]) for n in names}
+        stds = {n: _num(first.parameters[n][1]) for n in names}
+        ev = evidence[0]
+    entry = {
+        "name": effect.name,
+        "joints": joints,
+        "parameters": params,
+        "uncertainty": stds,
+        "units": units,
+        "explained_variance": _num(explained / nominal) if nominal > 0 else None,
+        "evidence": ev,
+        "description": "; ".join(f.effect.sentence(f.parameters, [f.target] if f.effect.per_joint
+                                                    else f.joints) for f in group),
+    }
+    if effect.name == "link_mass":
+        entry["link"] = int(first.target)
+    ts = [f.evidence.t for f in group if f.evidence is not None]
+    entry["confidence"] = confidence(min(ts)) if ts else None
+    return entry
+
+
+@dataclass
+class DiagnosisReport:
+    """What a :class:`DynamicsDiagnosis` found, for people and programs.
+
+    Build it with :meth:`DynamicsDiagnosis.report`. ``str(report)`` is the
+    plain-words text; :meth:`to_dict` / :meth:`to_json` the machine-readable
+    form; :meth:`plot` the figure.
+
+    Attributes
+    ----------
+    effects : list of dict
+        One entry per named effect (per-joint effects of one kind merged):
+        ``name``, ``joints`` (0-based), ``parameters`` and ``uncertainty``
+        (value or list aligned with ``joints`` for per-joint effects),
+        ``units``, ``explained_variance`` (share of the nominal residual's
+        sum of squares on those joints the effect removes given the
+        others), ``evidence`` (held-out gain, t-statistic, folds improved,
+        BIC change), ``confidence`` and a plain-words ``description``.
+    nmse_before, nmse_after : list of float
+        Per-joint nMSE of the nominal and refined models (paper Eq. 18) on
+        the held-out recordings while the joint moves (training recordings
+        when ``heldout`` is False).
+    nmse_before_all, nmse_after_all : list of float
+        The same over every sample.
+    heldout : bool
+        Whether the nMSE comes from held-out recordings.
+    summary : dict
+        Robot, recordings, samples, candidates tested, timings.
+    breakdown, breakdown_after : ResidualBreakdown
+        Residual of the nominal and refined models on the training data.
+    rejected : list of dict
+        The strongest candidates that were not selected, with their evidence.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.diagnosis.report import DiagnosisReport
+    >>> DiagnosisReport(effects=[], nmse_before=[0.1], nmse_after=[0.1]).to_dict()["effects"]
+    []
+    """
+
+    effects: list
+    nmse_before: list
+    nmse_after: list
+    nmse_before_all: list = None
+    nmse_after_all: list = None
+    heldout: bool = False
+    summary: dict = field(default_factory=dict)
+    breakdown: object = None
+    breakdown_after: object = None
+    rejected: list = field(default_factory=list)
+
+    @classmethod
+    def from_diagnosis(cls, diagnosis, scores=None):
+        """Report of a fitted :class:`DynamicsDiagnosis`.
+
+        Parameters
+        ----------
+        diagnosis : DynamicsDiagnosis
+        scores : dict, default=None
+            Output of :meth:`DynamicsDiagnosis.evaluate` on held-out data;
+            None uses the training nMSE.
+
+        Returns
+        -------
+        report : DiagnosisReport
+        """
+        effects = [_entry(g) for g in _group(diagnosis.effects_)]
+        effects.sort(key=lambda e: -(e["explained_variance"] or 0.0))
+        if scores is None:
+            before, after = diagnosis.nmse_train_before_, diagnosis.nmse_train_after_
+            scores = {"nmse_before": list(before), "nmse_after": list(after),
+                      "recordings": diagnosis.training_summary_["recordings"]}
+            heldout = False
+        else:
+            heldout = True
+        nominal = diagnosis.nominal_
+        last = diagnosis.history_[-1] if diagnosis.history_ else []
+        rejected = sorted(last, key=lambda s: -s.relative_gain)[:3]
+        summary = {
+            "robot": nominal.robot.name,
+            "torque_constants": [float(k) for k in nominal.torque_constants],
+            "nominal_friction": nominal.friction is not None,
+            "reference": ("refined model of an earlier diagnosis"
+                          if getattr(diagnosis, "base_model", None) is not None else
+                          "simulated runs" if diagnosis.training_summary_.get("alignment_lags")
+                          else "nominal model"),
+            "units": diagnosis.units_,
+            "training": diagnosis.training_summary_,
+            "test_recordings": scores.get("recordings"),
+            "effects_tested": sorted({c.candidate.effect.name for steps in diagnosis.history_[:1]
+                                      for c in steps}),
+            "n_candidates": diagnosis.n_candidates_,
+            "min_gain": diagnosis.min_gain,
+            "min_t": diagnosis.min_t,
+        }
+        return cls(
+            effects=effects,
+            nmse_before=[_num(x) for x in scores["nmse_before"]],
+            nmse_after=[_num(x) for x in scores["nmse_after"]],
+            nmse_before_all=[_num(x) for x in scores.get("nmse_before_all", [])] or None,
+            nmse_after_all=[_num(x) for x in scores.get("nmse_after_all", [])] or None,
+            heldout=heldout, summary=summary, breakdown=diagnosis.breakdown_,
+            breakdown_after=diagnosis.breakdown_after_,
+            rejected=[{"name": s.candidate.label, **s.to_dict()} for s in rejected],
+        )
+
+    def to_dict(self):
+        """JSON-ready dictionary: ``effects``, ``nmse_before``, ``nmse_after`` and more."""
+        out = {
+            "effects": self.effects,
+            "nmse_before": self.nmse_before,
+            "nmse_after": self.nmse_after,
+            "nmse_heldout": self.heldout,
+        }
+        if self.nmse_before_all is not None:
+            out["nmse_before_all_samples"] = self.nmse_before_all
+            out["nmse_after_all_samples"] = self.nmse_after_all
+        out["summary"] = self.summary
+        out["strongest_rejected"] = self.rejected
+        if self.breakdown is not None:
+            out["residual_breakdown"] = self.breakdown.to_dict()
+        return out
+
+    def to_json(self, path=None, indent=2):
+        """The JSON text; also written to ``path`` when given.
+
+        Parameters
+        ----------
+        path : str or Path, default=None
+        indent : int, default=2
+
+        Returns
+        -------
+        text : str
+        """
+        text = json.dumps(self.to_dict(), indent=indent, default=_json_default)
+        if path is not None:
+            with open(path, "w", encoding="utf-8") as handle:
+                handle.write(text + "\n")
+        return text
+
+    def text(self):
+        """The report in plain words for a robotics engineer."""
+        s = self.summary
+        train = s.get("training", {})
+        units = s.get("units", "A")
+        lines = [
+            f"Diagnosis of the {s.get('robot', '?')} model against "
+            f"{len(train.get('recordings', []))} recording(s) "
+            f"({train.get('duration', 0):.1f} s, {train.get('n_samples', 0)} samples).",
+            f"Reference: {s.get('reference', 'nominal model')}; nominal friction "
+            + ("given." if s.get("nominal_friction")
+               else "not given (friction counts as missing)."),
+            "",
+            "1. Where the model is wrong (residual RMS while each joint moves, training data):",
+        ]
+        b = self.breakdown
+        if b is not None:
+            for j in range(b.n_joints):
+                cells = {k: v["share_of_error"][j] - v["share_of_samples"][j]
+                         for k, v in b.regimes.items() if np.isfinite(v["share_of_error"][j])}
+                worst = max(cells, key=cells.get) if cells else None
+                where = ""
+                if worst is not None and cells[worst] > 0.1:
+                    cell = b.regimes[worst]
+                    where = (f"; over all samples {100 * cell['share_of_error'][j]:.0f} % of "
+                             f"its squared error comes from '{worst}' "
+                             f"({100 * cell['share_of_samples'][j]:.0f} % of samples)")
+                after = ""
+                if self.breakdown_after is not None:
+                    after = f" -> {self.breakdown_after.rms_moving[j]:.3g} {units} after"
+                lines.append(f"   joint {j}: {b.rms_moving[j]:.3g} {units}{after}{where}")
+        lines += ["", "2. What is missing:"]
+        if not self.effects:
+            tested = ", ".join(s.get("effects_tested", []))
+            lines.append(
+                f"   Nothing. None of the {len(s.get('effects_tested', []))} effects tested "
+                f"({tested}; {s.get('n_candidates', '?')} candidates over joints, links and "
+                "settings) lowers the held-out error reliably. The nominal model explains the "
+                "data as far as these effects can tell.")
+            if self.rejected:
+                r = self.rejected[0]
+                lines.append(
+                    f"   Closest call: {r['name']} would remove "
+                    f"{100 * r['relative_gain']:.1f} % of the held-out error of its joints "
+                    f"(t = {r['t_statistic'] or float('nan'):.1f}; needs >= "
+                    f"{100 * s.get('min_gain', 0):.0f} % and t >= {s.get('min_t', 0):g}).")
+        for k, e in enumerate(self.effects, 1):
+            ev = e["evidence"]
+            t = ev.get("t_statistic")
+            t_min = min(x for x in t if x is not None) if isinstance(t, list) else t
+            rel = ev.get("relative_gain")
+            rel = min(rel) if isinstance(rel, list) else rel
+            share = e["explained_variance"]
+            lines.append(f"   {k}. {e['name'].replace('_', ' ')} on joints {e['joints']}: "
+                         f"{e['description']}.")
+            folds = ev.get("folds_improved")
+            folds = min(folds) if isinstance(folds, list) else folds
+            lines.append(
+                f"      It explains {100 * (share or 0):.0f} % of the nominal residual on those "
+                f"joints. Evidence: {e['confidence']} (held-out error of its joints down "
+                f"{100 * (rel or 0):.0f} %, t = {t_min if t_min is not None else float('inf'):.1f}"
+                f", {folds} folds better).")
+        where = ("held-out recordings" if self.heldout else
+                 "training recordings (in-sample: pass test recordings for a fair figure)")
+        lines += ["", f"3. Fit before -> after, nMSE per joint while moving, on {where}:"]
+        for j, (a, c) in enumerate(zip(self.nmse_before, self.nmse_after)):
+            if a is None or c is None:
+                lines.append(f"   joint {j}: n/a")
+                continue
+            change = f"{100 * (1 - c / a):+.0f} % better" if a > 0 else ""
+            lines.append(f"   joint {j}: {a:.4g} -> {c:.4g}  {change}")
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.text()
+
+    def plot(self, path=None):
+        """The figure (see :func:`~sklearn_gpcd.diagnosis.plotting.plot_diagnosis`)."""
+        from .plotting import plot_diagnosis
+
+        return plot_diagnosis(self, path)
+
+
+def _json_default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)
