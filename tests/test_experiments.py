@@ -9,7 +9,7 @@ from sklearn_gpcd.cli import main
 from sklearn_gpcd.experiments import PaperConfig, reproduce, split_nmse
 from sklearn_gpcd.experiments.paper import acceptance_checks
 
-TINY = PaperConfig(d1_targets=3, d2_targets=1, n_support=150, n_hyper=150, rest_duration=8.0)
+TINY = PaperConfig(d1_targets=3, d2_targets=1, n_support=150, batch_size=100, rest_duration=8.0)
 
 
 @pytest.fixture(scope="module")
