@@ -137,7 +137,9 @@ def _verdicts(results):
     lines.append(f"- **{word}:** {detected} of {len(inter['pushes'])} pushes detected.")
     word = "Delivered" if checks["no_false_alarm_at_rest"] else "Not delivered"
     lines.append(f"- **{word}:** {inter['false_alarms_rest']} false alarm(s) in the "
-                 f"collision-free rest phases ({inter['false_alarms_moving']} while moving).")
+                 f"collision-free rest phases, {inter.get('false_alarm_samples_rest', 0)} "
+                 f"alarm sample(s) there ({inter['false_alarms_moving']} false alarm(s) while "
+                 "moving).")
     return "\n".join(lines)
 
 

@@ -1,0 +1,68 @@
+"""Issue acceptance: the paper's human-interaction test on the simulator (Sec. V-B).
+
+SP_P is trained on a small D1 (collision-free random targets), its detector
+is calibrated on a collision-free D2 run it was not trained on, and then it
+watches the interaction test: a circle, then rest, with four pushes on link 1
+(two while moving, two at rest). Every push must raise an alarm, and no
+sample outside the pushes may alarm — in the rest phases (including the
+stretch after the last push) or while moving.
+"""
+
+import numpy as np
+import pytest
+
+from sklearn_gpcd import datasets
+from sklearn_gpcd.detection import StreamingMonitor, stack_currents
+from sklearn_gpcd.experiments.paper import (
+    PaperConfig,
+    _commanded_rest,
+    build_estimators,
+    make_detector,
+)
+from sklearn_gpcd.features import make_inputs
+from sklearn_gpcd.robots import load_robot
+
+CONFIG = PaperConfig(d1_targets=12, d2_targets=3, n_support=400, batch_size=200,
+                     rest_duration=12.0)
+
+
+@pytest.fixture(scope="module")
+def interaction():
+    robot = load_robot("ur10")
+    d1 = datasets.make_d1(robot, n_targets=CONFIG.d1_targets, random_state=1)
+    d2 = datasets.make_d2(robot, n_targets=CONFIG.d2_targets, n_turns=0.5, random_state=2)
+    test = datasets.make_interaction_test(robot, n_turns=0.5,
+                                          rest_duration=CONFIG.rest_duration, random_state=3)
+    sp_p = build_estimators(robot, CONFIG, random_state=0, n_jobs=2)["SP_P"]
+    sp_p.fit(*make_inputs(d1))
+    detector = make_detector(sp_p, robot.n_joints).fit(stack_currents(*make_inputs(d2)))
+    Z = stack_currents(*make_inputs(test))
+    return detector, Z, test
+
+
+def test_every_push_is_detected(interaction):
+    detector, Z, test = interaction
+    alarms = detector.predict(Z) == -1
+    rest = _commanded_rest(test, CONFIG.sigma_v)
+    kinds = []
+    for k in range(1, 5):
+        push = test.labels == k
+        assert alarms[push].any(), f"push {k} was not detected"
+        kinds.append("rest" if rest[push].all() else "moving")
+    assert kinds == ["moving", "moving", "rest", "rest"]
+
+
+def test_no_alarm_outside_the_pushes(interaction):
+    detector, Z, test = interaction
+    alarms = detector.predict(Z) == -1
+    free = test.labels == 0
+    rest = _commanded_rest(test, CONFIG.sigma_v)
+    assert (free & rest).sum() > 1000  # the rest phases are really checked
+    assert not alarms[free & rest].any(), "false alarm in a collision-free rest phase"
+    assert not alarms[free & ~rest].any(), "false alarm while moving"
+
+
+def test_streaming_monitor_agrees_with_batch(interaction):
+    detector, Z, _ = interaction
+    out = StreamingMonitor(detector).replay(Z)
+    assert np.array_equal(out.prediction, detector.predict(Z))
