@@ -2,21 +2,40 @@
 
 Both follow Rasmussen & Williams (2006), Algorithm 2.1 and Eq. 5.9, the same
 formulas as :class:`sklearn.gaussian_process.GaussianProcessRegressor`, so the
-two give equal numbers on equal inputs.
+two give equal numbers on equal inputs. The kernel is evaluated through its
+compiled tree (:mod:`._kernel_plan`): no ``(n, n, n_theta)`` gradient array
+is formed, and the Cholesky factorisation and inverse run in place.
 """
 
 import warnings
 
 import numpy as np
-from scipy.linalg import cho_solve, cholesky
+from scipy.linalg import cho_solve
+from scipy.linalg.lapack import dpotrf, dpotri
+from threadpoolctl import ThreadpoolController
 
-from ..kernels import contract_gradient
+from ._kernel_plan import compile_kernel, gram_matrix
 
 # jitter tried, relative to the mean of diag(K), when K is not numerically PD
 _JITTER_LADDER = 10.0 ** np.arange(-10, -1)
+_LOG_2PI = np.log(2 * np.pi)
+_BLAS_CONTROLLER = []  # one ThreadpoolController, created on first use
 
 
-def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False):
+def single_threaded_blas():
+    """Context manager limiting BLAS/LAPACK to one thread (threadpoolctl).
+
+    Like scikit-learn's ``KMeans``: on small machines OpenBLAS's threaded
+    ``potrf``/``potri`` are several times slower than the serial ones (and
+    the two OpenBLAS copies of numpy and scipy compete for the cores), and
+    serial BLAS makes results independent of the thread count.
+    """
+    if not _BLAS_CONTROLLER:
+        _BLAS_CONTROLLER.append(ThreadpoolController())
+    return _BLAS_CONTROLLER[0].limit(limits=1, user_api="blas")
+
+
+def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False, plan=None):
     r"""Log marginal likelihood of the residual GP at log-hyperparameters theta.
 
     .. math::
@@ -32,8 +51,8 @@ def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False):
         \partial_{\theta_k} \log p = \tfrac12 \operatorname{tr}\big(
             (a a^T - K_y^{-1}) \, \partial_{\theta_k} K \big),
 
-    contracted by :func:`~sklearn_gpcd.kernels.contract_gradient` without
-    forming the ``(n, n, n_theta)`` gradient array.
+    contracted node by node by the compiled kernel (per length scale, one
+    matrix product), without the ``(n, n, n_theta)`` gradient array.
 
     Parameters
     ----------
@@ -50,6 +69,8 @@ def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False):
         Value added to the diagonal of the kernel matrix.
     eval_gradient : bool, default=False
         Also return the gradient with respect to theta.
+    plan : compiled kernel, default=None
+        ``compile_kernel(kernel)``, to reuse across calls (its theta is set).
 
     Returns
     -------
@@ -59,33 +80,71 @@ def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False):
     grad : ndarray of shape (n_theta,)
         Gradient of ``lml``; only when ``eval_gradient`` is True.
     """
-    kernel = kernel.clone_with_theta(theta)
-    K = kernel(X)
+    if plan is None:
+        plan = compile_kernel(kernel)
+    plan.set_theta(np.asarray(theta, dtype=float))
+    K = gram_matrix(plan, X, keep=eval_gradient and plan.n_dims > 0)
     K[np.diag_indices_from(K)] += alpha
-    try:
-        L = cholesky(K, lower=True, check_finite=False)
-    except np.linalg.LinAlgError:
-        return (-np.inf, np.zeros_like(theta)) if eval_gradient else -np.inf
-    a = cho_solve((L, True), y, check_finite=False)
-    lml = -0.5 * y @ a - np.log(np.diag(L)).sum() - K.shape[0] / 2 * np.log(2 * np.pi)
+    U, info = _upper_factor_inplace(K)
+    if info != 0:
+        return (-np.inf, np.zeros(len(theta))) if eval_gradient else -np.inf
+    a = cho_solve((U, False), y, check_finite=False)
+    lml = -0.5 * y @ a - np.log(np.diag(U)).sum() - 0.5 * len(y) * _LOG_2PI
     if not eval_gradient:
         return lml
-    W = np.outer(a, a)
-    W -= cho_solve((L, True), np.eye(K.shape[0]), check_finite=False)
-    return lml, 0.5 * contract_gradient(kernel, X, W)
+    if plan.n_dims == 0:
+        return lml, np.empty(0)
+    W = _inverse_from_factor(U, overwrite=True)  # U is not needed any more
+    np.negative(W, out=W)
+    W += a[:, np.newaxis] * a  # W = a a^T - K^{-1}
+    return lml, 0.5 * plan.contract(W, 1.0)
 
 
-def _cholesky(K, what="kernel matrix"):
-    """Lower Cholesky factor of ``K``, adding jitter to the diagonal if needed.
+def _upper_factor_inplace(K):
+    """Cholesky factor of the symmetric ``K``, written over ``K``.
 
-    When ``K`` is not numerically positive definite, the jitter
+    ``K.T`` (the same matrix, Fortran-ordered) is factorised as
+    :math:`U^T U` by LAPACK ``potrf`` without a copy.
+
+    Returns
+    -------
+    U : ndarray of shape (n, n)
+        Upper factor, Fortran-ordered, sharing memory with ``K``;
+        ``U.T`` is the lower factor :math:`L`.
+    info : int
+        0 on success, > 0 when ``K`` is not positive definite.
+    """
+    U, info = dpotrf(K.T, lower=0, clean=1, overwrite_a=1)
+    return U, info
+
+
+def _inverse_from_factor(U, overwrite=False):
+    """:math:`K^{-1}` (symmetric) from the upper factor ``U`` (LAPACK ``potri``).
+
+    With ``overwrite`` the inverse is written over ``U``.
+    """
+    inv, info = dpotri(U, lower=0, overwrite_c=int(overwrite))
+    if info != 0:  # pragma: no cover - U comes from a successful potrf
+        raise ValueError("Cholesky inverse failed.")
+    diagonal = np.diag(inv).copy()
+    inv += inv.T  # the upper triangle holds K^{-1}; the lower is zero
+    inv[np.diag_indices_from(inv)] = diagonal
+    return inv
+
+
+def _cholesky(make_K, what="kernel matrix"):
+    """Lower Cholesky factor of ``make_K()``, adding jitter to the diagonal if needed.
+
+    When the matrix is not numerically positive definite, the jitter
     ``10**-10, 10**-9, ..., 10**-2`` times ``mean(diag(K))`` is tried in turn
-    and a :class:`RuntimeWarning` reports the value used.
+    and a :class:`RuntimeWarning` reports the value used. The factor is
+    computed in place, in the memory of a matrix built by ``make_K``.
 
     Parameters
     ----------
-    K : ndarray of shape (n, n)
-        Symmetric matrix; not modified.
+    make_K : callable
+        Returns a new symmetric array of shape (n, n) (called again for
+        every jitter tried).
     what : str, default="kernel matrix"
         Name of the matrix for messages.
 
@@ -99,27 +158,28 @@ def _cholesky(K, what="kernel matrix"):
     Raises
     ------
     ValueError
-        If ``K`` has non-finite entries or stays indefinite with the largest
-        jitter.
+        If the matrix has non-finite entries or stays indefinite with the
+        largest jitter.
     """
+    K = make_K()
     if not np.all(np.isfinite(K)):
         raise ValueError(f"The {what} contains NaN or infinite values.")
-    try:
-        return cholesky(K, lower=True, check_finite=False), 0.0
-    except np.linalg.LinAlgError:
-        pass
     scale = np.mean(np.abs(np.diag(K))) or 1.0
+    U, info = _upper_factor_inplace(K)
+    if info == 0:
+        return U.T, 0.0
     for jitter in scale * _JITTER_LADDER:
-        try:
-            L = cholesky(K + jitter * np.eye(len(K)), lower=True, check_finite=False)
-        except np.linalg.LinAlgError:
+        K = make_K()
+        K[np.diag_indices_from(K)] += jitter
+        U, info = _upper_factor_inplace(K)
+        if info != 0:
             continue
         warnings.warn(
             f"The {what} is not positive definite; added jitter {jitter:.3g} to "
             "its diagonal. Consider increasing `alpha`.",
             RuntimeWarning,
         )
-        return L, jitter
+        return U.T, jitter
     raise ValueError(
         f"The {what} is not positive definite even with jitter "
         f"{scale * _JITTER_LADDER[-1]:.3g} on its diagonal; increase `alpha` or "

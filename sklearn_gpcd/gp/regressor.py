@@ -1,5 +1,6 @@
 """Semi-parametric Gaussian Process regressor of Dalla Libera et al. (2019)."""
 
+import math
 import numbers
 
 import numpy as np
@@ -10,8 +11,18 @@ from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..kernels import resolve_columns
-from ._likelihood import _log_marginal_likelihood
-from ._optimize import _check_optimizer, _fit_hyperparameters
+from ._likelihood import _log_marginal_likelihood, single_threaded_blas
+from ._optimize import (
+    REFINE_MAX_ITER,
+    REFINE_MAX_SAMPLES,
+    AdamSettings,
+    _check_optimizer,
+    _check_positive_int,
+    _fit_hyperparameters,
+    _fit_hyperparameters_adam,
+    data_driven_init,
+    resolve_optimizer,
+)
 from ._posterior import _Posterior, target_scaling
 from ._support import SUPPORT_SELECTIONS, select_support
 
@@ -38,9 +49,21 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
     :math:`y - m(x)` with the kernel of Eq. 11 (SP_S) or Eq. 16-17 (SP_P).
     Hyperparameters maximise the log marginal likelihood (type-II ML); the
     posterior may be conditioned on a support subset of ``n_support`` rows
-    (the paper's :math:`D_{SDP}`). With ``mean=None`` this is exactly
-    :class:`sklearn.gaussian_process.GaussianProcessRegressor` applied to
-    each output column.
+    (the paper's :math:`D_{SDP}`). With ``mean=None`` and an exact optimizer
+    this is exactly :class:`sklearn.gaussian_process.GaussianProcessRegressor`
+    applied to each output column.
+
+    **Which optimizer** (``optimizer="auto"``): with at most
+    ``EXACT_MAX_SAMPLES = 2000`` support rows, L-BFGS-B on the exact LML of
+    the support rows, from the kernel's hyperparameters (as scikit-learn);
+    above, the paper's stochastic path: Adam on the LML of random
+    minibatches of ``batch_size`` rows drawn from *all* training rows,
+    normalised by ``batch_size``, early-stopped on a held-out minibatch, from
+    median-heuristic length scales wherever the kernel has the default 1.0
+    (see ``data_driven_init``). Its cost per step is
+    :math:`O(\mathrm{batch\_size}^3)` whatever the number of rows, and no
+    ``(n, n, n_theta)`` gradient array is ever formed (the LML gradient is
+    accumulated per length scale).
 
     Parameters
     ----------
@@ -57,14 +80,31 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
     alpha : float or ndarray of shape (n_samples,), default=1e-10
         Value added to the diagonal of the kernel matrix (jitter or known
         noise variance), as in scikit-learn's GPR.
-    optimizer : "fmin_l_bfgs_b", callable or None, default="fmin_l_bfgs_b"
-        Maximiser of the log marginal likelihood. A callable has signature
+    optimizer : {"auto", "fmin_l_bfgs_b", "adam"}, callable or None, \
+            default="auto"
+        Maximiser of the log marginal likelihood. "auto" is
+        "fmin_l_bfgs_b" when the support has at most 2,000 rows, else "adam"
+        (see above). "fmin_l_bfgs_b" and a callable maximise the exact LML of
+        the support rows; a callable has signature
         ``optimizer(obj_func, initial_theta, bounds) -> (theta_opt, f_min)``
         where ``obj_func(theta, eval_gradient=True)`` returns the negative log
-        marginal likelihood and its gradient. None keeps the initial
-        hyperparameters.
+        marginal likelihood and its gradient. "adam" maximises the minibatch
+        LML over all rows. None keeps the initial hyperparameters.
     n_restarts_optimizer : int, default=0
-        Extra optimizer runs from theta drawn log-uniformly within the bounds.
+        Extra optimizer runs from theta drawn log-uniformly within the bounds
+        (for "adam" the runs compete on the held-out minibatch LML).
+    batch_size : int, default=512
+        "adam": rows per minibatch, and in the held-out minibatch.
+    max_iter : int, default=500
+        "adam": maximum number of steps per run.
+    learning_rate : float, default=0.05
+        "adam": step size, in units of log-hyperparameters.
+    tol : float, default=1e-3
+        "adam": improvement of the held-out per-sample LML (checked every 10
+        steps) that counts as progress.
+    n_iter_no_change : int, default=5
+        "adam": checks without progress before stopping early; the
+        hyperparameters with the best held-out LML are kept.
     normalize_y : bool, default=False
         Standardise the residual ``y - m(x)`` before fitting the GP.
     n_support : int or None, default=None
@@ -87,7 +127,8 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
         output the same stream, so a multi-output fit equals one fit per
         column with that ``random_state``.
     verbose : int, default=0
-        Print one line per fitted output when > 0.
+        Print one line per fitted output when > 0, and Adam's progress (every
+        10 steps: minibatch and held-out per-sample LML).
 
     Attributes
     ----------
@@ -97,7 +138,13 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
     mean_ : regressor, list of regressors or None
         Fitted parametric mean(s).
     log_marginal_likelihood_value_ : float or ndarray of shape (n_outputs,)
-        Log marginal likelihood of ``kernel_.theta`` per output.
+        Log marginal likelihood of ``kernel_.theta`` per output, on the
+        support rows.
+    optimizer_ : str, callable or None
+        The optimizer used (``optimizer`` with "auto" resolved).
+    n_iter_ : int or ndarray of shape (n_outputs,)
+        Iterations of the winning optimizer run per output: Adam steps, or
+        L-BFGS-B iterations (0 for None or a callable).
     support_indices_ : ndarray of shape (n_support,) or list of ndarray
         Training rows the GP of each output is conditioned on.
     n_outputs_ : int
@@ -133,8 +180,13 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
         mean=None,
         *,
         alpha=1e-10,
-        optimizer="fmin_l_bfgs_b",
+        optimizer="auto",
         n_restarts_optimizer=0,
+        batch_size=512,
+        max_iter=500,
+        learning_rate=0.05,
+        tol=1e-3,
+        n_iter_no_change=5,
         normalize_y=False,
         n_support=None,
         support_selection="random",
@@ -148,6 +200,11 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
         self.alpha = alpha
         self.optimizer = optimizer
         self.n_restarts_optimizer = n_restarts_optimizer
+        self.batch_size = batch_size
+        self.max_iter = max_iter
+        self.learning_rate = learning_rate
+        self.tol = tol
+        self.n_iter_no_change = n_iter_no_change
         self.normalize_y = normalize_y
         self.n_support = n_support
         self.support_selection = support_selection
@@ -178,9 +235,14 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
         alpha = self._check_alpha(len(y))
         kernels, means = self._prepare_models()
         X_mean = X_raw if hasattr(X_raw, "columns") else X  # keep names for the mean
+        n_exact = len(y) if self.n_support is None else min(self.n_support, len(y))
+        n_theta = max(kernel.n_dims for kernel in kernels)
+        self.optimizer_ = resolve_optimizer(self.optimizer, n_exact, n_theta)
+        params = self._gp_params()
         fits = Parallel(n_jobs=self.n_jobs)(
             delayed(_fit_output)(
-                kernel, mean, X, X_mean, Y[:, j], alpha, seed, self._gp_params()
+                kernel, mean, X, X_mean, Y[:, j], alpha, seed, params,
+                f"output {j}: " if self.n_outputs_ > 1 else "",
             )
             for j, (kernel, mean, seed) in enumerate(zip(kernels, means, self._seeds()))
         )
@@ -191,6 +253,8 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
         self.support_indices_ = pick([fit.support for fit in fits])
         lml = np.array([fit.lml for fit in fits])
         self.log_marginal_likelihood_value_ = lml[0] if self.n_outputs_ == 1 else lml
+        n_iter = np.array([fit.n_iter for fit in fits])
+        self.n_iter_ = int(n_iter[0]) if self.n_outputs_ == 1 else n_iter
         if self.verbose > 0:
             for j, fit in enumerate(fits):
                 print(f"[{type(self).__name__}] output {j}: log-marginal-likelihood "
@@ -223,10 +287,15 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
         """
         if return_std and return_cov:
             raise ValueError("At most one of return_std or return_cov can be requested.")
-        check_is_fitted(self)
-        X_raw = X
-        X = validate_data(self, X, reset=False, dtype=np.float64)
-        X_mean = X_raw if hasattr(X_raw, "columns") else X
+        if self._is_valid_array(X):  # lean path, e.g. one sample per control tick
+            X_mean = X
+        else:
+            check_is_fitted(self)
+            X_raw = X
+            X = validate_data(self, X, reset=False, dtype=np.float64)
+            X_mean = X_raw if hasattr(X_raw, "columns") else X
+        if len(self._outputs) == 1:
+            return self._outputs[0].predict(X, X_mean, return_std, return_cov)
         preds = [fit.predict(X, X_mean, return_std, return_cov) for fit in self._outputs]
         if not (return_std or return_cov):
             return self._stack(preds)
@@ -271,6 +340,24 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
 
     # -- helpers -----------------------------------------------------------
 
+    def _is_valid_array(self, X):
+        """Whether ``X`` is already what ``validate_data`` would return.
+
+        True for a fitted model (without feature names) and a finite 2-D
+        float64 ndarray with ``n_features_in_`` columns: then validation
+        would neither change nor reject ``X``, and its ~0.1 ms are skipped.
+        """
+        return (
+            type(X) is np.ndarray
+            and X.ndim == 2
+            and X.dtype == np.float64
+            and "_outputs" in self.__dict__
+            and X.shape[1] == self.n_features_in_
+            and X.shape[0] > 0
+            and "feature_names_in_" not in self.__dict__
+            and math.isfinite(X.sum())  # NaN and inf propagate to the sum
+        )
+
     def _stack(self, arrays):
         """Stack per-output results on a last axis; squeeze a single output."""
         return arrays[0] if self.n_outputs_ == 1 else np.stack(arrays, axis=-1)
@@ -280,8 +367,13 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
             "n_support": self.n_support,
             "support_selection": self.support_selection,
             "normalize_y": self.normalize_y,
-            "optimizer": self.optimizer,
+            "optimizer": self.optimizer_,
             "n_restarts_optimizer": self.n_restarts_optimizer,
+            "refine": (REFINE_MAX_SAMPLES, REFINE_MAX_ITER),
+            "adam": AdamSettings(
+                self.batch_size, self.max_iter, self.learning_rate, self.tol,
+                self.n_iter_no_change, self.verbose,
+            ),
         }
 
     def _seeds(self):
@@ -293,6 +385,17 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
 
     def _check_params(self):
         _check_optimizer(self.optimizer)
+        _check_positive_int(self.batch_size, "batch_size")
+        _check_positive_int(self.max_iter, "max_iter")
+        _check_positive_int(self.n_iter_no_change, "n_iter_no_change")
+        for name in ("learning_rate", "tol"):
+            value = getattr(self, name)
+            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= 0
+                    and (value > 0 or name == "tol")):
+                raise ValueError(
+                    f"{name} must be a finite float {'>= 0' if name == 'tol' else '> 0'}, "
+                    f"got {value!r}."
+                )
         if not (isinstance(self.n_restarts_optimizer, numbers.Integral)
                 and self.n_restarts_optimizer >= 0):
             raise ValueError(
@@ -354,42 +457,79 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
 class _OutputFit:
     """Fitted model of one output: mean, support rows, GP posterior, LML."""
 
-    def __init__(self, mean, support, posterior, lml):
+    def __init__(self, mean, support, posterior, lml, n_iter=0):
         self.mean = mean
         self.support = support
         self.posterior = posterior
         self.lml = lml
+        self.n_iter = n_iter
 
     def predict(self, X, X_mean, return_std, return_cov):
-        gp = self.posterior.predict(X, return_std=return_std, return_cov=return_cov)
+        if return_std or return_cov:
+            with single_threaded_blas():  # serial triangular solves (see _fit_output)
+                gp = self.posterior.predict(X, return_std=return_std, return_cov=return_cov)
+        else:
+            gp = self.posterior.predict(X)
+            if self.mean is None:
+                return gp
         m = 0.0 if self.mean is None else np.asarray(self.mean.predict(X_mean)).ravel()
         if return_std or return_cov:
             return gp[0] + m, gp[1]
         return gp + m
 
 
-def _fit_output(kernel, mean, X, X_mean, y, alpha, seed, params):
+def _fit_output(kernel, mean, X, X_mean, y, alpha, seed, params, label=""):
     """Fit y = m(x) + f(x) + e for one output (Eq. 17 when built by make_sp_p).
 
     1. m: the parametric mean, fitted on all rows (option (i), Sec. III-A);
     2. the support rows D_SDP are chosen for the GP on the residual y - m;
-    3. kernel hyperparameters by type-II ML on the (normalised) residual;
+    3. kernel hyperparameters by type-II ML on the (normalised) residual:
+       exact on the support rows, or Adam on minibatches of all rows;
     4. posterior: Cholesky factor and weights cached for prediction.
+
+    BLAS runs single-threaded here (parallelism comes from ``n_jobs`` over
+    outputs): the LAPACK factorisations are faster so on small machines, and
+    results do not depend on the number of threads.
     """
     rng = check_random_state(seed)
     if mean is not None:
         mean = mean.fit(X_mean, y)
         y = y - np.asarray(mean.predict(X_mean)).ravel()
-    support = select_support(kernel, X, params["n_support"], params["support_selection"], rng)
-    X_s, r_s = X[support], y[support]
-    alpha_s = alpha[support] if np.ndim(alpha) else alpha
-    y_mean, y_std = target_scaling(r_s, params["normalize_y"])
-    kernel_, lml = _fit_hyperparameters(
-        kernel, X_s, (r_s - y_mean) / y_std, alpha_s,
-        params["optimizer"], params["n_restarts_optimizer"], rng,
-    )
-    posterior = _Posterior(kernel_, X_s, r_s, alpha_s, y_mean, y_std)
-    return _OutputFit(mean, support, posterior, lml)
+    with single_threaded_blas():
+        support = select_support(
+            kernel, X, params["n_support"], params["support_selection"], rng
+        )
+        X_s, r_s = X[support], y[support]
+        alpha_s = alpha[support] if np.ndim(alpha) else alpha
+        y_mean, y_std = target_scaling(r_s, params["normalize_y"])
+        optimizer, n_iter = params["optimizer"], 0
+        if optimizer == "adam" and kernel.n_dims:
+            kernel = data_driven_init(kernel, X, rng)
+            kernel_, info = _fit_hyperparameters_adam(
+                kernel, X, (y - y_mean) / y_std, alpha, params["adam"],
+                params["n_restarts_optimizer"], rng, label,
+            )
+            n_iter = info["n_iter"]
+            refine = params["refine"]
+            if refine:
+                rows = np.arange(len(support))
+                if len(rows) > refine[0]:
+                    rows = np.sort(rng.choice(len(rows), refine[0], replace=False))
+                kernel_, _, _ = _fit_hyperparameters(
+                    kernel_, X_s[rows], (r_s[rows] - y_mean) / y_std,
+                    alpha_s[rows] if np.ndim(alpha_s) else alpha_s,
+                    "fmin_l_bfgs_b", 0, rng, max_iter=refine[1],
+                )
+        else:
+            kernel_, lml, n_iter = _fit_hyperparameters(
+                kernel, X_s, (r_s - y_mean) / y_std, alpha_s,
+                None if optimizer == "adam" else optimizer,
+                params["n_restarts_optimizer"], rng,
+            )
+        posterior = _Posterior(kernel_, X_s, r_s, alpha_s, y_mean, y_std)
+    if optimizer == "adam":
+        lml = posterior.log_marginal_likelihood
+    return _OutputFit(mean, support, posterior, lml, n_iter)
 
 
 def _per_output(value, n_outputs, name):

@@ -1,0 +1,541 @@
+r"""A kernel tree compiled for the regressor's hot loops.
+
+:func:`compile_kernel` mirrors a kernel tree built from scikit-learn's
+``Sum``, ``Product``, ``ConstantKernel``, ``WhiteKernel`` and ``RBF`` and
+this package's :class:`~sklearn_gpcd.kernels.ARDRBF` and
+:class:`~sklearn_gpcd.kernels.QuasiStaticGate` (any other kernel is kept as an
+opaque leaf that is called as usual). The compiled tree computes exactly what
+the kernel computes, but
+
+* **without copies of constants**: a ``ConstantKernel`` stays a scalar and a
+  ``WhiteKernel`` a diagonal, so ``C * ARDRBF + White`` costs one ``n x n``
+  array, not four;
+* **keeping the parts the gradient needs** (``gram(X, keep=True)``): the
+  log-marginal-likelihood gradient (R&W Eq. 5.9)
+
+  .. math::
+
+      \partial_{\theta_k} \log p = \tfrac12 \sum_{ij} W_{ij}
+      \frac{\partial K_{ij}}{\partial \theta_k}, \qquad W = a a^T - K_y^{-1},
+
+  is contracted per node (:meth:`_Node.contract`) with the node values
+  already computed for :math:`K`, never forming the ``(n, n, n_theta)``
+  array. For a squared-exponential block (Eq. 11) with scaled inputs
+  :math:`z_{id} = x_{id} / l_d` and :math:`M = W \circ K`, all length scales
+  come from one matrix product, as
+
+  .. math::
+
+      \sum_{ij} M_{ij} (z_{id} - z_{jd})^2
+      = \sum_i z_{id}^2 \big(\textstyle\sum_j M_{ij} + M_{ji}\big)
+        - 2\, z_{\cdot d}^T M z_{\cdot d};
+
+* **evaluating only what a prediction needs** (:meth:`_Node.prepare` then
+  :meth:`_Node.cross_dot`): the posterior mean :math:`k_*^T w` is a sum over
+  blocks, each with its support points scaled once; a
+  :class:`~sklearn_gpcd.kernels.QuasiStaticGate` block (Eq. 16) is evaluated
+  only for the queries whose gate :math:`a_\ell(x_*)` is 1, against the
+  gated support points only.
+
+Hyperparameters are set from a ``theta`` vector laid out like
+``kernel.theta`` (:meth:`_Node.set_theta`), so optimizers do not rebuild
+kernel objects at every step.
+"""
+
+import numpy as np
+from scipy.spatial.distance import pdist, squareform
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Product, Sum, WhiteKernel
+
+from ..kernels import ARDRBF, QuasiStaticGate
+
+
+def compile_kernel(kernel):
+    """Compiled mirror of ``kernel`` (with its current hyperparameters).
+
+    Parameters
+    ----------
+    kernel : Kernel
+        A kernel whose columns are integer indices (see
+        :func:`~sklearn_gpcd.kernels.resolve_columns`).
+
+    Returns
+    -------
+    plan : _Node
+        Root of the compiled tree; ``plan.n_dims == kernel.n_dims``.
+    """
+    kind = type(kernel)
+    if kind is Sum:
+        return _Sum(compile_kernel(kernel.k1), compile_kernel(kernel.k2))
+    if kind is Product:
+        return _Product(compile_kernel(kernel.k1), compile_kernel(kernel.k2))
+    if kind is ConstantKernel:
+        return _Constant(kernel)
+    if kind is WhiteKernel:
+        return _White(kernel)
+    if kind is RBF or kind is ARDRBF:
+        return _SquaredExponential(kernel)
+    if kind is QuasiStaticGate:
+        return _Gate(kernel)
+    return _Opaque(kernel)
+
+
+# -- values: a float (same value everywhere), a _Diagonal, or an ndarray ----
+
+
+class _Diagonal:
+    """A diagonal matrix, e.g. the Gram matrix of a ``WhiteKernel``."""
+
+    def __init__(self, values):
+        self.values = values
+
+
+def _dense(value, n_rows, n_cols):
+    """A value as an ``(n_rows, n_cols)`` array (a new one for scalars/diagonals)."""
+    if isinstance(value, np.ndarray):
+        return value
+    if isinstance(value, _Diagonal):
+        out = np.zeros((n_rows, n_cols))
+        out[np.diag_indices(n_rows)] = value.values
+        return out
+    return np.full((n_rows, n_cols), float(value))
+
+
+def _add(a, b, inplace):
+    """a + b for values; reuses an array operand when ``inplace``."""
+    if isinstance(a, _Diagonal) and isinstance(b, _Diagonal):
+        return _Diagonal(a.values + b.values)
+    if isinstance(b, np.ndarray) and not isinstance(a, np.ndarray):
+        a, b = b, a
+    if isinstance(a, np.ndarray):
+        out = a if inplace else a.copy()
+        if isinstance(b, _Diagonal):
+            out[np.diag_indices_from(out)] += b.values
+        else:
+            out += b
+        return out
+    if isinstance(b, _Diagonal):
+        a, b = b, a
+    if isinstance(a, _Diagonal):  # scalar + diagonal
+        out = np.full((len(a.values), len(a.values)), float(b))
+        out[np.diag_indices_from(out)] += a.values
+        return out
+    return a + b
+
+
+def _multiply(a, b, inplace):
+    """Elementwise a * b for values; reuses an array operand when ``inplace``."""
+    if isinstance(b, _Diagonal) and not isinstance(a, _Diagonal):
+        a, b = b, a
+    if isinstance(a, _Diagonal):
+        if isinstance(b, _Diagonal):
+            return _Diagonal(a.values * b.values)
+        if isinstance(b, np.ndarray):
+            return _Diagonal(a.values * np.diag(b))
+        return _Diagonal(a.values * b)
+    if isinstance(b, np.ndarray) and not isinstance(a, np.ndarray):
+        a, b = b, a
+    if isinstance(a, np.ndarray):
+        if inplace:
+            a *= b
+            return a
+        return a * b
+    return a * b
+
+
+def _rows_of(value, rows):
+    """A diagonal restricted to some rows (arrays pass through)."""
+    return _Diagonal(value.values[rows]) if isinstance(value, _Diagonal) else value
+
+
+# -- nodes -----------------------------------------------------------------
+
+
+class _Node:
+    """Base of the compiled nodes.
+
+    Methods
+    -------
+    set_theta(theta)
+        Log-hyperparameters of this subtree (``kernel.theta`` layout).
+    gram(X, keep)
+        ``k(X, X)`` as a value; with ``keep`` the node keeps what
+        :meth:`contract` needs and its returned arrays must not be modified.
+    contract(W, scale)
+        ``scale * sum_ij W_ij dK_ij/dtheta`` after ``gram(X, keep=True)``.
+    prepare(S, weights)
+        Cache support-side data (and the posterior weights) for predictions.
+    cross(Q)
+        ``k(Q, S)`` as a value.
+    cross_dot(Q)
+        ``k(Q, S) @ weights``, shape (n_queries,).
+    diag(Q)
+        Diagonal of ``k(Q, Q)``, a float or an array.
+    """
+
+    n_dims = 0
+
+    def set_theta(self, theta):  # pragma: no cover - overridden when n_dims
+        pass
+
+    def is_scalar(self):
+        """Whether every value of this node is one float (a constant)."""
+        return False
+
+    def zero_cross(self):
+        """Whether ``k(Q, S)`` is identically zero (a ``WhiteKernel``)."""
+        return False
+
+    def cross_dot(self, Q):
+        return _dense(self.cross(Q), Q.shape[0], self._n_support) @ self._weights
+
+
+class _Sum(_Node):
+    def __init__(self, k1, k2):
+        self.k1, self.k2 = k1, k2
+        self.n_dims = k1.n_dims + k2.n_dims
+
+    def set_theta(self, theta):
+        self.k1.set_theta(theta[: self.k1.n_dims])
+        self.k2.set_theta(theta[self.k1.n_dims :])
+
+    def gram(self, X, keep):
+        return _add(self.k1.gram(X, keep), self.k2.gram(X, keep), inplace=not keep)
+
+    def contract(self, W, scale):
+        parts = [k.contract(W, scale) for k in (self.k1, self.k2) if k.n_dims]
+        return np.concatenate(parts) if parts else np.empty(0)
+
+    def prepare(self, S, weights):
+        self.k1.prepare(S, weights)
+        self.k2.prepare(S, weights)
+        # children with k(Q, S) == 0 (a WhiteKernel) are left out of k(Q, S) w
+        self._live = [k for k in (self.k1, self.k2) if not k.zero_cross()]
+
+    def zero_cross(self):
+        return self.k1.zero_cross() and self.k2.zero_cross()
+
+    def cross(self, Q):
+        return _add(self.k1.cross(Q), self.k2.cross(Q), inplace=True)
+
+    def cross_dot(self, Q):
+        if len(self._live) == 1:
+            return self._live[0].cross_dot(Q)
+        if not self._live:
+            return np.zeros(Q.shape[0])
+        return self.k1.cross_dot(Q) + self.k2.cross_dot(Q)
+
+    def diag(self, Q):
+        return self.k1.diag(Q) + self.k2.diag(Q)
+
+
+class _Product(_Node):
+    def __init__(self, k1, k2):
+        self.k1, self.k2 = k1, k2
+        self.n_dims = k1.n_dims + k2.n_dims
+
+    def set_theta(self, theta):
+        self.k1.set_theta(theta[: self.k1.n_dims])
+        self.k2.set_theta(theta[self.k1.n_dims :])
+
+    def gram(self, X, keep):
+        v1, v2 = self.k1.gram(X, keep), self.k2.gram(X, keep)
+        if keep:
+            self._v1, self._v2, self._n = v1, v2, X.shape[0]
+        return _multiply(v1, v2, inplace=not keep)
+
+    def contract(self, W, scale):
+        parts = []
+        for child, other in ((self.k1, self._v2), (self.k2, self._v1)):
+            if not child.n_dims:
+                continue
+            if isinstance(other, (np.ndarray, _Diagonal)):
+                parts.append(child.contract(W * _dense(other, self._n, self._n), scale))
+            else:  # a scalar factor: fold it into the scale
+                parts.append(child.contract(W, scale * other))
+        return np.concatenate(parts) if parts else np.empty(0)
+
+    def prepare(self, S, weights):
+        self._n_support, self._weights = S.shape[0], weights
+        # a constant factor c is folded into the weights: (c K) w = K (c w)
+        self._other = None
+        if self.k1.is_scalar():
+            self._other = self.k2
+            self.k2.prepare(S, self.k1.value * weights)
+            self.k1.prepare(S, weights)
+        elif self.k2.is_scalar():
+            self._other = self.k1
+            self.k1.prepare(S, self.k2.value * weights)
+            self.k2.prepare(S, weights)
+        else:
+            self.k1.prepare(S, weights)
+            self.k2.prepare(S, weights)
+
+    def zero_cross(self):
+        return self.k1.zero_cross() or self.k2.zero_cross()
+
+    def cross(self, Q):
+        return _multiply(self.k1.cross(Q), self.k2.cross(Q), inplace=True)
+
+    def cross_dot(self, Q):
+        if self._other is not None:
+            return self._other.cross_dot(Q)
+        return super().cross_dot(Q)
+
+    def diag(self, Q):
+        return self.k1.diag(Q) * self.k2.diag(Q)
+
+
+
+class _Constant(_Node):
+    def __init__(self, kernel):
+        self.value = float(kernel.constant_value)
+        self.n_dims = kernel.n_dims
+
+    def set_theta(self, theta):
+        if self.n_dims:
+            self.value = float(np.exp(theta[0]))
+
+    def gram(self, X, keep):
+        return self.value
+
+    def contract(self, W, scale):
+        return np.array([scale * self.value * W.sum()])
+
+    def prepare(self, S, weights):
+        self._n_support, self._weights = S.shape[0], weights
+        self._weights_sum = float(np.sum(weights))
+
+    def cross(self, Q):
+        return self.value
+
+    def cross_dot(self, Q):
+        return np.full(Q.shape[0], self.value * self._weights_sum)
+
+    def diag(self, Q):
+        return self.value
+
+    def is_scalar(self):
+        return True
+
+
+class _White(_Node):
+    def __init__(self, kernel):
+        self.value = float(kernel.noise_level)
+        self.n_dims = kernel.n_dims
+
+    def set_theta(self, theta):
+        if self.n_dims:
+            self.value = float(np.exp(theta[0]))
+
+    def gram(self, X, keep):
+        return _Diagonal(np.full(X.shape[0], self.value))
+
+    def contract(self, W, scale):
+        return np.array([scale * self.value * np.trace(W)])
+
+    def prepare(self, S, weights):
+        self._n_support = S.shape[0]
+
+    def cross(self, Q):  # scikit-learn: no noise between distinct arguments
+        return 0.0
+
+    def zero_cross(self):
+        return True
+
+    def cross_dot(self, Q):
+        return np.zeros(Q.shape[0])
+
+    def diag(self, Q):
+        return self.value
+
+
+
+class _SquaredExponential(_Node):
+    r""":math:`\exp(-\tfrac12 \sum_d (x_d - x'_d)^2 / l_d^2)` on some columns (Eq. 11)."""
+
+    def __init__(self, kernel):
+        columns = getattr(kernel, "columns", None)
+        self.columns = None if columns is None else np.asarray(columns, dtype=np.intp)
+        self.length_scale = np.asarray(kernel.length_scale, dtype=float)
+        self.anisotropic = bool(np.iterable(kernel.length_scale) and len(kernel.length_scale) > 1)
+        self.n_dims = kernel.n_dims
+
+    def set_theta(self, theta):
+        if self.n_dims:
+            self.length_scale = np.exp(theta) if self.anisotropic else np.exp(theta[0])
+
+    def _scaled(self, X):
+        return (X if self.columns is None else X[:, self.columns]) / self.length_scale
+
+    def gram(self, X, keep):
+        Z = self._scaled(X)  # as scikit-learn's RBF: pdist, exp, squareform
+        K = np.exp(-0.5 * pdist(Z, metric="sqeuclidean"))
+        K = squareform(K)
+        np.fill_diagonal(K, 1.0)
+        if keep and self.n_dims:
+            self._Z, self._K = Z - Z.mean(axis=0), K  # centred: smaller round-off
+        return K
+
+    def contract(self, W, scale):
+        M = W * self._K
+        Z = self._Z
+        row_col = M.sum(axis=1) + M.sum(axis=0)
+        per_dim = (Z * Z).T @ row_col - 2.0 * np.einsum("id,id->d", Z, M @ Z)
+        per_dim *= scale
+        return per_dim if self.anisotropic else np.array([per_dim.sum()])
+
+    def prepare(self, S, weights):
+        Z = self._scaled(S)
+        self._center = Z.mean(axis=0) if len(Z) else 0.0
+        self._S_T = np.ascontiguousarray((Z - self._center).T)
+        self._half_norm = 0.5 * np.einsum("di,di->i", self._S_T, self._S_T)
+        self._weights = weights
+
+    def _neg_half_sq_dists(self, Q):
+        # -|z - s|^2 / 2 = z.s - |s|^2 / 2 - |z|^2 / 2, by one matrix product
+        Z = self._scaled(Q)
+        Z -= self._center
+        D = Z @ self._S_T
+        D -= self._half_norm
+        if len(Z) == 1:  # one query: a scalar (the einsum costs more than the row)
+            D -= 0.5 * float(Z[0] @ Z[0])
+        else:
+            D -= 0.5 * np.einsum("id,id->i", Z, Z)[:, np.newaxis]
+        return D
+
+    def cross(self, Q):
+        D = self._neg_half_sq_dists(Q)
+        np.minimum(D, 0.0, out=D)  # round-off can leave tiny positive values
+        return np.exp(D, out=D)
+
+    def cross_dot(self, Q):
+        D = self._neg_half_sq_dists(Q)
+        return np.exp(D, out=D) @ self._weights
+
+    def diag(self, Q):
+        return 1.0
+
+
+
+class _Gate(_Node):
+    r""":math:`a(x) k(x, x') a(x')` (Eq. 16): the inner kernel on gated rows only."""
+
+    def __init__(self, kernel):
+        self.inner = compile_kernel(kernel.kernel)
+        self.column = int(kernel.velocity_column)
+        self.sigma_v = float(kernel.sigma_v)
+        self.n_dims = self.inner.n_dims
+
+    def set_theta(self, theta):
+        self.inner.set_theta(theta)
+
+    def rows(self, X):
+        """Indices of the rows with :math:`|\\dot q_\\ell| < \\sigma_v` (Eq. 15)."""
+        return np.flatnonzero(np.abs(X[:, self.column]) < self.sigma_v)
+
+    def gram(self, X, keep):
+        n = X.shape[0]
+        rows = self.rows(X)
+        if keep:
+            self._rows, self._all = rows, len(rows) == n
+        if len(rows) == n:
+            return self.inner.gram(X, keep)
+        if len(rows) == 0:
+            return 0.0
+        block = self.inner.gram(X[rows], keep)
+        if isinstance(block, _Diagonal):
+            values = np.zeros(n)
+            values[rows] = block.values
+            return _Diagonal(values)
+        K = np.zeros((n, n))
+        K[np.ix_(rows, rows)] = block
+        return K
+
+    def contract(self, W, scale):
+        if self._all:
+            return self.inner.contract(W, scale)
+        if len(self._rows) == 0:
+            return np.zeros(self.n_dims)
+        return self.inner.contract(W[np.ix_(self._rows, self._rows)], scale)
+
+    def prepare(self, S, weights):
+        self._n_support = S.shape[0]
+        self._support_rows = self.rows(S)
+        self.inner.prepare(S[self._support_rows], weights[self._support_rows])
+
+    def cross(self, Q):
+        rows = self.rows(Q)
+        out = np.zeros((Q.shape[0], self._n_support))
+        if len(rows) and len(self._support_rows):
+            block = self.inner.cross(Q[rows])
+            block = _dense(block, len(rows), len(self._support_rows))
+            out[np.ix_(rows, self._support_rows)] = block
+        return out
+
+    def cross_dot(self, Q):
+        out = np.zeros(Q.shape[0])
+        rows = self.rows(Q)
+        if len(rows) and len(self._support_rows):  # skipped when the gate is 0
+            out[rows] = self.inner.cross_dot(Q[rows])
+        return out
+
+    def diag(self, Q):
+        out = np.zeros(Q.shape[0])
+        rows = self.rows(Q)
+        if len(rows):
+            out[rows] = self.inner.diag(Q[rows])
+        return out
+
+
+
+class _Opaque(_Node):
+    """Any other kernel: called as usual; gradient from its full array."""
+
+    def __init__(self, kernel):
+        self.kernel = kernel
+        self.n_dims = kernel.n_dims
+
+    def set_theta(self, theta):
+        if self.n_dims:
+            self.kernel = self.kernel.clone_with_theta(theta)
+
+    def gram(self, X, keep):
+        if keep and self.n_dims:
+            self._X = X
+        return np.array(self.kernel(X), dtype=float)
+
+    def contract(self, W, scale):
+        _, K_gradient = self.kernel(self._X, eval_gradient=True)
+        return scale * np.einsum("ij,ijk->k", W, K_gradient)
+
+    def prepare(self, S, weights):
+        self._S, self._n_support, self._weights = S, S.shape[0], weights
+
+    def cross(self, Q):
+        return np.array(self.kernel(Q, self._S), dtype=float)
+
+    def diag(self, Q):
+        return np.asarray(self.kernel.diag(Q), dtype=float)
+
+
+
+def gram_matrix(plan, X, keep=False):
+    """``k(X, X)`` of a compiled kernel as a new (writable) array.
+
+    Parameters
+    ----------
+    plan : _Node
+    X : ndarray of shape (n_samples, n_features)
+    keep : bool, default=False
+        Keep the parts needed by ``plan.contract`` (then the returned array
+        is still a fresh one, safe to modify).
+
+    Returns
+    -------
+    K : ndarray of shape (n_samples, n_samples)
+    """
+    n = X.shape[0]
+    K = plan.gram(X, keep)
+    if isinstance(K, np.ndarray):  # sums and products return new arrays
+        return K.copy() if keep and not isinstance(plan, (_Sum, _Product)) else K
+    return _dense(K, n, n)
