@@ -276,6 +276,13 @@ def reference_d2(robot="ur10", n_targets=50, *, period=D2_PERIOD, radius=0.3, to
     -------
     reference : JointTrajectory
         The circle is the phase of kind ``"circle"``.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.datasets import reference_d2
+    >>> ref = reference_d2("ur10", n_targets=2, n_turns=0.1, random_state=0)
+    >>> [p["kind"] for p in ref.phases][-2:]
+    ['rest', 'circle']
     """
     robot = _robot(robot)
     n_targets = _check_positive("n_targets", n_targets, integer=True)
@@ -397,6 +404,14 @@ def reference_interaction_test(robot="ur10", *, radius=0.3, tool_speed=0.03, n_t
     -------
     reference : JointTrajectory
     contacts : list of Contact
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.datasets import reference_interaction_test
+    >>> ref, pushes = reference_interaction_test("ur10", n_turns=0.1, rest_duration=3.0,
+    ...                                          random_state=0)
+    >>> len(pushes), {push.link for push in pushes}
+    (4, {1})
     """
     robot = _robot(robot)
     rng = check_random_state(random_state)
@@ -493,6 +508,13 @@ def make_d2(robot="ur10", n_targets=50, *, period=D2_PERIOD, radius=0.3, n_turns
     Returns
     -------
     recording : Recording
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.datasets import make_d2
+    >>> rec = make_d2("ur10", n_targets=1, n_turns=0.1, random_state=0)
+    >>> rec.n_joints, int(rec.labels.max()), rec.metadata["phases"][-1]["kind"]
+    (6, 0, 'circle')
     """
     rng = check_random_state(random_state)
     reference = reference_d2(robot, n_targets, period=period, radius=radius, n_turns=n_turns,
@@ -558,6 +580,13 @@ def make_interaction_test(robot="ur10", *, radius=0.3, n_turns=1.0, rest_duratio
     Returns
     -------
     recording : Recording
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.datasets import make_interaction_test
+    >>> rec = make_interaction_test("ur10", n_turns=0.1, rest_duration=3.0, random_state=0)
+    >>> sorted(set(rec.labels.tolist()))
+    [0, 1, 2, 3, 4]
     """
     rng = check_random_state(random_state)
     reference, contacts = reference_interaction_test(

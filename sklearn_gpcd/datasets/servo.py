@@ -131,6 +131,18 @@ def servo_gains(robot, bandwidth=25.0, damping=1.0, integral_time=0.15,
     -------
     gains : ServoGains
         ``current_limit`` is ``effort_limits / torque_constants``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.datasets import servo_gains
+    >>> from sklearn_gpcd.robots import load_robot
+    >>> robot = load_robot("ur10")
+    >>> gains = servo_gains(robot, bandwidth=25.0)
+    >>> gains.kp.shape
+    (6,)
+    >>> bool(np.allclose(gains.current_limit, robot.effort_limits / robot.torque_constants))
+    True
     """
     model = plant_model(robot)
     inertia = np.diag(pin.crba(model, model.createData(), pin.neutral(model))).copy()
@@ -177,6 +189,22 @@ def feedforward_torque(model, data, q, qd, qdd, friction=None, friction_compensa
     Returns
     -------
     tau_ff : ndarray of shape (n_times, n_joints)
+
+    Examples
+    --------
+    Without friction, the feed-forward of a state at rest is the gravity
+    torque, pinocchio's inverse dynamics:
+
+    >>> import numpy as np
+    >>> import pinocchio as pin
+    >>> from sklearn_gpcd.datasets import feedforward_torque
+    >>> from sklearn_gpcd.robots import load_robot
+    >>> model = load_robot("ur10").model
+    >>> data = model.createData()
+    >>> q = np.array([[0.0, -1.57, 1.57, -1.57, -1.57, 0.0]])
+    >>> tau = feedforward_torque(model, data, q, np.zeros_like(q), np.zeros_like(q))
+    >>> bool(np.allclose(tau[0], pin.computeGeneralizedGravity(model, data, q[0])))
+    True
     """
     tau = np.empty_like(q)
     rnea = pin.rnea

@@ -29,7 +29,29 @@ SIGN_CONVENTIONS = ("target-minus-actual", "actual-minus-target")
 
 
 class MissingSignalWarning(UserWarning):
-    """A signal needed by the augmented inputs is absent and was replaced."""
+    """A signal needed by the augmented inputs is absent and was replaced.
+
+    Emitted once per :meth:`InverseDynamicsFeatures.transform` call that fills
+    a missing ``target_q``, ``target_qd`` or ``target_current`` block; the
+    message names the signals, the recordings and the substitute.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> from sklearn_gpcd.features import MissingSignalWarning, make_inputs
+    >>> t = np.arange(30) * 0.01
+    >>> rec = Recording(time=t, q=np.zeros((30, 1)), qd=np.zeros((30, 1)),
+    ...                 current=np.ones((30, 1)))          # no target signals
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     X, y = make_inputs(rec)
+    >>> [w.category.__name__ for w in caught]
+    ['MissingSignalWarning']
+    >>> bool(X[:, 3:].any())            # e_q, de_q and i_c filled with zeros
+    False
+    """
 
 
 def _as_recordings(recordings):

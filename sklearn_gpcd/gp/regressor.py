@@ -80,8 +80,7 @@ class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
     alpha : float or ndarray of shape (n_samples,), default=1e-10
         Value added to the diagonal of the kernel matrix (jitter or known
         noise variance), as in scikit-learn's GPR.
-    optimizer : {"auto", "fmin_l_bfgs_b", "adam"}, callable or None, \
-            default="auto"
+    optimizer : {"auto", "fmin_l_bfgs_b", "adam"}, callable or None, default="auto"
         Maximiser of the log marginal likelihood. "auto" is
         "fmin_l_bfgs_b" when the support has at most 2,000 rows, else "adam"
         (see above). "fmin_l_bfgs_b" and a callable maximise the exact LML of

@@ -102,6 +102,23 @@ def read_rosbag(
     -------
     recording : Recording
         ``metadata`` holds ``joint_names``, ``topic`` and ``time_source``.
+
+    Examples
+    --------
+    Reading a bag needs a bag file (and the ``rosbags`` package), so the
+    first lines are not run here:
+
+    >>> from sklearn_gpcd.io import read_rosbag
+    >>> rec = read_rosbag("run_03.bag", effort_is="current")  # doctest: +SKIP
+    >>> rec.metadata["joint_names"][:2]  # doctest: +SKIP
+    ['shoulder_pan_joint', 'shoulder_lift_joint']
+
+    The meaning of ``effort`` is checked before anything is read:
+
+    >>> read_rosbag("run_03.bag", effort_is="voltage")
+    Traceback (most recent call last):
+    ...
+    ValueError: effort_is must be 'current' or 'torque', got 'voltage'
     """
     if effort_is not in ("current", "torque"):
         raise ValueError(f"effort_is must be 'current' or 'torque', got {effort_is!r}")

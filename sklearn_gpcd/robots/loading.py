@@ -129,10 +129,28 @@ def load_robot(name_or_urdf, **overrides):
 def resolve_robot(robot):
     """Return ``robot`` itself if it is a :class:`Robot`, else ``load_robot(robot)``.
 
+    Parameters
+    ----------
+    robot : str, Path or Robot
+        A built-in robot name, a URDF path or an already loaded robot.
+
+    Returns
+    -------
+    robot : Robot
+        ``robot`` unchanged when it is a :class:`Robot`.
+
+    Raises
+    ------
+    TypeError
+        For any other type.
+
     Examples
     --------
     >>> resolve_robot("ur5").name
     'ur5'
+    >>> robot = load_robot("ur10")
+    >>> resolve_robot(robot) is robot
+    True
     """
     if isinstance(robot, Robot):
         return robot
