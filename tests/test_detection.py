@@ -517,3 +517,30 @@ def test_named_columns_reach_the_regressor(rng):
         out = monitor.replay(frame.to_numpy())
     assert monitor.predictor_kind == "gaussian_process"
     assert np.array_equal(out.prediction, det.predict(frame))
+
+
+def test_monitor_status_keeps_its_value_in_arrays():
+    statuses = [MonitorStatus.OK, MonitorStatus.COLLISION, MonitorStatus.SENSOR_FAULT]
+    assert [str(s) for s in statuses] == ["ok", "collision", "sensor_fault"]
+    assert np.asarray(statuses).tolist() == ["ok", "collision", "sensor_fault"]
+    assert f"{MonitorStatus.COLLISION}" == "collision"
+    assert MonitorStatus("collision") is MonitorStatus.COLLISION
+
+
+def test_frozen_sp_p_gets_the_compiled_path(rng):
+    from sklearn.frozen import FrozenEstimator
+
+    X, current = augmented_run(600, 2, rng)
+    sp_p = small_sp_p(2).fit(X[::2], current[::2])
+    det = CollisionDetector(
+        FrozenEstimator(sp_p), n_joints=2, contamination=0.01, filter_cutoff=8.0, min_duration=3
+    ).fit(stack_currents(X[1::2], current[1::2]))
+    assert det.regressor_.estimator is sp_p  # frozen: not refitted
+    test_current = current.copy()
+    test_current[100:140, 0] += 1.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no fallback to the generic path
+        monitor, out = _stream_matches_batch(det, stack_currents(X, test_current))
+    assert monitor.predictor_kind == "gaussian_process"
+    assert np.allclose(out.residual, test_current - sp_p.predict(X), rtol=1e-7, atol=1e-7)
+    assert (out.prediction[100:140] == -1).any()

@@ -358,13 +358,28 @@ def _identity(X):
     return X
 
 
+def _unwrap(regressor):
+    """The fitted estimator inside :class:`sklearn.frozen.FrozenEstimator` wrappers.
+
+    A frozen estimator's ``predict`` is its inner estimator's, so the
+    compiled path of the inner one applies (and is checked against the
+    wrapper's own ``predict``).
+    """
+    from sklearn.frozen import FrozenEstimator
+
+    while isinstance(regressor, FrozenEstimator):
+        regressor = regressor.estimator
+    return regressor
+
+
 def compile_predictor(regressor, n_features, n_outputs, check_rows=None, wrap=None):
     """A single-sample predictor for a fitted regressor.
 
     Parameters
     ----------
     regressor : fitted regressor
-        The model of the currents.
+        The model of the currents; a :class:`sklearn.frozen.FrozenEstimator`
+        is compiled through the fitted estimator it wraps.
     n_features : int
         Number of input columns.
     n_outputs : int
@@ -396,16 +411,17 @@ def compile_predictor(regressor, n_features, n_outputs, check_rows=None, wrap=No
     """
     wrap = _identity if wrap is None else wrap
     predictor, kind = None, "generic"
-    outputs = _gp_outputs(regressor)
+    inner = _unwrap(regressor)
+    outputs = _gp_outputs(inner)
     if outputs is not None and len(outputs) == n_outputs:
         predictor = _GaussianProcessPredictor(outputs, n_features, wrap)
         kind = "gaussian_process"
         rows = outputs[0]["support"][:: max(1, len(outputs[0]["support"]) // 8)]
         check_rows = rows if check_rows is None else np.vstack([check_rows, rows])
-    elif hasattr(regressor, "coef_") and hasattr(regressor, "intercept_"):
-        coef = np.asarray(regressor.coef_)
+    elif hasattr(inner, "coef_") and hasattr(inner, "intercept_"):
+        coef = np.asarray(inner.coef_)
         if coef.size == n_features * n_outputs:
-            predictor, kind = _LinearPredictor(coef, regressor.intercept_, n_outputs), "linear"
+            predictor, kind = _LinearPredictor(coef, inner.intercept_, n_outputs), "linear"
     if predictor is not None and check_rows is not None and len(check_rows):
         expected = regressor.predict(wrap(check_rows))
         expected = np.reshape(expected, (len(check_rows), n_outputs))

@@ -23,11 +23,31 @@ class MonitorStatus(str, Enum):
       or held a NaN / infinite value. It is skipped: no decision is made,
       the filter and debounce state are held, and the next valid sample is
       processed as if the faulty one had never arrived.
+
+    ``str(status)`` is the value, so statuses stored in a NumPy array or
+    written to a log keep it (``np.asarray([...])`` gives ``'collision'``,
+    not a truncated ``'MonitorStatu'``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.detection import MonitorStatus
+    >>> MonitorStatus.COLLISION == "collision"
+    True
+    >>> MonitorStatus("sensor_fault") is MonitorStatus.SENSOR_FAULT
+    True
+    >>> str(MonitorStatus.OK)
+    'ok'
+    >>> np.asarray([MonitorStatus.OK, MonitorStatus.SENSOR_FAULT]).tolist()
+    ['ok', 'sensor_fault']
     """
 
     OK = "ok"
     COLLISION = "collision"
     SENSOR_FAULT = "sensor_fault"
+
+    def __str__(self):
+        return self.value
 
 
 def _frame_maker(detector):

@@ -99,6 +99,30 @@ class Effect:
         True when the columns depend on time (not a function of the state).
     rest_guard : bool
         True when rows next to a joint's rest must be left out of its fit.
+
+    Examples
+    --------
+    A library effect gives one column per joint it acts on:
+
+    >>> import numpy as np
+    >>> from sklearn_gpcd.diagnosis import Effect, NominalModel, Signals, effect_library
+    >>> nominal = NominalModel("ur10")
+    >>> signals = Signals.from_states(nominal, np.ones((3, 18)))
+    >>> effect = effect_library("coulomb_friction")[0]
+    >>> isinstance(effect, Effect), effect.name, effect.per_joint
+    (True, 'coulomb_friction', True)
+    >>> columns = effect.design(signals, nominal, target=2)
+    >>> list(columns), columns[2].shape
+    ([2], (3, 1))
+
+    A new effect subclasses :class:`Effect` and implements :meth:`design`:
+
+    >>> class Backlash(Effect):
+    ...     name, parameter_names, units = "backlash", ("gap",), ("rad",)
+    ...     def design(self, signals, nominal, target, **settings):
+    ...         return {target: np.sign(signals.qd[:, [target]])}
+    >>> Backlash().design(signals, nominal, 0)[0].ravel().tolist()
+    [1.0, 1.0, 1.0]
     """
 
     name = ""

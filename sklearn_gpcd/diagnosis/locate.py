@@ -41,6 +41,24 @@ class ResidualBreakdown:
         (n_bins, n_joints)}``.
     units : str
         Unit of the residual (``"A"`` or ``"Nm"``).
+
+    Examples
+    --------
+    A residual only while joint 4 rests is found there by :meth:`worst`:
+
+    >>> import numpy as np
+    >>> from sklearn_gpcd.diagnosis import NominalModel, Signals, residual_breakdown
+    >>> rng = np.random.default_rng(0)
+    >>> X = np.hstack([rng.normal(size=(200, 6)), rng.normal(size=(200, 6)),
+    ...                np.zeros((200, 6))])
+    >>> X[:50, 6 + 4] = 0.0  # joint 4 at rest for 50 samples
+    >>> residual = np.zeros((200, 6))
+    >>> residual[:50, 4] = 0.5
+    >>> breakdown = residual_breakdown(Signals.from_states(NominalModel("ur10"), X), residual)
+    >>> breakdown.n_joints, breakdown.worst()
+    (6, (4, 'rest'))
+    >>> round(float(breakdown.rms[4]), 3)
+    0.25
     """
 
     rms: np.ndarray

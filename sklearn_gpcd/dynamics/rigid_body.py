@@ -1,5 +1,8 @@
 """scikit-learn transformer from joint states to rigid-body regressor features."""
 
+import hashlib
+from collections import OrderedDict
+
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils import check_random_state
@@ -27,6 +30,69 @@ def _random_states(robot, n_states, random_state):
     qd = rng.uniform(-2.0, 2.0, size=(n_states, n))
     qdd = rng.uniform(-5.0, 5.0, size=(n_states, n))
     return q, qd, qdd
+
+
+#: Number of base-parameter reductions kept by :func:`_identification`.
+_IDENTIFICATION_CACHE_SIZE = 32
+_IDENTIFICATION_CACHE = OrderedDict()
+
+
+def _robot_key(robot):
+    """Hashable identity of everything the identification reads from a robot.
+
+    The robot's name and a SHA-1 of its kinematic tree (parents, joint
+    types, placements), inertias, rotor inertias, gravity and position
+    limits (the random states are drawn inside the limits).
+    """
+    model = robot.model
+    digest = hashlib.sha1()
+    digest.update(repr([robot.name, list(model.parents),
+                        [j.shortname() for j in model.joints]]).encode())
+    arrays = [np.asarray(model.jointPlacements[j].homogeneous) for j in range(model.njoints)]
+    arrays += [np.asarray(model.inertias[j].toDynamicParameters()) for j in range(model.njoints)]
+    arrays += [np.asarray(model.armature), np.asarray(model.gravity.linear),
+               robot.lower, robot.upper]
+    for values in arrays:
+        digest.update(np.ascontiguousarray(values, dtype=float).tobytes())
+    return robot.name, digest.hexdigest()
+
+
+def _identify(robot, p, regressor, n_states, random_state, reduce, rank_tol):
+    """Regressor on random states and its base-parameter reduction (uncached)."""
+    Phi = regressor(*_random_states(robot, n_states, random_state), None)
+    if reduce:
+        info = base_parameters(Phi.reshape(-1, p), rank_tol)
+    else:
+        info = {"indices": np.arange(p), "dependent": np.array([], dtype=int),
+                "mapping": np.eye(p), "rank": p, "tol": 0.0}
+    return Phi, info
+
+
+def _copies(Phi, info):
+    return Phi.copy(), {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in info.items()}
+
+
+def _identification(robot, p, regressor, n_states, random_state, reduce, rank_tol, options):
+    """:func:`_identify`, cached when ``random_state`` is an int.
+
+    The result depends only on the robot (:func:`_robot_key`), the column
+    options, ``rank_tol`` and the seed, never on the data, so repeated fits
+    (cross-validation, one transformer per joint) reuse it. A RandomState
+    instance or None draws fresh states and is not cached. Callers get
+    copies: mutating them cannot change the cache.
+    """
+    if not isinstance(random_state, (int, np.integer)) or isinstance(random_state, bool):
+        return _identify(robot, p, regressor, n_states, random_state, reduce, rank_tol)
+    key = (_robot_key(robot), options, n_states, int(random_state), bool(reduce),
+           None if rank_tol is None else float(rank_tol))
+    if key in _IDENTIFICATION_CACHE:
+        _IDENTIFICATION_CACHE.move_to_end(key)
+    else:
+        _IDENTIFICATION_CACHE[key] = _identify(robot, p, regressor, n_states, random_state,
+                                               reduce, rank_tol)
+        while len(_IDENTIFICATION_CACHE) > _IDENTIFICATION_CACHE_SIZE:
+            _IDENTIFICATION_CACHE.popitem(last=False)
+    return _copies(*_IDENTIFICATION_CACHE[key])
 
 
 class RigidBodyRegressor(TransformerMixin, BaseEstimator):
@@ -194,12 +260,10 @@ class RigidBodyRegressor(TransformerMixin, BaseEstimator):
         p = len(self.parameter_names_)
 
         n_states = max(_MIN_IDENTIFICATION_STATES, -(-3 * p // n))
-        Phi = self._regressor(*_random_states(self.robot_, n_states, self.random_state), None)
-        if self.base_parameters:
-            info = base_parameters(Phi.reshape(-1, p), self.rank_tol)
-        else:
-            info = {"indices": np.arange(p), "dependent": np.array([], dtype=int),
-                    "mapping": np.eye(p), "rank": p, "tol": 0.0}
+        options = (bool(self.rotor_inertia), self.friction_, bool(self.offset))
+        Phi, info = _identification(self.robot_, p, self._regressor, n_states,
+                                    self.random_state, self.base_parameters, self.rank_tol,
+                                    options)
         info["names"] = [self.parameter_names_[i] for i in info["indices"]]
         self.base_parameters_ = info
 
