@@ -73,7 +73,8 @@ def plot_monitoring(
         Contact labels (0 free, ``k > 0`` in contact ``k``); contacts are
         shaded.
     joint : int, default=0
-        Joint to plot (0-based).
+        Joint to plot (0-based index; the labels number joints from 1 as the
+        paper does, so ``joint=0`` is labelled ``i_1``).
     ax : sequence of 3 matplotlib Axes, default=None
         Axes to draw on; None creates a figure with three stacked panels.
 
@@ -112,13 +113,14 @@ def plot_monitoring(
             raise ValueError(f"ax must hold 3 Axes, got {axes.shape[0]}")
     axes = np.asarray(axes, dtype=object)
     top, middle, bottom = axes
-    top.plot(time, current, label=f"$i_{{{joint}}}$ measured")
-    top.plot(time, predicted, "--", label=f"$\\hat{{i}}_{{{joint}}}$ predicted")
+    number = joint + 1  # the paper numbers joints from 1 (i_1, s_1)
+    top.plot(time, current, label=f"$i_{{{number}}}$ measured")
+    top.plot(time, predicted, "--", label=f"$\\hat{{i}}_{{{number}}}$ predicted")
     top.set_ylabel("current [A]")
     top.legend(loc="upper right")
     middle.plot(time, qd, color="tab:green")
     middle.set_ylabel("velocity [rad/s]")
-    bottom.plot(time, s, color="tab:red", label=f"$s_{{{joint}}}$")
+    bottom.plot(time, s, color="tab:red", label=f"$s_{{{number}}}$")
     bottom.fill_between(time, -band, band, color="tab:blue", alpha=0.15,
                         label=r"$\pm\sigma_{CD}$")
     bottom.set_ylabel("monitoring signal")
