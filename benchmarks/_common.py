@@ -59,3 +59,72 @@ def table(rows, header):
     print(line.format(*["-" * w for w in widths]))
     for r in rows:
         print(line.format(*r))
+
+
+# -- real-data benchmarks ---------------------------------------------------
+def real_data_path(dataset, explicit=None):
+    """Folder of a real data set: ``explicit``, else ``$GPCD_REAL_DATA/dataset``,
+    else ``../shared/data/real/dataset`` next to the repository."""
+    import os
+    from pathlib import Path
+
+    if explicit:
+        return Path(explicit).resolve()
+    base = os.environ.get("GPCD_REAL_DATA")
+    if base:
+        return (Path(base) / dataset).resolve()
+    repo = Path(__file__).resolve().parents[1]
+    return (repo / ".." / "shared" / "data" / "real" / dataset).resolve()
+
+
+def require_data(root, description, files=()):
+    """Exit 0 with a clear message when the data (or one of ``files``) is absent."""
+    import sys
+
+    missing = [str(f) for f in files if not (root / f).exists()]
+    if not root.is_dir() or missing:
+        what = f"{root}" if not root.is_dir() else ", ".join(missing[:3])
+        print(f"{description} not found ({what}): nothing to benchmark. Point --data or "
+              "GPCD_REAL_DATA at the data; it is never shipped with the package.")
+        sys.exit(0)
+
+
+def _cell(value):
+    if isinstance(value, float):
+        return "n/a" if not np.isfinite(value) else f"{value:.3g}"
+    return str(value)
+
+
+def rst_table(header, rows):
+    """A reStructuredText grid table of ``rows`` under ``header`` (floats to 3 digits)."""
+    cells = [[_cell(v) for v in header]] + [[_cell(v) for v in row] for row in rows]
+    widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
+    rule = "+" + "+".join("-" * (w + 2) for w in widths) + "+"
+    line = lambda r: "| " + " | ".join(c.ljust(w) for c, w in zip(r, widths)) + " |"  # noqa: E731
+    out = [rule, line(cells[0]), rule.replace("-", "=")]
+    for r in cells[1:]:
+        out += [line(r), rule]
+    return "\n".join(out)
+
+
+def write_json(path, obj):
+    """``obj`` as JSON, numpy arrays and scalars converted, NaN as null."""
+    import json
+
+    def plain(o):
+        if isinstance(o, dict):
+            return {str(k): plain(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [plain(v) for v in o]
+        if isinstance(o, np.ndarray):
+            return plain(o.tolist())
+        if isinstance(o, (float, np.floating)):
+            return float(o) if np.isfinite(o) else None
+        if isinstance(o, np.integer):
+            return int(o)
+        if isinstance(o, np.bool_):
+            return bool(o)
+        return o
+
+    with open(path, "w") as fh:
+        json.dump(plain(obj), fh, indent=2)
