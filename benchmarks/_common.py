@@ -111,20 +111,7 @@ def write_json(path, obj):
     """``obj`` as JSON, numpy arrays and scalars converted, NaN as null."""
     import json
 
-    def plain(o):
-        if isinstance(o, dict):
-            return {str(k): plain(v) for k, v in o.items()}
-        if isinstance(o, (list, tuple)):
-            return [plain(v) for v in o]
-        if isinstance(o, np.ndarray):
-            return plain(o.tolist())
-        if isinstance(o, (float, np.floating)):
-            return float(o) if np.isfinite(o) else None
-        if isinstance(o, np.integer):
-            return int(o)
-        if isinstance(o, np.bool_):
-            return bool(o)
-        return o
+    from sklearn_gpcd.experiments.paper import _jsonable
 
     with open(path, "w") as fh:
-        json.dump(plain(obj), fh, indent=2)
+        json.dump(_jsonable(obj), fh, indent=2)

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import datasets
+from .._layout import block_columns
 from sklearn.frozen import FrozenEstimator
 
 from ..detection import CollisionDetector, stack_currents
@@ -185,7 +186,7 @@ def _held_out_rows(model, n_samples, n_joints):
 
 
 def _qd(X, n_joints):
-    return X[:, n_joints:2 * n_joints]
+    return X[:, block_columns("qd", n_joints)]
 
 
 def cyclic_signals(models, X, y):

@@ -4,7 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
-ESTIMATORS = ("P_f", "SP_S", "SP_P")
+from .paper import ESTIMATORS
+
 COLORS = {"P_f": "#7f7f7f", "SP_S": "#1f77b4", "SP_P": "#d62728"}
 
 
