@@ -60,6 +60,10 @@ _EXPORTS = {
     "DiagnosedModel": "diagnosis",
     "residual_breakdown": "diagnosis",
     "align_recordings": "diagnosis",
+    "save": "persistence",
+    "load": "persistence",
+    "GPCDVersionWarning": "persistence",
+    "UntrustedTypesError": "persistence",
 }
 
 __all__ = ["__version__", *_EXPORTS]

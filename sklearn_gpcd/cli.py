@@ -8,14 +8,27 @@ Subcommands
     Write a simulated recording as a UR RTDE CSV.
 ``gpcd robots``
     List the built-in robot models.
+``gpcd diagnose TRAIN... [--test TEST...] --robot ROBOT``
+    Name the physics the robot model misses in real recordings.
 
 Every option that names a robot (``--robot``) takes a built-in name (``ur10``,
-``ur10e``, ...) or the path of a URDF file.
+``ur10e``, ...) or the path of a URDF file. Recordings are read with
+:func:`sklearn_gpcd.io.load_recording` and must have the robot's number of
+joints.
+
+Exit status: 0 on success; 2 for bad input -- a usage error (argparse), or a
+recording or option the command cannot use (``ValueError``, ``OSError``, a
+missing optional package). Bad input prints ONE line
+``gpcd COMMAND: error: MESSAGE`` on stderr (the message names the file, and
+the column and line where relevant), never a traceback. Warnings, such as a
+:class:`~sklearn_gpcd.io.RecordingWarning` for dropped rows, print one line
+each, ``gpcd COMMAND: warning: MESSAGE``, and the command goes on.
 """
 
 import argparse
 import sys
 import time
+import warnings
 
 __all__ = ["main", "build_parser"]
 
@@ -87,7 +100,9 @@ def _cmd_diagnose(args):
             raise ValueError(f"{what} must be comma-separated numbers, got {text!r}") from None
 
     def load(paths):
-        return [load_recording(path) for path in paths] if paths else None
+        if not paths:
+            return None
+        return [load_recording(path, n_joints=args.robot.n_joints) for path in paths]
 
     torque_constants = split(args.torque_constants, "--torque-constants")
     friction = None
@@ -213,11 +228,44 @@ def main(argv=None):
     0
     """
     args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except (ValueError, OSError) as exc:
-        print(f"gpcd {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    prefix = f"gpcd {args.command}"
+    with warnings.catch_warnings():
+        warnings.showwarning = _warning_printer(prefix)
+        try:
+            return args.func(args)
+        except (ValueError, OSError, ImportError) as exc:
+            print(f"{prefix}: error: {_one_line(exc)}", file=sys.stderr)
+            return 2
+
+
+def _one_line(message):
+    """``message`` as one line: runs of whitespace, newlines included, become a space.
+
+    Parameters
+    ----------
+    message : object
+        An exception or warning message.
+
+    Returns
+    -------
+    text : str
+
+    Examples
+    --------
+    >>> _one_line(ValueError("a.csv: bad\\n  line 3"))
+    'a.csv: bad line 3'
+    """
+    return " ".join(str(message).split())
+
+
+def _warning_printer(prefix):
+    """A :func:`warnings.showwarning` that prints ``PREFIX: warning: MESSAGE``."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{prefix}: warning: {_one_line(message)}", file=sys.stderr if file is None
+              else file)
+
+    return show
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -412,7 +412,8 @@ def nmse(y_true, y_pred, *, mask=None, multioutput="raw_values"):
     values = np.full(yt.shape[1], np.nan)
     for j in range(yt.shape[1]):
         t, p = yt[m[:, j], j], yp[m[:, j], j]
-        var = np.var(t) if t.size else 0.0
+        # a constant target is NaN even when round-off makes np.var(t) > 0
+        var = np.var(t) if t.size and np.ptp(t) > 0 else 0.0
         if var > 0:
             values[j] = np.mean((t - p) ** 2) / var
     if multioutput == "uniform_average":

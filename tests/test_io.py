@@ -373,9 +373,14 @@ def test_logger_pause_loses_nothing(tmp_path, rng):
     time = rec.time.copy()
     time[30:] += 120.0                           # two minutes without samples
     path = write_rtde_csv(rec.replace(time=time), tmp_path / "pause.csv")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", RecordingWarning)
-        assert read_rtde_csv(path).n_samples == 60
+    with pytest.warns(RecordingWarning) as record:
+        back = read_rtde_csv(path)
+    assert back.n_samples == 60 and back.metadata["dropped_rows"] == []
+    # the pause is not an error, but it is reported (row after it, length)
+    assert len(record) == 1
+    assert re.search(r"pause\.csv: 1 gap in time .*: 120 s before line 32 ",
+                     str(record[0].message))
+    assert back.metadata["gaps"] == [[32, pytest.approx(time[30] - time[29])]]
 
 
 def test_degrees_warn(tmp_path, rng):

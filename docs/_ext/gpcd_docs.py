@@ -37,6 +37,7 @@ PUBLIC_MODULES = {
     "datasets": "Simulator and data sets",
     "diagnosis": "Sim-to-real diagnosis",
     "experiments": "The paper's experiments",
+    "persistence": "Saving and loading models",
     "cli": "The gpcd command",
 }
 

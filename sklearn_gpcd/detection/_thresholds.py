@@ -58,6 +58,10 @@ def contamination_level(peak, contamination):
     return -float(np.percentile(-peak, 100.0 * contamination))
 
 
+#: relative margin added above the chosen level (see false_alarm_level)
+_LEVEL_MARGIN = 1e-9
+
+
 def false_alarm_level(peak, starts, sample_time, rate):
     """Smallest level ``gamma`` whose alarm-onset rate stays within ``rate``.
 
@@ -90,10 +94,10 @@ def false_alarm_level(peak, starts, sample_time, rate):
     --------
     >>> peak = np.array([0.0, 2.0, 0.0, 1.0, 0.0])   # two bumps
     >>> hours = 5 * 1.0 / 3600
-    >>> false_alarm_level(peak, np.array([0]), 1.0, rate=1.5 / hours)
-    1.0
+    >>> false_alarm_level(peak, np.array([0]), 1.0, rate=1.5 / hours)  # 1.0, lifted
+    1.000000001
     >>> false_alarm_level(peak, np.array([0]), 1.0, rate=0.0)
-    2.0
+    2.000000002
     """
     prev = np.empty_like(peak)
     prev[1:] = peak[:-1]
@@ -107,6 +111,8 @@ def false_alarm_level(peak, starts, sample_time, rate):
     )
     hours = peak.shape[0] * sample_time / 3600.0
     too_many = np.flatnonzero(onsets > rate * hours)
-    if too_many.size == 0:
-        return float(candidates[0])
-    return float(candidates[too_many[-1] + 1])
+    level = candidates[0] if too_many.size == 0 else candidates[too_many[-1] + 1]
+    # a training sample sits exactly on the candidate level: lift the level by
+    # a relative 1e-9 so that the same ratio recomputed a few ulps higher
+    # (e.g. tick by tick in StreamingMonitor) is not an alarm either
+    return float(level) * (1.0 + _LEVEL_MARGIN)

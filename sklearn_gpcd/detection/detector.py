@@ -8,6 +8,7 @@ from sklearn.base import BaseEstimator, OutlierMixin, clone
 from sklearn.utils import Bunch
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._persistence import VersionedStateMixin
 from ._signal import (
     debounce_segments,
     filter_segments,
@@ -54,7 +55,7 @@ def stack_currents(X, current):
     return np.hstack([X, current])
 
 
-class CollisionDetector(OutlierMixin, BaseEstimator):
+class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     """Proprioceptive collision detector on top of a current regressor.
 
     A regressor learns the motor currents of collision-free motion,

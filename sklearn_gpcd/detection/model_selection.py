@@ -9,6 +9,7 @@ from sklearn.base import BaseEstimator, MetaEstimatorMixin, clone
 from sklearn.model_selection import GroupKFold, ParameterGrid
 from sklearn.utils.validation import check_is_fitted
 
+from .._persistence import VersionedStateMixin
 from ..metrics import event_recall, false_alarms_per_hour, mean_detection_delay
 from ._signal import segment_starts
 
@@ -115,7 +116,7 @@ class DetectionRefit:
         )
 
 
-class CollisionThresholdCV(MetaEstimatorMixin, BaseEstimator):
+class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimator):
     """Tune a :class:`CollisionDetector` on labelled recordings.
 
     Every candidate of ``param_grid`` is scored by grouped cross-validation:
@@ -149,7 +150,9 @@ class CollisionThresholdCV(MetaEstimatorMixin, BaseEstimator):
         detection window of each contact (alarms up to ``max_delay`` after
         the onset count, even after the contact ended).
     n_jobs : int, default=None
-        Folds x regressor settings evaluated in parallel (joblib).
+        Folds x regressor settings evaluated in parallel (joblib). The jobs
+        follow the active joblib backend, e.g. a dask cluster under
+        ``joblib.parallel_config("dask")`` (user guide: *Running at scale*).
     refit : bool, default=True
         Refit the best detector on all collision-free rows.
 

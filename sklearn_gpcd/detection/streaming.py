@@ -7,6 +7,8 @@ from scipy.signal import lfilter_zi
 from sklearn.utils import Bunch
 from sklearn.utils.validation import check_is_fitted
 
+from .._layout import column_names
+from .._persistence import VersionedStateMixin
 from ._compiled import compile_predictor
 
 
@@ -19,10 +21,12 @@ class MonitorStatus(str, Enum):
     - ``COLLISION`` (``"collision"``): a valid sample and at least one joint
       fired (``monitor.alarms`` tells which); the batch detector's
       ``predict`` gives -1 for this sample.
-    - ``SENSOR_FAULT`` (``"sensor_fault"``): the sample was missing (None)
-      or held a NaN / infinite value. It is skipped: no decision is made,
-      the filter and debounce state are held, and the next valid sample is
-      processed as if the faulty one had never arrived.
+    - ``SENSOR_FAULT`` (``"sensor_fault"``): the sample was missing (None),
+      held a NaN / infinite value, came with a time stamp that does not
+      advance, or gave a non-finite prediction. It is skipped: no decision
+      is made (``alarms`` all False), the filter and debounce state are
+      held, and the next valid sample is processed as if the faulty one had
+      never arrived. It is neither a collision nor an all-clear.
 
     ``str(status)`` is the value, so statuses stored in a NumPy array or
     written to a log keep it (``np.asarray([...])`` gives ``'collision'``,
@@ -50,6 +54,26 @@ class MonitorStatus(str, Enum):
         return self.value
 
 
+def _numbers(value, name):
+    """``value`` as a float array (None entries become NaN); ValueError if not numeric."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiub":
+        return value  # the per-tick path: no conversion, no allocation
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must hold numbers (NaN or None when missing): {exc}") from None
+
+
+def _time_stamp(time):
+    """``time`` as a float, or None; ValueError when it is not a number."""
+    if time is None:
+        return None
+    try:
+        return float(time)
+    except (TypeError, ValueError):
+        raise ValueError(f"time must be a number (seconds), got {time!r}") from None
+
+
 def _frame_maker(detector):
     """Wrap a 2-D input block as the regressor saw it in fit (named or not)."""
     names = getattr(detector, "feature_names_in_", None)
@@ -61,7 +85,7 @@ def _frame_maker(detector):
     return lambda block: pd.DataFrame(block, columns=columns)
 
 
-class StreamingMonitor:
+class StreamingMonitor(VersionedStateMixin):
     """Run a fitted :class:`CollisionDetector` one sample at a time.
 
     Each :meth:`update` takes one input row and the measured currents and
@@ -80,6 +104,30 @@ class StreamingMonitor:
     the predictive std each tick, which costs a triangular solve with the
     support set; that goes through ``regressor.predict(..., return_std=True)``
     and is much slower.
+
+    **Sensor faults.** A tick is a sensor fault when the sample is missing
+    (``x=None``), holds a NaN or infinite value (in the inputs or the
+    currents), has a ``time`` that is not strictly after the last accepted
+    sample's (a repeated or out-of-order packet), or gives a non-finite
+    prediction or monitoring signal. :meth:`update` then returns
+    ``MonitorStatus.SENSOR_FAULT`` -- never ``COLLISION``, never an
+    exception -- and drops the sample: the filter state, the debounce window
+    and ``last_time`` keep the values of the last valid sample. The monitor
+    recovers on the next valid sample, which is processed exactly as if the
+    faulty ones had never arrived: the decisions on the valid samples equal
+    the batch ``predict`` on those rows alone, whatever the number of faults
+    in between. So a fault does not end an alarm either: if a contact is
+    still there at the next valid sample, it is reported at once (the
+    debounce window still holds the contact's samples; there is no new
+    ``min_duration`` wait). ``fault_reason`` says what was wrong and
+    ``n_consecutive_faults`` counts the faults in a row. What a run of faults
+    means is the caller's policy (e.g. stop the robot when no valid sample
+    came for a few control periods); call :meth:`reset` after an outage long
+    enough that the held filter state is stale.
+
+    A sample of the wrong length or with non-numeric values is a wiring
+    error, not a sensor fault: :meth:`update` raises ``ValueError`` and
+    leaves the state and the counters unchanged.
 
     Parameters
     ----------
@@ -104,6 +152,14 @@ class StreamingMonitor:
         ``-max(ratio)``, the batch ``score_samples`` value.
     n_ticks, n_faults : int
         Ticks seen and ticks rejected as sensor faults since construction.
+    n_consecutive_faults : int
+        Sensor faults since the last valid tick.
+    fault_reason : str or None
+        What made the last tick a sensor fault (e.g. ``"non-finite value in
+        qd_1"``); None after a valid tick.
+    last_time : float or None
+        ``time`` of the last valid tick (None when no time was given, or
+        after :meth:`reset`).
     predictor_kind : str
         ``"gaussian_process"``, ``"linear"`` or ``"generic"`` (per-tick
         ``regressor.predict``).
@@ -127,7 +183,9 @@ class StreamingMonitor:
     <MonitorStatus.COLLISION: 'collision'>
     >>> monitor.update([np.nan], current=[1.0])
     <MonitorStatus.SENSOR_FAULT: 'sensor_fault'>
-    >>> monitor.update([0.5], current=[1.0]) == "ok"
+    >>> monitor.fault_reason
+    'non-finite value in x[0]'
+    >>> monitor.update([0.5], current=[1.0]) == "ok"     # recovered
     True
     """
 
@@ -140,6 +198,7 @@ class StreamingMonitor:
         self._inputs = self._row[: self.n_inputs]
         self._current = self._row[self.n_inputs :]
         self._finite = np.empty(detector.n_features_in_, dtype=bool)
+        self._finite_signal = np.empty(n, dtype=bool)
         self._wrap = _frame_maker(detector)
         self._predictor = compile_predictor(
             detector.regressor_, self.n_inputs, n, wrap=self._wrap
@@ -155,6 +214,7 @@ class StreamingMonitor:
             self._b, self._a = b, a
             self._zi_unit = lfilter_zi(b, a)[:, None]
             self._z = np.zeros((len(b) - 1, n))
+            self._z_saved = np.empty_like(self._z)  # restored if a tick is rejected
             self._t1, self._t2 = np.empty(n), np.empty(n)
         else:
             self._b = None
@@ -169,15 +229,52 @@ class StreamingMonitor:
         self.status = None
         self.n_ticks = 0
         self.n_faults = 0
+        self.n_consecutive_faults = 0
+        self.fault_reason = None
         self.reset()
 
+    #: Attributes rebuilt on load rather than stored: views into ``_row``
+    #: (a pickle would turn them into copies) and the compiled predictor.
+    _REBUILT = ("_inputs", "_current", "_wrap", "_predictor")
+
+    def __getstate__(self):
+        """State to pickle: filter, debounce and counters, without derived objects.
+
+        The compiled predictor is rebuilt from ``detector`` on load, and
+        ``status`` is stored as its string value (so that :mod:`skops.io`
+        also restores it as a :class:`MonitorStatus`).
+        """
+        state = super().__getstate__()
+        for name in self._REBUILT:
+            state.pop(name, None)
+        state["status"] = None if self.status is None else self.status.value
+        return state
+
+    def __setstate__(self, state):
+        """Restore a pickled monitor; it resumes exactly where it was saved."""
+        super().__setstate__(state)
+        if self.status is not None:
+            self.status = MonitorStatus(self.status)
+        self._inputs = self._row[: self.n_inputs]
+        self._current = self._row[self.n_inputs :]
+        self._wrap = _frame_maker(self.detector)
+        self._predictor = compile_predictor(
+            self.detector.regressor_, self.n_inputs, self.n_joints, wrap=self._wrap
+        )
+
     def reset(self):
-        """Forget the filter and debounce history (e.g. a new recording)."""
+        """Forget the filter and debounce history and the last time stamp.
+
+        Call it where a new recording starts (the batch detector's
+        ``groups``) or after a long outage. The counters (``n_ticks``,
+        ``n_faults``, ``n_consecutive_faults``) keep running.
+        """
         self._fresh = True
         self._window[:] = 0.0
         self._position = 0
+        self.last_time = None
 
-    def update(self, x, current=None):
+    def update(self, x, current=None, time=None):
         """Process one sample.
 
         Parameters
@@ -186,27 +283,38 @@ class StreamingMonitor:
             One row of the detector's input: regressor inputs followed by
             the measured currents, or the regressor inputs only when
             ``current`` is given. None marks a missing sample; a missing
-            value inside the sample is passed as NaN.
+            value inside the sample is passed as NaN (or None).
         current : array-like of shape (n_joints,), default=None
             Measured currents, when not included in ``x``.
+        time : float, default=None
+            Time stamp of the sample (s). When given, it must be strictly
+            after the last valid sample's: a repeated or earlier stamp (a
+            duplicated or out-of-order packet) is a sensor fault. Gaps are
+            not faults.
 
         Returns
         -------
         status : MonitorStatus
-            ``"ok"``, ``"collision"`` or ``"sensor_fault"``.
+            ``"ok"``, ``"collision"`` or ``"sensor_fault"`` (see the class
+            docstring for what a fault does to the state).
 
         Raises
         ------
         ValueError
-            When ``x`` or ``current`` has the wrong length (a wiring error,
-            not a sensor fault).
+            When ``x`` or ``current`` has the wrong length or non-numeric
+            values, or ``time`` is not a number (a wiring error, not a
+            sensor fault); the monitor's state is left unchanged.
         """
+        if x is not None:
+            self._load(x, current)
+        stamp = _time_stamp(time)
         self.n_ticks += 1
         if x is None:
-            return self._fault()
-        self._load(x, current)
+            return self._fault("missing sample (x is None)")
+        if stamp is not None and (reason := self._time_fault(stamp)):
+            return self._fault(reason)
         if not np.isfinite(self._row, out=self._finite).all():
-            return self._fault()
+            return self._fault(self._non_finite_reason())
         self._predictor.predict_one(self._inputs, self.predicted)
         np.subtract(self._current, self.predicted, out=self.residual)
         if self._use_std:
@@ -218,8 +326,16 @@ class StreamingMonitor:
             np.divide(self.residual, self.std, out=self.signal)
         else:
             np.copyto(self.signal, self.residual)
+        if not np.isfinite(self.signal, out=self._finite_signal).all():
+            return self._fault(self._signal_reason())
         if self._b is not None:
+            fresh = self._fresh
+            np.copyto(self._z_saved, self._z)
             self._filter_step(self.signal)
+            if not np.isfinite(self.signal, out=self._finite_signal).all():  # overflow
+                np.copyto(self._z, self._z_saved)  # the rejected tick leaves no trace
+                self._fresh = fresh
+                return self._fault(self._signal_reason())
         np.abs(self.signal, out=self._raw_ratio)
         self._raw_ratio /= self._scale
         self._window[self._position] = self._raw_ratio
@@ -227,29 +343,73 @@ class StreamingMonitor:
         np.min(self._window, axis=0, out=self.ratio)
         np.greater(self.ratio, self._level, out=self.alarms)
         self.score = -float(self.ratio.max())
+        self.last_time = stamp
+        self.n_consecutive_faults = 0
+        self.fault_reason = None
         self.status = MonitorStatus.COLLISION if self.alarms.any() else MonitorStatus.OK
         return self.status
 
     def _load(self, x, current):
+        """Copy one sample into the preallocated row; ValueError on a wiring error."""
         if current is None:
-            if np.shape(x) != self._row.shape:
+            x = _numbers(x, "x")
+            if x.shape != self._row.shape:
                 raise ValueError(
                     f"x must have {self._row.shape[0]} values ({self.n_inputs} inputs + "
-                    f"{self.n_joints} currents), got shape {np.shape(x)}"
+                    f"{self.n_joints} currents), got shape {x.shape}"
                 )
             np.copyto(self._row, x)
             return
-        if np.shape(x) != self._inputs.shape:
+        x, current = _numbers(x, "x"), _numbers(current, "current")
+        if x.shape != self._inputs.shape:
             raise ValueError(
                 f"x must have {self.n_inputs} input values when current is given, "
-                f"got shape {np.shape(x)}"
+                f"got shape {x.shape}"
             )
-        if np.shape(current) != self._current.shape:
+        if current.shape != self._current.shape:
             raise ValueError(
-                f"current must have {self.n_joints} values, got shape {np.shape(current)}"
+                f"current must have {self.n_joints} values, got shape {current.shape}"
             )
         np.copyto(self._inputs, x)
         np.copyto(self._current, current)
+
+    def _time_fault(self, stamp):
+        """Why time stamp ``stamp`` cannot be accepted, or None."""
+        if not np.isfinite(stamp):
+            return f"non-finite time {stamp!r}"
+        if self.last_time is not None and stamp <= self.last_time:
+            return f"time {stamp!r} is not after the last valid sample's {self.last_time!r}"
+        return None
+
+    def _column_name(self, index):
+        """Name of column ``index`` of the detector input, for fault messages."""
+        names = getattr(self.detector, "feature_names_in_", None)
+        if names is not None:
+            return str(names[index])
+        if index >= self.n_inputs:
+            return f"current[{index - self.n_inputs}]"
+        if self.n_inputs in (3 * self.n_joints, 6 * self.n_joints):
+            return column_names(self.n_joints, self.n_inputs == 6 * self.n_joints)[index]
+        return f"x[{index}]"
+
+    def _non_finite_reason(self):
+        bad = np.flatnonzero(~self._finite)
+        names = ", ".join(self._column_name(i) for i in bad[:4])
+        more = f" and {bad.size - 4} more" if bad.size > 4 else ""
+        return f"non-finite value in {names}{more}"
+
+    def _signal_reason(self):
+        stages = (
+            ("predicted", "predicted current"),
+            ("std", "predictive std"),
+            ("residual", "residual"),
+        )
+        for name, label in stages:
+            bad = np.flatnonzero(~np.isfinite(getattr(self, name)))
+            if bad.size:
+                return f"non-finite {label} of joint(s) {bad.tolist()}"
+        bad = np.flatnonzero(~self._finite_signal)
+        return f"non-finite monitoring signal of joint(s) {bad.tolist()}"
 
     def _filter_step(self, u):
         """One step of the direct-form II transposed filter, as scipy's lfilter."""
@@ -270,8 +430,10 @@ class StreamingMonitor:
         np.subtract(t1, z[-1], out=z[-1])
         np.copyto(u, t2)
 
-    def _fault(self):
+    def _fault(self, reason):
         self.n_faults += 1
+        self.n_consecutive_faults += 1
+        self.fault_reason = reason
         for array in (self.predicted, self.residual, self.signal, self.ratio):
             array[:] = np.nan
         self.alarms[:] = False
@@ -279,7 +441,7 @@ class StreamingMonitor:
         self.status = MonitorStatus.SENSOR_FAULT
         return self.status
 
-    def replay(self, X, groups=None):
+    def replay(self, X, groups=None, time=None):
         """Feed the rows of ``X`` through :meth:`update`, one by one.
 
         Parameters
@@ -289,6 +451,9 @@ class StreamingMonitor:
         groups : array-like of shape (n_samples,), default=None
             Recording id per row; :meth:`reset` is called where it changes,
             matching the batch detector's ``groups``.
+        time : array-like of shape (n_samples,), default=None
+            Time stamp per row, passed to :meth:`update` (rows whose stamp
+            does not advance become sensor faults).
 
         Returns
         -------
@@ -309,10 +474,15 @@ class StreamingMonitor:
             alarms=np.zeros((n, self.n_joints), dtype=bool),
         )
         groups = None if groups is None else np.asarray(groups)
+        if time is not None:
+            time = np.asarray(time, dtype=float)
+            if time.shape != (n,):
+                raise ValueError(f"time must have shape ({n},), got {time.shape}")
         for t in range(n):
             if groups is not None and t and groups[t] != groups[t - 1]:
                 self.reset()
-            out.status[t] = self.update(X[t]).value
+            stamp = None if time is None else time[t]
+            out.status[t] = self.update(X[t], time=stamp).value
             for name in ("predicted", "residual", "signal", "ratio", "alarms"):
                 out[name][t] = getattr(self, name)
         out.status = out.status.astype(str)

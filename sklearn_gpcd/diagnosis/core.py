@@ -7,6 +7,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
+from .._persistence import VersionedStateMixin
 from .align import align_recordings
 from .effects import effect_library
 from .locate import residual_breakdown
@@ -32,7 +33,7 @@ def _nmse(current, prediction, mask):
     return out
 
 
-class DynamicsDiagnosis(BaseEstimator):
+class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
     """Find the physics a nominal robot model is missing, from recordings.
 
     Given a nominal model ("the simulation": a robot, its torque constants and

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
+from .._persistence import VersionedStateMixin
 from .nominal import Signals
 
 #: Lags of the Bartlett autocorrelation correction of the covariance.
@@ -109,7 +110,7 @@ class FittedEffect:
         return self.effect.design(signals, nominal, self.target, **self.settings)
 
 
-class DiagnosedModel:
+class DiagnosedModel(VersionedStateMixin):
     """Nominal current model refined by the effects a diagnosis found.
 
     .. math:: i_\\ell(x) = \\hat i_\\ell(x) + \\sum_e D_{e,\\ell}(x)\\,\\theta_e

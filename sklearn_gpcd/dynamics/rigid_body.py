@@ -9,6 +9,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._layout import block_columns
+from .._persistence import VersionedStateMixin
 from ..robots.loading import resolve_robot
 from .base_parameters import base_parameters
 from .regressor import FRICTION_TERMS, check_friction, full_regressor, parameter_names
@@ -95,7 +96,7 @@ def _identification(robot, p, regressor, n_states, random_state, reduce, rank_to
     return _copies(*_IDENTIFICATION_CACHE[key])
 
 
-class RigidBodyRegressor(TransformerMixin, BaseEstimator):
+class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     """Regressor features :math:`\\phi(x)` of the physical torque model.
 
     Maps joint states ``x = [q, qd, qdd]`` to the rows of the linear model
@@ -231,9 +232,10 @@ class RigidBodyRegressor(TransformerMixin, BaseEstimator):
         return (X[:, block_columns("q", n)], X[:, block_columns("qd", n)],
                 X[:, block_columns("qdd", n)])
 
-    def _regressor(self, q, qd, qdd, sigma_v):
+    def _regressor(self, q, qd, qdd, sigma_v, joints=None):
         return full_regressor(self.robot_, q, qd, qdd, rotor_inertia=self.rotor_inertia,
-                              friction=self.friction_, offset=self.offset, sigma_v=sigma_v)
+                              friction=self.friction_, offset=self.offset, sigma_v=sigma_v,
+                              joints=joints)
 
     # ---------------------------------------------------------------- API
     def fit(self, X, y=None):
@@ -297,11 +299,12 @@ class RigidBodyRegressor(TransformerMixin, BaseEstimator):
         """
         check_is_fitted(self)
         X = validate_data(self, X, dtype=np.float64, reset=False)
-        Phi = self._regressor(*self._split(X), self.sigma_v)[:, :, self.columns_]
+        Phi = self._regressor(*self._split(X), self.sigma_v, self.joint)[:, :, self.columns_]
         if self.currents:
-            Phi = Phi / self.robot_.torque_constants[None, :, None]
+            k_tau = self.robot_.torque_constants
+            Phi /= (k_tau if self.joint is None else k_tau[[self.joint]])[None, :, None]
         if self.joint is not None:
-            return Phi[:, self.joint, :]
+            return Phi[:, 0, :]
         return Phi.transpose(1, 0, 2).reshape(-1, Phi.shape[2])
 
     def get_feature_names_out(self, input_features=None):

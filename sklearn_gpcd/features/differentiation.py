@@ -62,7 +62,7 @@ def _check_signal(time, x, min_samples=2):
         )
     if time.shape[0] < min_samples:
         raise ValueError(
-            f"signal has {time.shape[0]} samples, at least {min_samples} are needed"
+            f"signal too short: {time.shape[0]} samples, needs at least {min_samples}"
         )
     bad_t = np.flatnonzero(~np.isfinite(time))
     if bad_t.size:
@@ -138,8 +138,8 @@ def _filtfilt(x, sos):
     if x.shape[0] <= padlen:
         raise ValueError(
             f"signal too short for the Butterworth filter: {x.shape[0]} samples on "
-            f"the uniform grid, more than {padlen} are needed (lower 'order' or "
-            "record longer)"
+            f"the uniform grid, needs at least {padlen + 1} (the filter's padding "
+            f"3 * (2 * sections + 1) = {padlen}, plus one); record longer or lower 'order'"
         )
     return sosfiltfilt(sos, x, axis=0)
 
@@ -219,7 +219,8 @@ def _savgol_derivative(time, x, window_length, polyorder):
         if xg.shape[0] < window_length:
             raise ValueError(
                 f"signal too short for the Savitzky-Golay window: {xg.shape[0]} "
-                f"samples on the uniform grid, window_length={window_length}"
+                f"samples on the uniform grid, needs at least {window_length} "
+                f"(window_length); record longer or pass a smaller odd window_length"
             )
         return savgol_filter(
             xg, int(window_length), int(polyorder), deriv=1, delta=dt, axis=0,

@@ -19,6 +19,7 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
 from .._layout import column_names
+from .._persistence import VersionedStateMixin
 from ..io import Recording
 from .differentiation import METHODS, _check_options, differentiate
 
@@ -137,7 +138,7 @@ def targets(recordings):
     return np.concatenate([rec.current for rec in recordings])
 
 
-class InverseDynamicsFeatures(TransformerMixin, BaseEstimator):
+class InverseDynamicsFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
     """Build the paper's GP inputs from recordings.
 
     ``transform`` returns, row per sample, either the standard inputs

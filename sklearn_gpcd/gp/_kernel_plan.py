@@ -43,7 +43,12 @@ kernel objects at every step.
 """
 
 import numpy as np
-from scipy.spatial.distance import pdist, squareform
+from scipy.spatial.distance import cdist, pdist, squareform
+
+#: Largest half squared norm of scaled, centred coordinates for which cross
+#: kernels use the expansion |z - s|^2 = |z|^2 + |s|^2 - 2 z.s (one matrix
+#: product): its round-off, ~4 eps |z|^2, stays below 1e-9 in the exponent.
+_EXPANSION_MAX = 1e6
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Product, Sum, WhiteKernel
 
 from ..kernels import ARDRBF, QuasiStaticGate
@@ -89,10 +94,25 @@ class _Diagonal:
         self.values = values
 
 
+class _RowBlock:
+    """A square matrix that is zero outside ``rows x rows`` (a gated Gram matrix).
+
+    Kept as the block alone so that adding it to a dense Gram matrix (Eq. 17:
+    kinematic + gated quasi-static term) needs no second ``(n, n)`` array.
+    """
+
+    def __init__(self, n, rows, block):
+        self.n, self.rows, self.block = n, rows, block
+
+
 def _dense(value, n_rows, n_cols):
     """A value as an ``(n_rows, n_cols)`` array (a new one for scalars/diagonals)."""
     if isinstance(value, np.ndarray):
         return value
+    if isinstance(value, _RowBlock):
+        out = np.zeros((n_rows, n_cols))
+        out[np.ix_(value.rows, value.rows)] = value.block
+        return out
     if isinstance(value, _Diagonal):
         out = np.zeros((n_rows, n_cols))
         out[np.diag_indices(n_rows)] = value.values
@@ -102,6 +122,15 @@ def _dense(value, n_rows, n_cols):
 
 def _add(a, b, inplace):
     """a + b for values; reuses an array operand when ``inplace``."""
+    if isinstance(a, _RowBlock) or isinstance(b, _RowBlock):
+        if isinstance(a, _RowBlock):
+            a, b = b, a
+        if isinstance(a, np.ndarray):
+            out = a if inplace else a.copy()
+        else:  # a scalar, a diagonal or another gated block: a new array
+            out = _dense(a, b.n, b.n)
+        out[np.ix_(b.rows, b.rows)] += b.block
+        return out
     if isinstance(a, _Diagonal) and isinstance(b, _Diagonal):
         return _Diagonal(a.values + b.values)
     if isinstance(b, np.ndarray) and not isinstance(a, np.ndarray):
@@ -124,6 +153,14 @@ def _add(a, b, inplace):
 
 def _multiply(a, b, inplace):
     """Elementwise a * b for values; reuses an array operand when ``inplace``."""
+    if isinstance(a, _RowBlock) or isinstance(b, _RowBlock):
+        if isinstance(a, _RowBlock):
+            a, b = b, a
+        if np.ndim(a) == 0 and not isinstance(a, _Diagonal):  # c * gated block
+            block = b.block if inplace else b.block.copy()
+            block *= float(a)
+            return _RowBlock(b.n, b.rows, block)
+        return _multiply(a, _dense(b, b.n, b.n), inplace)
     if isinstance(b, _Diagonal) and not isinstance(a, _Diagonal):
         a, b = b, a
     if isinstance(a, _Diagonal):
@@ -369,8 +406,10 @@ class _SquaredExponential(_Node):
 
     def gram(self, X, keep):
         Z = self._scaled(X)  # as scikit-learn's RBF: pdist, exp, squareform
-        K = np.exp(-0.5 * pdist(Z, metric="sqeuclidean"))
-        K = squareform(K)
+        d = pdist(Z, metric="sqeuclidean")
+        d *= -0.5
+        K = squareform(np.exp(d, out=d))
+        del d
         np.fill_diagonal(K, 1.0)
         if keep and self.n_dims:
             self._Z, self._K = Z - Z.mean(axis=0), K  # centred: smaller round-off
@@ -389,18 +428,21 @@ class _SquaredExponential(_Node):
         self._center = Z.mean(axis=0) if len(Z) else 0.0
         self._S_T = np.ascontiguousarray((Z - self._center).T)
         self._half_norm = 0.5 * np.einsum("di,di->i", self._S_T, self._S_T)
+        self._max_half_norm = float(np.max(self._half_norm, initial=0.0))
         self._weights = weights
 
     def _neg_half_sq_dists(self, Q):
-        # -|z - s|^2 / 2 = z.s - |s|^2 / 2 - |z|^2 / 2, by one matrix product
+        # -|z - s|^2 / 2 = z.s - |s|^2 / 2 - |z|^2 / 2, by one matrix product;
+        # its round-off, ~eps |z|^2, is only negligible for moderate |z|: with
+        # far-out (or very short length-scale) coordinates, exact differences
         Z = self._scaled(Q)
         Z -= self._center
+        half_norm = 0.5 * (Z[0] @ Z[0] if len(Z) == 1 else np.einsum("id,id->i", Z, Z))
+        if max(np.max(half_norm, initial=0.0), self._max_half_norm) > _EXPANSION_MAX:
+            return -0.5 * cdist(Z, self._S_T.T, metric="sqeuclidean")
         D = Z @ self._S_T
         D -= self._half_norm
-        if len(Z) == 1:  # one query: a scalar (the einsum costs more than the row)
-            D -= 0.5 * float(Z[0] @ Z[0])
-        else:
-            D -= 0.5 * np.einsum("id,id->i", Z, Z)[:, np.newaxis]
+        D -= half_norm if len(Z) == 1 else half_norm[:, np.newaxis]
         return D
 
     def cross(self, Q):
@@ -447,6 +489,8 @@ class _Gate(_Node):
             values = np.zeros(n)
             values[rows] = block.values
             return _Diagonal(values)
+        if not keep:  # the block alone; a sum adds it in place
+            return _RowBlock(n, rows, _dense(block, len(rows), len(rows)))
         K = np.zeros((n, n))
         K[np.ix_(rows, rows)] = block
         return K

@@ -7,7 +7,9 @@ compiled tree (:mod:`._kernel_plan`): no ``(n, n, n_theta)`` gradient array
 is formed, and the Cholesky factorisation and inverse run in place.
 """
 
+import threading
 import warnings
+from contextlib import contextmanager
 
 import numpy as np
 from scipy.linalg import cho_solve
@@ -20,19 +22,33 @@ from ._kernel_plan import compile_kernel, gram_matrix
 _JITTER_LADDER = 10.0 ** np.arange(-10, -1)
 _LOG_2PI = np.log(2 * np.pi)
 _BLAS_CONTROLLER = []  # one ThreadpoolController, created on first use
+_BLAS_LOCK = threading.Lock()
+_BLAS_STATE = {"depth": 0, "limiter": None}
 
 
+@contextmanager
 def single_threaded_blas():
     """Context manager limiting BLAS/LAPACK to one thread (threadpoolctl).
 
-    Like scikit-learn's ``KMeans``: on small machines OpenBLAS's threaded
-    ``potrf``/``potri`` are several times slower than the serial ones (and
-    the two OpenBLAS copies of numpy and scipy compete for the cores), and
-    serial BLAS makes results independent of the thread count.
+    Like scikit-learn's ``KMeans``: parallelism comes from fitting outputs
+    side by side (``n_jobs``), so serial BLAS avoids oversubscribing the
+    cores, and makes results independent of the thread count. The limit is
+    process-wide, so nested and concurrent uses (outputs fitted in threads)
+    share it: the first to enter sets it, the last to leave restores it.
     """
-    if not _BLAS_CONTROLLER:
-        _BLAS_CONTROLLER.append(ThreadpoolController())
-    return _BLAS_CONTROLLER[0].limit(limits=1, user_api="blas")
+    with _BLAS_LOCK:
+        if _BLAS_STATE["depth"] == 0:
+            if not _BLAS_CONTROLLER:
+                _BLAS_CONTROLLER.append(ThreadpoolController())
+            _BLAS_STATE["limiter"] = _BLAS_CONTROLLER[0].limit(limits=1, user_api="blas")
+        _BLAS_STATE["depth"] += 1
+    try:
+        yield
+    finally:
+        with _BLAS_LOCK:
+            _BLAS_STATE["depth"] -= 1
+            if _BLAS_STATE["depth"] == 0:
+                _BLAS_STATE["limiter"].restore_original_limits()
 
 
 def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False, plan=None):

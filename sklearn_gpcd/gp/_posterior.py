@@ -8,7 +8,11 @@ from sklearn import get_config
 from sklearn.utils import gen_batches
 
 from ._kernel_plan import compile_kernel, gram_matrix
-from ._likelihood import _LOG_2PI, _cholesky
+from ._likelihood import _LOG_2PI, _cholesky, _upper_factor_inplace
+
+#: Largest Cholesky factor (bytes) kept in memory after the fit: 2,048 support
+#: rows (32 MiB). Larger factors are rebuilt on demand (:attr:`_Posterior.L`).
+FACTOR_KEEP_BYTES = 32 * 2**20
 
 
 class _Posterior:
@@ -49,22 +53,45 @@ class _Posterior:
         self.y_train = (y - y_mean) / y_std
         self.alpha = alpha
         self.plan = compile_kernel(kernel)
-
-        def make_K():
-            K = gram_matrix(self.plan, X)
-            K[np.diag_indices_from(K)] += alpha
-            return K
-
-        self.L, self.jitter = _cholesky(make_K, what=f"kernel matrix of {kernel}")
-        self.weights = cho_solve((self.L, True), self.y_train, check_finite=False)
+        L, self.jitter = _cholesky(self._make_K, what=f"kernel matrix of {kernel}")
+        self.weights = cho_solve((L, True), self.y_train, check_finite=False)
+        self.log_det_half = float(np.log(np.diag(L)).sum())
+        # the factor is kept while it is small; a large one (n_support rows
+        # squared) is rebuilt on the first std/cov request, see ``L``
+        self._L = L if L.nbytes <= FACTOR_KEEP_BYTES else None
+        del L
         self.plan.prepare(X, y_std * self.weights)
+
+    def _make_K(self):
+        K = gram_matrix(self.plan, self.X)
+        K[np.diag_indices_from(K)] += self.alpha
+        return K
+
+    @property
+    def L(self):
+        """Lower Cholesky factor of ``K(X, X) + alpha I`` (+ the jitter used at fit).
+
+        Kept from the fit when it has at most :data:`FACTOR_KEEP_BYTES`
+        bytes; a larger one is rebuilt here once, on the first request for
+        a predictive std or covariance, and cached. Means only need the
+        weights, so a model trained on D1 with ``n_support=5000`` per joint
+        does not hold six 200 MB factors it may never use.
+        """
+        if self._L is None:
+            K = self._make_K()
+            K[np.diag_indices_from(K)] += self.jitter
+            U, info = _upper_factor_inplace(K)
+            if info != 0:  # pragma: no cover - the same matrix factorised at fit
+                raise ValueError(f"Cholesky factor of the kernel matrix of {self.kernel} failed.")
+            self._L = U.T
+        return self._L
 
     @property
     def log_marginal_likelihood(self):
         """Log marginal likelihood of the support targets (from the cached factor)."""
         return float(
             -0.5 * self.y_train @ self.weights
-            - np.log(np.diag(self.L)).sum()
+            - self.log_det_half
             - 0.5 * len(self.y_train) * _LOG_2PI
         )
 

@@ -7,8 +7,10 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._persistence import VersionedStateMixin
 
-class ParametricMean(RegressorMixin, BaseEstimator):
+
+class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
     r"""Linear-in-parameters mean :math:`m(x) = \bar\phi(x)\, w`, w by least squares.
 
     The paper's parametric prior (Eq. 8-10) writes joint :math:`\ell`'s current
@@ -119,6 +121,11 @@ class ParametricMean(RegressorMixin, BaseEstimator):
         -------
         self : ParametricMean
         """
+        self._fit(X, y)
+        return self
+
+    def _fit(self, X, y):
+        """Fit; return the design matrix of ``X`` (reused by :meth:`_fit_predict`)."""
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, dtype=np.float64)
         if not (isinstance(self.alpha, numbers.Real) and self.alpha >= 0):
             raise ValueError(f"alpha must be a float >= 0, got {self.alpha!r}.")
@@ -127,7 +134,17 @@ class ParametricMean(RegressorMixin, BaseEstimator):
         self.friction_columns_, self.velocity_column_ = self._check_friction(Phi.shape[1])
         Phi = self._mask_friction(X, Phi)
         self.coef_, self.intercept_ = _ridge(Phi, y, self.alpha, self.fit_intercept)
-        return self
+        if not (np.all(np.isfinite(self.coef_)) and np.all(np.isfinite(self.intercept_))):
+            raise ValueError(
+                "The least-squares parameters overflowed (features of magnitude "
+                f"{np.abs(Phi).max():.3g} or below {np.abs(Phi[Phi != 0]).min(initial=np.inf):.3g}); "
+                "rescale the features or set alpha > 0."
+            )
+        return Phi
+
+    def _fit_predict(self, X, y):
+        """``fit(X, y).predict(X)`` with the features of ``X`` computed once."""
+        return self._fit(X, y) @ self.coef_.T + self.intercept_
 
     def design_matrix(self, X):
         r"""Features :math:`\bar\phi(X)` the mean is linear in (Eq. 10, 17).

@@ -2,14 +2,17 @@
 
 import math
 import numbers
+import warnings
 
 import numpy as np
 from joblib import Parallel, delayed
 from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._persistence import VersionedStateMixin
 from ..kernels import resolve_columns
 from ._likelihood import _log_marginal_likelihood, single_threaded_blas
 from ._optimize import (
@@ -23,6 +26,7 @@ from ._optimize import (
     data_driven_init,
     resolve_optimizer,
 )
+from .mean import ParametricMean
 from ._posterior import _Posterior, target_scaling
 from ._support import SUPPORT_SELECTIONS, select_support
 
@@ -32,7 +36,7 @@ def _default_kernel():
     return ConstantKernel(1.0) * RBF(1.0) + WhiteKernel(1.0)
 
 
-class SemiParametricGPRegressor(RegressorMixin, BaseEstimator):
+class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimator):
     r"""Gaussian Process regression around a parametric mean, one GP per output.
 
     Each output column (e.g. the current of joint :math:`\ell`) is modelled
@@ -491,10 +495,9 @@ def _fit_output(kernel, mean, X, X_mean, y, alpha, seed, params, label=""):
     results do not depend on the number of threads.
     """
     rng = check_random_state(seed)
-    if mean is not None:
-        mean = mean.fit(X_mean, y)
-        y = y - np.asarray(mean.predict(X_mean)).ravel()
     with single_threaded_blas():
+        if mean is not None:
+            y = y - np.asarray(_fit_predict(mean, X_mean, y)).ravel()
         support = select_support(
             kernel, X, params["n_support"], params["support_selection"], rng
         )
@@ -528,7 +531,23 @@ def _fit_output(kernel, mean, X, X_mean, y, alpha, seed, params, label=""):
         posterior = _Posterior(kernel_, X_s, r_s, alpha_s, y_mean, y_std)
     if optimizer == "adam":
         lml = posterior.log_marginal_likelihood
+    elif not np.isfinite(lml):  # K + alpha I singular at every theta tried
+        warnings.warn(
+            f"{label}the kernel matrix K + alpha I is singular at every theta tried, so "
+            "the hyperparameters were not optimized; the posterior uses jitter "
+            f"{posterior.jitter:.3g} and log_marginal_likelihood_value_ includes it. "
+            "Increase `alpha` (duplicate inputs?).",
+            ConvergenceWarning,
+        )
+        lml = posterior.log_marginal_likelihood
     return _OutputFit(mean, support, posterior, lml, n_iter)
+
+
+def _fit_predict(mean, X, y):
+    """``mean.fit(X, y).predict(X)`` (in one pass for a :class:`ParametricMean`)."""
+    if isinstance(mean, ParametricMean):
+        return mean._fit_predict(X, y)
+    return mean.fit(X, y).predict(X)
 
 
 def _per_output(value, n_outputs, name):

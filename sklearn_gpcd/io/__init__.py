@@ -12,10 +12,12 @@
 =========================  ==================================================
 
 All readers keep the logged (irregular) sampling, drop malformed rows,
-out-of-order time stamps and kinematic glitches with one
-:class:`RecordingWarning` per file (row numbers in
-``metadata["dropped_rows"]``), and raise ValueError naming file, column and
-row for input that cannot be repaired.
+exact duplicates, absurd values, out-of-order time stamps and kinematic
+glitches with one :class:`RecordingWarning` per file (row numbers in
+``metadata["dropped_rows"]``; the same warning reports gaps in time and
+values that look like degrees or milliseconds), and raise ValueError naming
+file, column and row for input that cannot be repaired. The user guide page
+"Reading UR RTDE, CSV and ROS bag logs" lists every error and warning.
 """
 
 from ._validation import RecordingWarning

@@ -2,9 +2,12 @@
 
 Lines are counted from 1 as an editor shows them (split on ``"\\n"``).
 Blank lines and lines starting with ``#`` carry no data and are skipped.
+Text is UTF-8; a byte-order mark selects UTF-8-with-BOM (Excel's "CSV
+UTF-8"), UTF-16 or UTF-32 instead (:func:`decode_text`).
 A data line whose field count differs from the header (or, without a
 header, from the most common field count) is *malformed*; so is one with a
-non-number in a column the caller asks for. Malformed lines are returned
+non-number in a column the caller asks for, and a copy of the header line
+(a restarted logger appending to the same file). Malformed lines are returned
 with a reason, never silently discarded.
 """
 
@@ -36,7 +39,8 @@ class TextTable:
     line_numbers : ndarray of int
         1-based line number of each entry of ``lines``.
     malformed : list of (int, str)
-        Lines with the wrong field count: (line number, reason).
+        Lines with the wrong field count, or repeating the header line:
+        (line number, reason).
     """
 
     source: str
@@ -97,6 +101,135 @@ def is_number(text):
     return True
 
 
+#: Byte-order marks and the codec each selects, longest first.
+BOMS = (
+    (b"\xff\xfe\x00\x00", "utf-32"),
+    (b"\x00\x00\xfe\xff", "utf-32"),
+    (b"\xef\xbb\xbf", "utf-8-sig"),
+    (b"\xff\xfe", "utf-16"),
+    (b"\xfe\xff", "utf-16"),
+)
+#: Largest share of undecodable UTF-8 bytes still read as text (the bad
+#: cells then fail as non-numbers, row by row).
+MAX_BAD_BYTES = 0.01
+
+
+def text_codec(raw):
+    """Codec named by the byte-order mark ``raw`` starts with, else None.
+
+    Parameters
+    ----------
+    raw : bytes
+
+    Returns
+    -------
+    codec : str or None
+
+    Examples
+    --------
+    >>> text_codec("x".encode("utf-16")), text_codec(b"x")
+    ('utf-16', None)
+    """
+    return next((codec for bom, codec in BOMS if raw.startswith(bom)), None)
+
+
+def check_file(path):
+    """Raise ValueError unless ``path`` is an existing regular file.
+
+    Parameters
+    ----------
+    path : Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> check_file(pathlib.Path(tempfile.mkdtemp()))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: ...: is a folder, not a file
+    """
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, not a file")
+    if not path.exists():
+        raise ValueError(f"{path}: no such file")
+    if not path.is_file():
+        raise ValueError(f"{path}: not a regular file")
+
+
+def decode_text(raw, source):
+    """Decode the bytes of a text recording.
+
+    A byte-order mark picks the codec (:data:`BOMS`); otherwise the bytes
+    must be UTF-8 (ASCII is UTF-8). A NUL byte in the first 4 KiB without a
+    BOM means a binary file (a NUL further on only spoils its row). Up to
+    1 % undecodable bytes (say a Latin-1 ``\\xb0`` in a comment or one
+    corrupted cell) are replaced by U+FFFD so that the row they sit in is
+    reported and dropped like any other malformed row; more is an error.
+
+    Parameters
+    ----------
+    raw : bytes
+        File content.
+    source : str or Path
+        File name for messages.
+
+    Returns
+    -------
+    text : str
+
+    Raises
+    ------
+    ValueError
+        Empty content, binary content or text in another encoding.
+
+    Examples
+    --------
+    >>> decode_text(b"\\xef\\xbb\\xbftimestamp,actual_q_0\\n", "a.csv")[:9]
+    'timestamp'
+    >>> decode_text("t,q\\n".encode("utf-16"), "b.csv")
+    't,q\\n'
+    >>> decode_text(bytes(range(0x80, 0x100)), "c.csv")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: c.csv: not UTF-8 text: 128 of 128 bytes (100 %) ...
+    """
+    codec = text_codec(raw)
+    if codec is not None:
+        try:
+            text = raw.decode(codec)
+        except UnicodeDecodeError as exc:
+            raise ValueError(
+                f"{source}: starts with a {codec.upper()} byte-order mark but byte "
+                f"{exc.start} is not {codec.upper()} ({exc.reason})") from None
+    else:
+        if not raw.strip():
+            raise ValueError(f"{source}: file is empty")
+        nul = raw.find(b"\x00", 0, 4096)
+        if nul >= 0:
+            raise ValueError(
+                f"{source}: binary file, not delimited text (NUL byte at offset {nul}; UR "
+                "RTDE binary recordings are not supported, record with the CSV writer)")
+        text = raw.decode("utf-8", errors="replace")
+        n_bad = text.count("\ufffd") - raw.decode("utf-8", errors="ignore").count("\ufffd")
+        if n_bad > MAX_BAD_BYTES * len(raw):
+            offset = _first_bad_byte(raw)
+            raise ValueError(
+                f"{source}: not UTF-8 text: {n_bad} of {len(raw)} bytes "
+                f"({100 * n_bad / len(raw):.0f} %) are not valid UTF-8, the first at byte "
+                f"offset {offset}; save the file as UTF-8 (another encoding or binary data?)")
+    if not text.strip():
+        raise ValueError(f"{source}: file is empty")
+    return text
+
+
+def _first_bad_byte(raw):
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        return exc.start
+    return -1
+
+
 def read_lines(path):
     """Numbered non-blank, non-comment lines of a text file.
 
@@ -112,20 +245,12 @@ def read_lines(path):
     Raises
     ------
     ValueError
-        For a missing, empty or binary file.
+        For a missing path, a folder, an empty or binary file, or bytes that
+        are not text (see :func:`decode_text`).
     """
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
-    raw = path.read_bytes()
-    if not raw.strip():
-        raise ValueError(f"{path}: file is empty")
-    if b"\x00" in raw[:4096]:
-        raise ValueError(
-            f"{path}: binary file, not delimited text (UR RTDE binary recordings are not "
-            "supported; record with the CSV writer)"
-        )
-    text = raw.decode("utf-8", errors="replace")
+    check_file(path)
+    text = decode_text(path.read_bytes(), path)
     numbered = []
     for number, line in enumerate(text.split("\n"), start=1):
         line = line.strip()
@@ -177,6 +302,7 @@ def read_text_table(path, header="infer", delimiter=None):
         if not numbered:
             raise ValueError(
                 f"{source}: too short, only a header (line {first_number}) and no data rows")
+    numbered, repeats = _split_off_repeated_header(numbered, first_line, first_number, names)
     counts = np.array([len(split_fields(line, delimiter)) for _, line in numbered])
     if names is not None:
         n_fields = len(names)
@@ -188,11 +314,23 @@ def read_text_table(path, header="infer", delimiter=None):
     line_numbers = np.array([number for (number, _), ok in zip(numbered, good) if ok], dtype=int)
     expected = "the header has" if names is not None else "most lines have"
     malformed = [
-        (number, f"{count} fields, {expected} {n_fields}")
+        (number, f"{count} field{'s' if count != 1 else ''}, {expected} {n_fields}")
         for (number, _), count, ok in zip(numbered, counts.tolist(), good)
         if not ok
     ]
+    malformed = sorted(malformed + repeats)
     return TextTable(source, names, delimiter, n_fields, lines, line_numbers, malformed)
+
+
+def _split_off_repeated_header(numbered, header_line, header_number, names):
+    """Data lines equal to the header (a restarted logger appending) -> malformed."""
+    if names is None:
+        return numbered, []
+    repeats = [(number, f"repeats the header (line {header_number}); a second recording "
+                "appended?") for number, line in numbered if line == header_line]
+    if not repeats:
+        return numbered, []
+    return [(n, line) for n, line in numbered if line != header_line], repeats
 
 
 def parse_columns(table, indices, labels):

@@ -7,28 +7,38 @@ to the rows it parsed (file order, irregular sampling kept, no resampling):
    the parser are dropped.
 2. NaN or inf in a used column is an error: the logger wrote it on purpose,
    and dropping rows would hide a missing signal.
-3. Glitches are dropped (:func:`glitch_mask`): rows with
+3. Exact duplicates (a row equal in every used column, time included, to an
+   earlier row) are dropped; nothing is lost, so they do not count towards
+   ``max_dropped``.
+4. Rows with an absurd value, ``|x| > 1e6`` in any joint signal (no arm
+   reaches that in rad, rad/s, A or Nm -- or degrees), are dropped: garbage
+   from a corrupted buffer (:func:`absurd_values`).
+5. Glitches are dropped (:func:`glitch_mask`): rows with
    ``|qd_j| > max_joint_speed``, and short runs of rows (< 10) cut off from
    their neighbours by a time jump of more than 50 median sampling periods
    or by a joint step faster than ``max_joint_speed``,
    ``max_j |q_j[k] - q_j[k-1]| > max_joint_speed * dt + 1e-3 rad``, unless
    they fit between the rows kept around them. Corrupted logger buffers
    write such bursts, sometimes with plausible time stamps.
-4. Rows out of time order are dropped: the kept rows are the longest
+6. Rows out of time order are dropped: the kept rows are the longest
    strictly increasing subsequence of the time column
    (:func:`increasing_subsequence`), so an isolated jump backwards or a
-   repeated time stamp costs one row; of equal time stamps the first is kept.
+   repeated time stamp with different values costs one row; of equal time
+   stamps the first is kept.
 
-Steps 1 and 3+4 may each drop at most ``max_dropped`` (a fraction, default
-5 %) of the rows. Beyond that the file is not "a few bad rows" but wrong (a
-mostly unsorted file, a time reset halfway, a wrong column map) and a
-``ValueError`` names the file, the first offending row and its column.
-Everything dropped is reported in ONE :class:`RecordingWarning` per file,
-and the row numbers are stored in ``recording.metadata["dropped_rows"]``.
+Step 1 and steps 4-6 together may each drop at most ``max_dropped`` (a
+fraction, default 5 %) of the rows. Beyond that the file is not "a few bad
+rows" but wrong (a mostly unsorted file, a time reset halfway, a wrong
+column map, a wrong delimiter) and a ``ValueError`` names the file, the first
+offending row and its column.
 
-A recording whose joint positions exceed ``2 pi + 0.25`` rad on more than
-5 % of the samples triggers a :class:`RecordingWarning` that the angles look
-like degrees; the glitch limits are then scaled by ``180 / pi``.
+Everything dropped is reported in ONE :class:`RecordingWarning` per file
+(count, first row numbers and why), and the row numbers are stored in
+``recording.metadata["dropped_rows"]``. The same warning carries the
+findings of :mod:`sklearn_gpcd.io._checks` on the kept rows, which change
+nothing: gaps in time (also in ``metadata["gaps"]``), positions that look
+like degrees (the glitch limits are then scaled by ``180 / pi``), and
+position steps that disagree with the velocities.
 """
 
 import warnings
@@ -36,12 +46,14 @@ from bisect import bisect_left
 
 import numpy as np
 
+from ._checks import (
+    degrees_note,
+    gaps_note,
+    looks_like_degrees,
+    units_note,
+)
 from .recording import JOINT_SIGNALS, Recording
 
-#: Joint positions beyond this [rad] suggest degrees (UR joints span +-2 pi).
-DEGREES_THRESHOLD = 2 * np.pi + 0.25
-#: Fraction of samples that must exceed it before the degrees warning fires.
-DEGREES_FRACTION = 0.05
 #: Slack [rad] on the position step allowed between two kept rows.
 Q_STEP_TOLERANCE = 1e-3
 #: Longest plausible time step, in median sampling periods.
@@ -50,6 +62,8 @@ GAP_FACTOR = 50
 MIN_RUN = 10
 #: Row numbers quoted in messages.
 N_QUOTED = 5
+#: Largest plausible magnitude of a joint signal (rad, rad/s, A, Nm, or deg).
+ABSURD_VALUE = 1e6
 
 
 class RecordingWarning(UserWarning):
@@ -277,36 +291,6 @@ def glitch_mask(time, q, qd, max_joint_speed=None, tol=Q_STEP_TOLERANCE,
     return keep
 
 
-def looks_like_degrees(q):
-    """True when more than 5 % of the samples have ``|q_j| > 2 pi + 0.25``.
-
-    Parameters
-    ----------
-    q : ndarray of shape (n_samples, n_joints)
-        Joint positions.
-
-    Returns
-    -------
-    degrees : bool
-
-    A UR joint spans ``[-2 pi, 2 pi]`` rad, so positions beyond that on a
-    sizeable share of the samples are almost surely degrees. A recording in
-    degrees that stays within +-6.5 deg cannot be told apart.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> looks_like_degrees(np.array([[0.0, -90.0, 90.0]] * 10))
-    True
-    >>> looks_like_degrees(np.array([[0.0, -1.57, 1.57]] * 10))
-    False
-    """
-    if q.size == 0:
-        return False
-    beyond = np.max(np.abs(q), axis=1) > DEGREES_THRESHOLD
-    return bool(np.mean(beyond) > DEGREES_FRACTION)
-
-
 def check_finite(source, values, row_ids, column_labels, kind="line"):
     """Raise ValueError naming the first NaN/inf cell (row and column).
 
@@ -347,6 +331,75 @@ def _too_many(source, what, count, n_rows, max_dropped, first, hint):
             f"{source}: {count} of {n_rows} rows ({100 * count / n_rows:.1f} %) {what}, "
             f"more than max_dropped={max_dropped:g} allows; first: {first}. {hint}"
         )
+
+
+def exact_duplicates(columns):
+    """Rows equal in every column to an earlier row, and that row.
+
+    Parameters
+    ----------
+    columns : dict
+        ``"time"`` -> (n,), other fields -> (n,) or (n, k), all finite.
+
+    Returns
+    -------
+    first : ndarray of int, shape (n,)
+        For each row the index of the first row equal to it (itself when
+        it is not a duplicate).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cols = {"time": np.array([0.0, 0.1, 0.1, 0.1]),
+    ...         "q": np.array([[1.0], [2.0], [2.0], [3.0]])}
+    >>> exact_duplicates(cols).tolist()
+    [0, 1, 1, 3]
+    """
+    table = np.column_stack([np.asarray(v).reshape(len(columns["time"]), -1)
+                             for v in columns.values()])
+    n = table.shape[0]
+    if n < 2:
+        return np.arange(n)
+    _, first, inverse = np.unique(table, axis=0, return_index=True, return_inverse=True)
+    return first[inverse.reshape(-1)]
+
+
+def absurd_values(columns, column_labels, limit=ABSURD_VALUE):
+    """Reason per row holding a joint-signal value beyond ``limit`` in magnitude.
+
+    Time and labels are not checked (time stamps may be UNIX seconds).
+
+    Parameters
+    ----------
+    columns : dict
+        Field -> values, as for :func:`finalize_recording`.
+    column_labels : dict
+        Field -> column labels for the message.
+    limit : float, default=1e6
+        Largest plausible magnitude.
+
+    Returns
+    -------
+    reasons : dict
+        Row index -> reason naming the first such column.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> cols = {"time": np.arange(3.0), "q": np.array([[0.1], [1e305], [0.2]])}
+    >>> absurd_values(cols, {"time": ["'t'"], "q": ["'q_0'"]})
+    {1: "column 'q_0': |value| = 1e+305 is absurd (> 1e+06)"}
+    """
+    reasons = {}
+    for key in JOINT_SIGNALS:
+        if key not in columns:
+            continue
+        values = columns[key]
+        for row, j in np.argwhere(np.abs(values) > limit):
+            if int(row) not in reasons:
+                reasons[int(row)] = (f"column {column_labels[key][j]}: |value| = "
+                                     f"{abs(values[row, j]):.4g} is absurd (> {limit:.0e})")
+    return dict(sorted(reasons.items()))
 
 
 def finalize_recording(
@@ -404,6 +457,18 @@ def finalize_recording(
     Returns
     -------
     recording : Recording
+
+    Raises
+    ------
+    ValueError
+        No rows, too many malformed or out-of-line rows, NaN/inf, a wrong
+        joint count, or fewer than ``min_samples`` rows left.
+
+    Warns
+    -----
+    RecordingWarning
+        Once, when rows were dropped or the kept rows have gaps or look like
+        other units (see the module docstring).
     """
     malformed = list(malformed)
     columns = dict(columns)
@@ -421,50 +486,81 @@ def finalize_recording(
         values2d = values if values.ndim == 2 else values[:, None]
         check_finite(source, values2d, row_ids, column_labels[key], kind)
 
-    degrees = looks_like_degrees(columns["q"])
-    scale = 180.0 / np.pi if degrees else 1.0
-    speed = None if max_joint_speed is None else max_joint_speed * scale
-    time, q, qd = columns["time"], columns["q"], columns["qd"]
-    keep = glitch_mask(time, q, qd, speed, tol=Q_STEP_TOLERANCE * scale)
-    keep[keep] = increasing_subsequence(time[keep])
-    out_of_line = []
-    if not keep.all():
-        labels = {k: column_labels[k] for k in ("time", "q", "qd")}
-        steps = np.diff(time)
-        gap = GAP_FACTOR * np.median(steps[steps > 0]) if np.any(steps > 0) else np.inf
-        for row in np.flatnonzero(~keep):
-            out_of_line.append((int(row_ids[row]), _why_dropped(
-                row, keep, time, q, qd, speed, gap, labels, row_ids, kind)))
+    keep, duplicates, absurd_rows, out_of_line = _clean_rows(
+        columns, row_ids, column_labels, kind, max_joint_speed)
+    if absurd_rows or out_of_line:
+        bad = sorted(absurd_rows + out_of_line)
         _too_many(source, "are out of line with their neighbours (time stamps not "
-                  "increasing, or joints jumping faster than max_joint_speed)",
-                  len(out_of_line), n_rows, max_dropped,
-                  f"{kind} {out_of_line[0][0]}, {out_of_line[0][1]}",
+                  "increasing, absurd values, or joints jumping faster than "
+                  "max_joint_speed)",
+                  len(bad), n_rows, max_dropped, f"{kind} {bad[0][0]}, {bad[0][1]}",
                   "Sort the file or split it where time resets; for fast motion raise "
                   "max_joint_speed (None disables the joint check).")
-        columns, row_ids = _take(columns, keep), row_ids[keep]
+    columns, row_ids = _take(columns, keep), row_ids[keep]
 
     if len(row_ids) < min_samples:
         raise ValueError(
             f"{source}: too short, {len(row_ids)} valid sample(s) left of {n_rows} rows; "
             f"need at least min_samples={min_samples}"
         )
-    dropped_rows = sorted(r for r, _ in malformed + out_of_line)
-    if dropped_rows:
-        _warn_dropped(source, n_rows, malformed, out_of_line, kind)
-    if degrees:
-        peak = float(np.max(np.abs(columns["q"])))
-        warnings.warn(
-            f"{source}: joint positions reach |q| = {peak:.4g} with more than "
-            f"{100 * DEGREES_FRACTION:.0f} % of the samples beyond 2*pi rad; the angles "
-            "look like degrees (convert with numpy.deg2rad)", RecordingWarning, stacklevel=3)
+    dropped = {"malformed": malformed, "exact duplicate": duplicates, "absurd": absurd_rows,
+               "out of line": out_of_line}
+    dropped_rows = sorted(r for rows_ in dropped.values() for r, _ in rows_)
+    gaps_text, gaps = gaps_note(columns["time"], row_ids, kind)
+    notes = [
+        _dropped_note(n_rows, dropped, kind) if dropped_rows else None,
+        gaps_text,
+        degrees_note(columns["q"]),
+        units_note(columns["time"], columns["q"], columns["qd"], column_labels["q"]),
+    ]
+    notes = [note for note in notes if note]
+    if notes:
+        warnings.warn(f"{source}: " + " ".join(notes), RecordingWarning, stacklevel=3)
 
     meta = dict(metadata or {})
     meta.update(source=str(source), t0=float(columns["time"][0]), n_rows=int(n_rows),
-                dropped_rows=dropped_rows)
+                dropped_rows=dropped_rows, gaps=gaps)
     labels = columns.pop("labels", None)
     if labels is not None and np.all(labels == np.round(labels)):
         labels = labels.astype(np.int64)
     return Recording(name=name, units=units, metadata=meta, labels=labels, **columns)
+
+
+def _clean_rows(columns, row_ids, column_labels, kind, max_joint_speed):
+    """Steps 3-6 of the module docstring: which rows to keep, and why the others go.
+
+    Returns
+    -------
+    keep : ndarray of bool, shape (n,)
+    duplicates, absurd, out_of_line : list of (int, str)
+        Dropped rows (row number, reason) per step.
+    """
+    first = exact_duplicates(columns)
+    duplicate = first != np.arange(first.size)
+    absurd = absurd_values(columns, column_labels)
+    candidate = ~duplicate
+    candidate[list(absurd)] = False
+    time, q, qd = columns["time"], columns["q"], columns["qd"]
+    scale = 180.0 / np.pi if looks_like_degrees(q[candidate]) else 1.0
+    speed = None if max_joint_speed is None else max_joint_speed * scale
+    rows = np.flatnonzero(candidate)
+    sub = glitch_mask(time[rows], q[rows], qd[rows], speed, tol=Q_STEP_TOLERANCE * scale)
+    sub[sub] = increasing_subsequence(time[rows][sub])
+    keep = np.zeros(time.shape[0], dtype=bool)
+    keep[rows[sub]] = True
+
+    duplicates = [(int(row_ids[r]), f"exact duplicate of {kind} {row_ids[first[r]]}")
+                  for r in np.flatnonzero(duplicate)]
+    absurd_rows = [(int(row_ids[r]), why) for r, why in absurd.items() if not duplicate[r]]
+    labels = {k: column_labels[k] for k in ("time", "q", "qd")}
+    steps = np.diff(time[keep])
+    gap = GAP_FACTOR * np.median(steps[steps > 0]) if np.any(steps > 0) else np.inf
+    out_of_line = [
+        (int(row_ids[row]), _why_dropped(row, keep, time, q, qd, speed, gap, labels,
+                                         row_ids, kind))
+        for row in np.flatnonzero(candidate & ~keep)
+    ]
+    return keep, duplicates, absurd_rows, out_of_line
 
 
 def _take(columns, keep):
@@ -474,13 +570,16 @@ def _take(columns, keep):
 def _check_joint_count(source, columns, column_labels, n_joints):
     counts = {k: columns[k].shape[1] for k in JOINT_SIGNALS if k in columns}
     expected = counts["q"] if n_joints is None else n_joints
+    if counts["q"] == 0:
+        raise ValueError(f"{source}: q has no joint column (an empty column selection?)")
     for key, count in counts.items():
         if count != expected:
             names = ", ".join(column_labels[key])
             origin = "n_joints" if n_joints is not None else "q"
+            hint = "fewer" if count < expected else "more"
             raise ValueError(
                 f"{source}: {key} has {count} joint column(s) ({names}), expected "
-                f"{expected} (from {origin}); fewer joints than the robot has?"
+                f"{expected} (from {origin}); {hint} joints than the robot has?"
             )
 
 
@@ -496,6 +595,10 @@ def _why_dropped(row, keep, time, q, qd, speed, gap, labels, row_ids, kind):
     prev = int(before[-1]) if before.size else None
     nxt = int(row + 1 + after[0]) if after.size else None
     t_col = labels["time"][0]
+    for ref in (prev, nxt):
+        if ref is not None and time[row] == time[ref]:
+            return (f"column {t_col}: t={float(time[row])!r} repeats {kind} {row_ids[ref]} "
+                    "with different values")
     for ref, order in ((prev, "after"), (nxt, "before")):
         if ref is not None and (time[row] - time[ref]) * (1 if order == "after" else -1) <= 0:
             return (f"column {t_col}: t={float(time[row])!r} is not {order} "
@@ -515,16 +618,15 @@ def _why_dropped(row, keep, time, q, qd, speed, gap, labels, row_ids, kind):
     return f"column {t_col}: t={float(time[row])!r} isolated among glitches"
 
 
-def _warn_dropped(source, n_rows, malformed, out_of_line, kind):
-    total = len(malformed) + len(out_of_line)
+def _dropped_note(n_rows, dropped, kind):
+    """``"dropped 3 of 80 rows (lines ...): 1 malformed (...); ..."`` for the warning."""
+    total = sum(len(rows) for rows in dropped.values())
     parts = []
-    for what, rows in (("malformed", malformed), ("out of line", out_of_line)):
+    for what, rows in dropped.items():
         if rows:
             first = "; ".join(f"{kind} {r}: {why}" for r, why in rows[:N_QUOTED])
             more = f"; ... ({len(rows)} in all)" if len(rows) > N_QUOTED else ""
             parts.append(f"{len(rows)} {what} ({first}{more})")
-    numbers = quote_rows(sorted(r for r, _ in malformed + out_of_line), kind)
-    warnings.warn(
-        f"{source}: dropped {total} of {n_rows} rows ({numbers}): " + "; ".join(parts)
-        + ". Their numbers are in recording.metadata['dropped_rows'].",
-        RecordingWarning, stacklevel=3)
+    numbers = quote_rows(sorted(r for rows in dropped.values() for r, _ in rows), kind)
+    return (f"dropped {total} of {n_rows} rows ({numbers}): " + "; ".join(parts)
+            + ". Their numbers are in recording.metadata['dropped_rows'].")

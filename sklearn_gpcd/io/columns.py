@@ -203,8 +203,10 @@ def resolve_column_map(column_map, n_fields, names=None, source="", n_joints=Non
             f"(every recording needs {', '.join(REQUIRED_FIELDS)})"
         )
     lookup = {name: i for i, name in enumerate(names)} if names is not None else None
+    repeated = _repeated_names(names)
     order = ["q"] + [k for k in column_map if k != "q" and column_map[k] is not None]
-    indices, labels, missing = {}, {}, []
+    indices, labels, missing, counts = {}, {}, [], []
+    given = n_joints is not None
     for key in order:
         items, scalar = _as_items(column_map[key], key)
         cols = []
@@ -225,13 +227,22 @@ def resolve_column_map(column_map, n_fields, names=None, source="", n_joints=Non
             elif item in lookup:
                 cols.append(lookup[item])
             elif scalar and key not in SCALAR_FIELDS:
-                found = _expand_prefix(item, lookup, n_joints)
+                found = _expand_prefix(item, lookup, n_joints, source)
                 cols.extend(lookup[n] for n in found if n in lookup)
                 missing.extend((n, key) for n in found if n not in lookup)
+                if any(n not in lookup for n in found):
+                    counts.append(_joint_count_note(item, lookup, len(found), given))
             else:
                 missing.append((item, key))
         if key in SCALAR_FIELDS and len(cols) + sum(k == key for _, k in missing) != 1:
             raise ValueError(f"{source}: column map entry {key!r} must name exactly one column")
+        for c in cols:
+            if names is not None and names[c] in repeated:
+                where = ", ".join(str(i) for i in repeated[names[c]])
+                raise ValueError(
+                    f"{source}: column {names[c]!r} ({key}) appears more than once in the "
+                    f"header (0-based columns {where}); rename the copies or give column "
+                    "indices")
         if key == "q" and n_joints is None and not missing:
             n_joints = len(cols)
         indices[key] = cols
@@ -242,17 +253,56 @@ def resolve_column_map(column_map, n_fields, names=None, source="", n_joints=Non
     if missing:
         listed = ", ".join(f"{name!r} ({key})" for name, key in missing)
         shown = ", ".join(names[:8]) + (", ..." if len(names) > 8 else "")
-        raise ValueError(f"{source}: missing column(s) {listed}; the header has: {shown}")
+        counts = [c for c in counts if c]
+        note = f" ({counts[0]})" if counts else ""
+        raise ValueError(
+            f"{source}: missing column(s) {listed}{note}; the header has: {shown}")
     return indices, labels
 
 
-def _expand_prefix(prefix, lookup, n_joints):
-    """Names ``prefix_0 .. prefix_{n-1}``; n from the header when not given."""
+def _repeated_names(names):
+    """Header names that occur more than once -> their 0-based columns."""
+    if names is None:
+        return {}
+    where = {}
+    for i, name in enumerate(names):
+        where.setdefault(name, []).append(i)
+    return {name: cols for name, cols in where.items() if len(cols) > 1}
+
+
+def _count_prefixed(prefix, lookup):
+    """How many consecutive ``prefix_0, prefix_1, ...`` the header has."""
+    count = 0
+    while f"{prefix}_{count}" in lookup:
+        count += 1
+    return count
+
+
+def _joint_count_note(prefix, lookup, n_joints, given):
+    """Why ``prefix_*`` columns are missing: too few joints, or a hole."""
+    count = _count_prefixed(prefix, lookup)
+    if any(f"{prefix}_{j}" in lookup for j in range(count + 1, n_joints)):
+        return None  # a hole in the numbering, the listed names say it all
+    if given:
+        return (f"the file has {count} {prefix}_* column(s) but n_joints={n_joints}: "
+                "fewer joints than the robot has?")
+    return f"the file has {count} {prefix}_* column(s) but q has {n_joints}"
+
+
+def _expand_prefix(prefix, lookup, n_joints, source=""):
+    """Names ``prefix_0 .. prefix_{n-1}``; n from the header when not given.
+
+    With ``n_joints`` given, a header with more consecutive columns
+    (``prefix_{n_joints}`` exists) is an error: the file has more joints
+    than the robot.
+    """
+    count = _count_prefixed(prefix, lookup)
     if n_joints is None:
-        n_joints = 0
-        while f"{prefix}_{n_joints}" in lookup:
-            n_joints += 1
-        n_joints = max(n_joints, 1)
+        return [f"{prefix}_{j}" for j in range(max(count, 1))]
+    if count > n_joints:
+        raise ValueError(
+            f"{source}: the file has {count} {prefix}_* columns ({prefix}_0 .. "
+            f"{prefix}_{count - 1}) but n_joints={n_joints}: more joints than the robot has?")
     return [f"{prefix}_{j}" for j in range(n_joints)]
 
 

@@ -3,7 +3,7 @@
 from glob import glob, has_magic
 from pathlib import Path
 
-from ._text import is_number, sniff_delimiter, split_fields
+from ._text import decode_text, is_number, sniff_delimiter, split_fields
 from .columns import UR10E_MAMEDOV
 from .npz import read_npz
 from .rosbag import ROS2_SUFFIXES, read_rosbag
@@ -18,7 +18,8 @@ RECORDING_SUFFIXES = (".csv", ".tsv", ".npz", ".bag")
 
 def _first_line(path, limit=1 << 16):
     with open(path, "rb") as handle:
-        head = handle.read(limit).decode("utf-8", errors="replace")
+        raw = handle.read(limit)
+    head = decode_text(raw, path)  # empty, binary or non-UTF-8: a clear error here
     for line in head.split("\n"):
         line = line.strip()
         if line and not line.startswith("#"):
@@ -134,7 +135,7 @@ def _default_column_map(path):
     kind = "headerless" if all(is_number(f) for f in fields) else "non-RTDE header"
     raise ValueError(
         f"{path}: {kind} text with {len(fields)} fields; pass column_map={{'time': ..., "
-        "'q': ..., 'qd': ..., 'current': ...}} (column indices or names) or a preset name")
+        "'q': ..., 'qd': ..., 'current': ...} (column indices or names) or a preset name")
 
 
 def recording_paths(paths):

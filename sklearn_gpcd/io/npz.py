@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._text import check_file
 from ._validation import finalize_recording
 from .columns import FIELDS, REQUIRED_FIELDS, SCALAR_FIELDS
 
@@ -69,12 +70,11 @@ def read_npz(
     2
     """
     source = str(path)
-    if not Path(path).is_file():
-        raise ValueError(f"{source}: no such file")
+    check_file(Path(path))
     try:
         with np.load(path, allow_pickle=False) as archive:
             arrays = {key: archive[key] for key in archive.files}
-    except (ValueError, OSError, zipfile.BadZipFile) as exc:
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
         raise ValueError(f"{source}: not a readable .npz archive ({exc})") from None
     if not arrays:
         raise ValueError(f"{source}: file is empty (no arrays)")
@@ -96,8 +96,11 @@ def read_npz(
     n = columns["time"].shape[0]
     for field, values in columns.items():
         if values.shape[0] != n:
+            spec = key_map[field]
+            key = spec[0] if isinstance(spec, tuple) else spec
             raise ValueError(
-                f"{source}: {labels[field][0]} has {values.shape[0]} rows, time has {n}")
+                f"{source}: key {key!r} (for {field}) has {values.shape[0]} rows, time has "
+                f"{n}; every array needs one row per sample")
     if n == 0:
         raise ValueError(f"{source}: file is empty (0 rows)")
     columns["time"] = columns["time"] * time_scale

@@ -224,8 +224,10 @@ class Recording:
         recordings = list(recordings)
         if not recordings:
             raise ValueError("concatenate needs at least one recording")
-        times, offset = [], 0.0
+        times, offset = [np.empty(0)], 0.0
         for rec in recordings:
+            if rec.n_samples == 0:  # nothing to shift (and no time[0])
+                continue
             t = rec.time - rec.time[0] + offset
             times.append(t)
             step = np.median(np.diff(rec.time)) if rec.n_samples > 1 else 1e-3

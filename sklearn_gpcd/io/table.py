@@ -27,11 +27,14 @@ def read_csv(
     between 2 and 34 ms) and time is not shifted: ``metadata["t0"]`` holds
     the first time stamp. Row cleaning follows
     :mod:`sklearn_gpcd.io._validation`: malformed lines (wrong field count, a
-    non-number in a used column), out-of-order time stamps and kinematic
+    non-number in a used column, a repeated header), exact duplicates,
+    absurd values (``|x| > 1e6``), out-of-order time stamps and kinematic
     glitches are dropped with one :class:`RecordingWarning` when they are at
     most ``max_dropped`` of the rows each, and their line numbers go to
-    ``metadata["dropped_rows"]``; more than that, NaN/inf, missing columns or
-    a wrong joint count raise ValueError naming file, column and line.
+    ``metadata["dropped_rows"]``; more than that, NaN/inf, missing or
+    repeated columns or a wrong joint count raise ValueError naming file,
+    column and line. Gaps in time (``metadata["gaps"]``) and values that
+    look like degrees or milliseconds are reported in the same warning.
 
     Parameters
     ----------
