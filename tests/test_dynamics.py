@@ -320,3 +320,27 @@ def test_parameter_vector_checks_lengths():
     est = RigidBodyRegressor("ur5").fit(np.zeros((2, 18)))
     with pytest.raises(ValueError, match="parameter_names_"):
         est.project_parameters(np.zeros(3))
+
+
+def test_joint_selection_and_batch_cache_give_the_same_rows(rng, monkeypatch):
+    from sklearn_gpcd.dynamics import regressor as reg
+
+    q, qd, qdd = rng.normal(size=(3, 50, 6))
+    full = full_regressor("ur10", q, qd, qdd)
+    again = full_regressor("ur10", q, qd, qdd)  # served by the one-batch cache
+    assert np.array_equal(full, again)
+    for joint in (0, 3, [1, 5]):
+        assert np.array_equal(full_regressor("ur10", q, qd, qdd, joints=joint),
+                              full[:, np.atleast_1d(joint), :])
+    # other states or another robot are not served from the cache
+    assert not np.array_equal(full_regressor("ur10", q + 0.1, qd, qdd), full)
+    assert not np.array_equal(full_regressor("ur5", q, qd, qdd), full)
+    # batches above the cache size compute only the requested rows
+    monkeypatch.setattr(reg, "CACHE_MAX_BYTES", 0)
+    reg._LAST_BATCH.clear()
+    assert np.array_equal(full_regressor("ur10", q, qd, qdd, joints=2), full[:, [2], :])
+    assert not reg._LAST_BATCH
+    # the public function returns a writable copy, never the cached array
+    Y = reg.joint_torque_regressor(load_robot("ur10").model, q, qd, qdd)
+    Y[:] = 0.0
+    assert np.array_equal(full_regressor("ur10", q, qd, qdd), full)

@@ -19,6 +19,7 @@ from sklearn.model_selection import GridSearchCV, KFold
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 
+from sklearn_gpcd.gp._optimize import lbfgs_b  # the exact path's L-BFGS-B, for sklearn
 from sklearn_gpcd._layout import column_index, column_names
 from sklearn_gpcd.gp import (
     ParametricMean,
@@ -152,7 +153,7 @@ def test_matches_sklearn_gpr_per_output(kernel, normalize_y):
     mean, std = ours.predict(X_test, return_std=True)
     assert ours.n_outputs_ == 2 and mean.shape == std.shape == (20, 2)
     for j in range(2):
-        ref = GaussianProcessRegressor(kernel, **params).fit(X, Y[:, j])
+        ref = GaussianProcessRegressor(kernel, optimizer=lbfgs_b, **params).fit(X, Y[:, j])
         ref_mean, ref_std = ref.predict(X_test, return_std=True)
         assert_allclose(mean[:, j], ref_mean, rtol=1e-6)
         assert_allclose(std[:, j], ref_std, rtol=1e-6)
@@ -166,7 +167,7 @@ def test_single_output_shapes_and_cov_match_sklearn():
     X, Y = smooth_problem()
     kernel = C(1.0) * RBF(1.0) + WhiteKernel(1.0)
     ours = SemiParametricGPRegressor(kernel, random_state=0).fit(X, Y[:, 0])
-    ref = GaussianProcessRegressor(kernel, random_state=0).fit(X, Y[:, 0])
+    ref = GaussianProcessRegressor(kernel, optimizer=lbfgs_b, random_state=0).fit(X, Y[:, 0])
     mean, cov = ours.predict(X[:7], return_cov=True)
     ref_mean, ref_cov = ref.predict(X[:7], return_cov=True)
     assert mean.shape == (7,) and cov.shape == (7, 7)
@@ -192,7 +193,7 @@ def test_parametric_mean_plus_gp_on_residual():
     ).fit(X, y)
     linear = LinearRegression().fit(X, y)
     assert_allclose(ours.mean_.coef_, linear.coef_, rtol=1e-8)
-    ref = GaussianProcessRegressor(kernel, normalize_y=True, random_state=0)
+    ref = GaussianProcessRegressor(kernel, normalize_y=True, optimizer=lbfgs_b, random_state=0)
     ref.fit(X, y - linear.predict(X))
     X_test = X[:10] + 0.1
     mean, std = ours.predict(X_test, return_std=True)
@@ -332,7 +333,8 @@ def test_n_support_conditions_on_the_support_rows_only():
     gp = SemiParametricGPRegressor(kernel, n_support=30, random_state=0).fit(X, Y[:, 0])
     support = gp.support_indices_
     assert support.shape == (30,) and len(np.unique(support)) == 30
-    ref = GaussianProcessRegressor(kernel, random_state=0).fit(X[support], Y[support, 0])
+    ref = GaussianProcessRegressor(kernel, optimizer=lbfgs_b, random_state=0)
+    ref.fit(X[support], Y[support, 0])
     assert_allclose(gp.predict(X), ref.predict(X), rtol=1e-6)
     assert_allclose(np.exp(gp.kernel_.theta), np.exp(ref.kernel_.theta), rtol=1e-6)
     # changing targets outside the support changes nothing

@@ -156,7 +156,7 @@ def test_data_driven_init_only_replaces_default_length_scales():
 
 @pytest.mark.parametrize(
     "n, n_theta, expected",
-    [(2000, 10, "fmin_l_bfgs_b"), (2001, 3, "adam"), (1000, 21, "adam"), (60, 5, "fmin_l_bfgs_b")],
+    [(3000, 20, "fmin_l_bfgs_b"), (3001, 3, "adam"), (1000, 61, "adam"), (60, 5, "fmin_l_bfgs_b")],
 )
 def test_auto_rule(n, n_theta, expected):
     assert resolve_optimizer("auto", n, n_theta) == expected
@@ -170,10 +170,10 @@ def test_auto_picks_each_path_in_fit():
     assert small.optimizer_ == "fmin_l_bfgs_b"
     exact = SemiParametricGPRegressor(ard_kernel(), optimizer="fmin_l_bfgs_b", random_state=0)
     assert_allclose(small.kernel_.theta, exact.fit(X, y).kernel_.theta)
-    # 700 rows x 32 hyperparameters > 20,000: the stochastic path
+    # 2,000 rows x 32 hyperparameters > 60,000: the stochastic path
     rng = np.random.RandomState(0)
-    X_wide = rng.uniform(size=(700, 30))
-    y_wide = X_wide[:, 0] + 0.1 * rng.randn(700)
+    X_wide = rng.uniform(size=(2000, 30))
+    y_wide = X_wide[:, 0] + 0.1 * rng.randn(2000)
     kernel = C() * RBF(np.ones(30)) + WhiteKernel()
     big = SemiParametricGPRegressor(kernel, batch_size=64, max_iter=20, random_state=0)
     assert big.fit(X_wide, y_wide).optimizer_ == "adam"
@@ -279,3 +279,82 @@ def test_single_row_predict_equals_batch_and_still_validates():
     named = SemiParametricGPRegressor(kernel, optimizer=None).fit(frame, y)
     with pytest.warns(UserWarning, match="does not have valid feature names"):
         named.predict(X[:1])  # a fitted-with-names model still warns on arrays
+
+
+# -- memory: gated blocks, the lazily rebuilt factor, the mirrored inverse ----
+@pytest.mark.parametrize("kind", range(6))
+def test_gram_with_gated_blocks_equals_the_kernel(kind):
+    """Gated Gram blocks are added in place (no second (n, n) array) exactly."""
+    rng = np.random.RandomState(kind)
+    X = rng.normal(size=(120, 4))
+    X[::3, 1] = 1e-3  # a third of the rows quasi-static
+    g1 = QuasiStaticGate(ARDRBF([1.0, 2.0], columns=[0, 2]), velocity_column=1, sigma_v=0.01)
+    g2 = QuasiStaticGate(ARDRBF([1.5], columns=[3]), velocity_column=1, sigma_v=0.01)
+    kernel = [
+        C(2.0) * g1,
+        ARDRBF([1.0] * 4) + C(2.0) * g1 + WhiteKernel(0.1),
+        g1 + g2,
+        WhiteKernel(0.1) + g1,
+        g1 * C(3.0) + C(1.0),
+        g1 * RBF(1.0),
+    ][kind]
+    plan = compile_kernel(kernel)
+    in_place = gram_matrix(plan, X)  # gated blocks added in place
+    assert np.array_equal(in_place, gram_matrix(plan, X, keep=True))  # dense blocks
+    assert_allclose(in_place, kernel(X), rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_large_factor_is_rebuilt_on_demand_with_identical_results(monkeypatch):
+    from sklearn_gpcd.gp import _posterior
+
+    X, y = smooth(150)
+    kept = SemiParametricGPRegressor(ard_kernel(), random_state=0).fit(X, y)
+    monkeypatch.setattr(_posterior, "FACTOR_KEEP_BYTES", 0)
+    lean = SemiParametricGPRegressor(ard_kernel(), random_state=0).fit(X, y)
+    assert kept._outputs[0].posterior._L is not None
+    assert lean._outputs[0].posterior._L is None  # not held after the fit
+    assert lean.log_marginal_likelihood_value_ == kept.log_marginal_likelihood_value_
+    assert np.array_equal(lean.predict(X), kept.predict(X))
+    mean, std = lean.predict(X, return_std=True)
+    assert lean._outputs[0].posterior._L is not None  # rebuilt once, then cached
+    assert np.array_equal(std, kept.predict(X, return_std=True)[1])
+
+
+@pytest.mark.parametrize("n", [1, 2, 255, 256, 257, 700])
+def test_weight_matrix_is_the_symmetric_inverse_minus_a_a_t(n):
+    from scipy.linalg.lapack import dpotrf
+
+    from sklearn_gpcd.gp._kernel_plan import _mirror_upper
+    from sklearn_gpcd.gp._likelihood import _negated_weight_matrix
+
+    A = np.random.RandomState(n).normal(size=(n, n))
+    K = A @ A.T + n * np.eye(n)
+    U, info = dpotrf(K, lower=0, clean=1)
+    a = np.random.RandomState(0).normal(size=n)
+    V = _negated_weight_matrix(U, a)  # K^{-1} - a a^T
+    assert info == 0 and np.array_equal(V, V.T) and V.flags.c_contiguous
+    assert_allclose(V, np.linalg.inv(K) - np.outer(a, a), rtol=1e-9, atol=1e-12)
+    upper = np.triu(A)
+    assert np.array_equal(_mirror_upper(upper.copy(), tile=64), upper + np.triu(upper, 1).T)
+
+
+def test_single_output_keeps_blas_threads_multi_output_pins_them(monkeypatch):
+    from sklearn_gpcd.gp import regressor
+
+    seen = []
+    real = regressor.single_threaded_blas
+
+    def spy():
+        seen.append(True)
+        return real()
+
+    monkeypatch.setattr(regressor, "single_threaded_blas", spy)
+    X, y = smooth(60)
+    SemiParametricGPRegressor(ard_kernel(), random_state=0).fit(X, y)
+    # one output: only the posterior's factorisation is pinned (so that it is
+    # the factor rebuilt later for std); the optimisation keeps BLAS's threads
+    assert len(seen) == 1
+    seen.clear()
+    SemiParametricGPRegressor(ard_kernel(), random_state=0).fit(X, np.c_[y, y])
+    assert len(seen) == 4  # per output: the whole fit, and the posterior inside it

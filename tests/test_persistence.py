@@ -9,6 +9,7 @@ import warnings
 
 import joblib
 import numpy as np
+import pinocchio as pin
 import pytest
 import sklearn
 from sklearn.base import BaseEstimator, RegressorMixin
@@ -176,26 +177,26 @@ def test_pipeline_ending_in_a_detector_round_trip(fmt, data, tmp_path):
     assert np.array_equal(copy.predict(Z), pipe.predict(Z))
 
 
-def test_rigid_body_features_joblib_round_trip(data, tmp_path):
+@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("factory", [make_p_f, make_sp_p], ids=["P_f", "SP_P"])
+def test_rigid_body_features_round_trip(factory, fmt, data, tmp_path):
+    """Estimators holding a Robot (a pinocchio.Model) survive both formats,
+    and a skops file needs no ``trusted=`` for them."""
     X, Y, X_test, _ = data
     features = [RigidBodyRegressor("ur10", joint=j) for j in range(N_JOINTS)]
-    p_f = make_p_f(features, N_JOINTS, optimizer=None).fit(X, Y)
-    copy = round_trip(p_f, "joblib", tmp_path)
-    assert np.array_equal(copy.predict(X_test), p_f.predict(X_test))
-
-
-@pytest.mark.xfail(
-    strict=True,
-    reason="skops rebuilds objects with cls.__new__ + __setstate__, which a "
-    "pinocchio.Model (Boost.Python) rejects; Robot should store model.saveToString() "
-    "in __getstate__ and rebuild it in __setstate__",
-)
-def test_rigid_body_features_skops_round_trip(data, tmp_path):
-    X, Y, X_test, _ = data
-    features = [RigidBodyRegressor("ur10", joint=j) for j in range(N_JOINTS)]
-    p_f = make_p_f(features, N_JOINTS, optimizer=None).fit(X, Y)
-    copy = round_trip(p_f, "skops", tmp_path)
-    assert np.array_equal(copy.predict(X_test), p_f.predict(X_test))
+    gp = factory(features, N_JOINTS, optimizer=None, n_support=60, random_state=0).fit(X, Y)
+    path = save(gp, tmp_path / f"model.{fmt}")
+    if fmt == "skops":
+        untrusted = skops_io.get_untrusted_types(file=path)
+        assert not [name for name in untrusted if name.startswith("pinocchio")], untrusted
+    copy = load(path)
+    robots = [mean.features_.robot_ for mean in copy.mean_]
+    assert len(robots) == N_JOINTS
+    assert all(isinstance(robot.model, pin.Model) for robot in robots)
+    assert robots[0].model is not gp.mean_[0].features_.robot_.model
+    mean, std = gp.predict(X_test, return_std=True)
+    mean2, std2 = copy.predict(X_test, return_std=True)
+    assert np.array_equal(mean2, mean) and np.array_equal(std2, std)
 
 
 # ----------------------------------------------------------------- versions

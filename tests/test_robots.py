@@ -146,6 +146,79 @@ def test_robot_pickles():
     np.testing.assert_array_equal(again.torque_constants, robot.torque_constants)
 
 
+def _round_trip(robot, fmt, tmp_path):
+    """``robot`` through pickle, or through sklearn_gpcd.persistence (joblib/skops)."""
+    import pickle
+
+    if fmt == "pickle":
+        return pickle.loads(pickle.dumps(robot))
+    if fmt == "skops":
+        pytest.importorskip("skops.io")
+    from sklearn_gpcd.persistence import load, save
+
+    return load(save(robot, tmp_path / f"robot.{fmt}"))  # skops: no trusted= needed
+
+
+def _assert_bit_identical(copy, robot, rng):
+    """Same fields; pinocchio.rnea, Robot.rnea and the regressors agree bit for bit."""
+    from sklearn_gpcd.dynamics import full_regressor
+    from sklearn_gpcd.dynamics import regressor as regressor_module
+
+    assert isinstance(copy, Robot) and isinstance(copy.model, pin.Model)
+    assert copy.model is not robot.model and copy.model == robot.model
+    assert (copy.name, copy.flange_frame, copy.citation) == (
+        robot.name, robot.flange_frame, robot.citation)
+    for name in ("torque_constants", "gear_ratios", "rotor_inertias", "dh"):
+        a, b = getattr(copy, name), getattr(robot, name)
+        assert (a is None and b is None) or np.array_equal(a, b), name
+    assert np.array_equal(copy.model.armature, robot.model.armature)
+    assert copy.joint_names == robot.joint_names
+    assert copy.flange_frame_id == robot.flange_frame_id
+    n = robot.n_joints
+    q = rng.uniform(-np.pi, np.pi, (20, n))
+    qd, qdd = rng.normal(size=(2, 20, n))
+    data, data_copy = robot.model.createData(), copy.model.createData()
+    for k in range(len(q)):
+        tau = pin.rnea(robot.model, data, q[k], qd[k], qdd[k])
+        assert np.array_equal(pin.rnea(copy.model, data_copy, q[k], qd[k], qdd[k]), tau)
+        Y = pin.computeJointTorqueRegressor(robot.model, data, q[k], qd[k], qdd[k])
+        Y_copy = pin.computeJointTorqueRegressor(copy.model, data_copy, q[k], qd[k], qdd[k])
+        assert np.array_equal(Y_copy, Y)
+    assert np.array_equal(copy.rnea(q, qd, qdd), robot.rnea(q, qd, qdd))
+    assert np.array_equal(copy.forward_kinematics(q), robot.forward_kinematics(q))
+    phis = []
+    for r in (robot, copy):
+        regressor_module._LAST_BATCH.clear()  # no cache hit: compute from each model
+        phis.append(full_regressor(r, q, qd, qdd, sigma_v=0.01))
+    assert np.array_equal(phis[1], phis[0])
+
+
+@pytest.mark.parametrize("fmt", ["pickle", "joblib", "skops"])
+def test_builtin_robot_round_trip_is_bit_identical(fmt, tmp_path, rng):
+    robot = load_robot("ur10e", gear_ratios=[101] * 6,
+                       rotor_inertias=[0.1, 0.2, 0.3, 0.01, 0.02, 0.03])
+    _assert_bit_identical(_round_trip(robot, fmt, tmp_path), robot, rng)
+
+
+@pytest.mark.parametrize("fmt", ["pickle", "joblib", "skops"])
+def test_urdf_robot_round_trip_is_bit_identical(fmt, ur10_urdf, tmp_path, rng):
+    robot = load_robot(ur10_urdf, torque_constants=[10.0] * 6)
+    _assert_bit_identical(_round_trip(robot, fmt, tmp_path), robot, rng)
+
+
+def test_robot_state_stores_the_model_as_text():
+    robot = load_robot("ur5")
+    state = robot.__getstate__()
+    assert isinstance(state["model"], str)
+    assert robot.model is vars(robot)["model"]  # saving does not touch the robot
+    legacy = dict(state, model=robot.model)  # pickles written before: the Model itself
+    again = Robot.__new__(Robot)
+    again.__setstate__(legacy)
+    assert again.model is robot.model
+    with pytest.raises(TypeError, match="'model' as a pinocchio.Model"):
+        Robot.__new__(Robot).__setstate__(dict(state, model=3))
+
+
 # ------------------------------------------------- published parameters
 @pytest.mark.parametrize("name", ALL_ROBOTS)
 def test_flange_matches_independent_dh_product(name, rng):

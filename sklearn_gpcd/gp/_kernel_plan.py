@@ -43,6 +43,7 @@ kernel objects at every step.
 """
 
 import numpy as np
+from scipy.linalg.blas import dsyrk
 from scipy.spatial.distance import cdist, pdist, squareform
 
 #: Largest half squared norm of scaled, centred coordinates for which cross
@@ -179,6 +180,51 @@ def _multiply(a, b, inplace):
     return a * b
 
 
+def _mirror_upper(A, tile=256):
+    """Copy the strict upper triangle of the square ``A`` onto its lower one, in place.
+
+    Tile by tile, so that the transposed reads stay in cache (a plain
+    ``A += A.T`` is several times slower for n in the thousands).
+    """
+    n = A.shape[0]
+    for i in range(0, n, tile):
+        i_end = min(i + tile, n)
+        block = A[i:i_end, i:i_end]
+        lower = np.tril_indices(i_end - i, -1)
+        block[lower] = block.T[lower]
+        for j in range(i_end, n, tile):
+            j_end = min(j + tile, n)
+            A[j:j_end, i:i_end] = A[i:i_end, j:j_end].T
+    return A
+
+
+def _neg_half_sq_dist_gram(Z):
+    r""":math:`-\tfrac12 \|z_i - z_j\|^2` for all pairs of rows of the centred ``Z``.
+
+    By the expansion :math:`z_i^T z_j - \tfrac12 \|z_i\|^2 - \tfrac12
+    \|z_j\|^2` with one BLAS ``syrk`` (symmetric by construction), which is
+    several times faster than ``pdist`` + ``squareform``; when the coordinates
+    are so large that its round-off would matter (see
+    :data:`_EXPANSION_MAX`), by exact differences (``pdist``), as
+    scikit-learn's ``RBF``.
+
+    Returns
+    -------
+    D : ndarray of shape (n, n)
+        A new C-contiguous array.
+    """
+    half_norm = 0.5 * np.einsum("id,id->i", Z, Z)
+    if np.max(half_norm, initial=0.0) > _EXPANSION_MAX:
+        d = pdist(Z, metric="sqeuclidean")
+        d *= -0.5
+        return squareform(d)
+    G = dsyrk(1.0, Z)  # upper triangle of Z Z^T, Fortran-ordered
+    D = _mirror_upper(G).T  # symmetric: the transpose is the same, C-ordered
+    D -= half_norm[:, np.newaxis]
+    D -= half_norm
+    return D
+
+
 def _rows_of(value, rows):
     """A diagonal restricted to some rows (arrays pass through)."""
     return _Diagonal(value.values[rows]) if isinstance(value, _Diagonal) else value
@@ -236,7 +282,14 @@ class _Sum(_Node):
         self.k2.set_theta(theta[self.k1.n_dims :])
 
     def gram(self, X, keep):
-        return _add(self.k1.gram(X, keep), self.k2.gram(X, keep), inplace=not keep)
+        v1, v2 = self.k1.gram(X, keep), self.k2.gram(X, keep)
+        # an array may be updated in place unless a child keeps it for
+        # ``contract``; sums and products always return new arrays
+        if isinstance(v1, np.ndarray):
+            inplace = not keep or isinstance(self.k1, (_Sum, _Product))
+        else:  # _add puts an array v2 first
+            inplace = not keep or isinstance(self.k2, (_Sum, _Product))
+        return _add(v1, v2, inplace=inplace)
 
     def contract(self, W, scale):
         parts = [k.contract(W, scale) for k in (self.k1, self.k2) if k.n_dims]
@@ -285,7 +338,11 @@ class _Product(_Node):
         for child, other in ((self.k1, self._v2), (self.k2, self._v1)):
             if not child.n_dims:
                 continue
-            if isinstance(other, (np.ndarray, _Diagonal)):
+            if child.is_scalar() and isinstance(other, np.ndarray):
+                # d(c K)/d log c = c K: the gradient is c sum(W o K), one dot
+                # product instead of the (n, n) array W o K
+                parts.append(np.array([scale * child.value * np.vdot(W, other)]))
+            elif isinstance(other, (np.ndarray, _Diagonal)):
                 parts.append(child.contract(W * _dense(other, self._n, self._n), scale))
             else:  # a scalar factor: fold it into the scale
                 parts.append(child.contract(W, scale * other))
@@ -405,30 +462,42 @@ class _SquaredExponential(_Node):
         return (X if self.columns is None else X[:, self.columns]) / self.length_scale
 
     def gram(self, X, keep):
-        Z = self._scaled(X)  # as scikit-learn's RBF: pdist, exp, squareform
-        d = pdist(Z, metric="sqeuclidean")
-        d *= -0.5
-        K = squareform(np.exp(d, out=d))
-        del d
+        Z = self._scaled(X)
+        Z -= Z.mean(axis=0)  # centred: smaller round-off
+        # while optimising (keep), K lives until the next evaluation: reuse it
+        K = _neg_half_sq_dist_gram(Z)
+        np.minimum(K, 0.0, out=K)  # round-off can leave tiny positive values
+        np.exp(K, out=K)
         np.fill_diagonal(K, 1.0)
         if keep and self.n_dims:
-            self._Z, self._K = Z - Z.mean(axis=0), K  # centred: smaller round-off
+            self._Z, self._K = Z, K
         return K
 
     def contract(self, W, scale):
-        M = W * self._K
+        # with M = W o K (symmetric) and D_d = (z_id - z_jd)^2:
+        # sum_ij M_ij D_d = 2 sum_i z_id^2 (M 1)_i - 2 z_d^T M z_d
+        M = self._buffer(W.shape)
+        np.multiply(W, self._K, out=M)
         Z = self._Z
-        row_col = M.sum(axis=1) + M.sum(axis=0)
+        row_col = 2.0 * M.sum(axis=1)
         per_dim = (Z * Z).T @ row_col - 2.0 * np.einsum("id,id->d", Z, M @ Z)
         per_dim *= scale
         return per_dim if self.anisotropic else np.array([per_dim.sum()])
 
+    def _buffer(self, shape):
+        """An (n, n) work array kept across likelihood evaluations of one size."""
+        buffer = getattr(self, "_M", None)
+        if buffer is None or buffer.shape != shape:
+            buffer = self._M = np.empty(shape)
+        return buffer
+
     def prepare(self, S, weights):
+        self._M = None  # the work array of the fit is not needed for prediction
         Z = self._scaled(S)
         self._center = Z.mean(axis=0) if len(Z) else 0.0
         self._S_T = np.ascontiguousarray((Z - self._center).T)
         self._half_norm = 0.5 * np.einsum("di,di->i", self._S_T, self._S_T)
-        self._max_half_norm = float(np.max(self._half_norm, initial=0.0))
+        self._far_support = float(np.max(self._half_norm, initial=0.0)) > _EXPANSION_MAX
         self._weights = weights
 
     def _neg_half_sq_dists(self, Q):
@@ -437,12 +506,17 @@ class _SquaredExponential(_Node):
         # far-out (or very short length-scale) coordinates, exact differences
         Z = self._scaled(Q)
         Z -= self._center
-        half_norm = 0.5 * (Z[0] @ Z[0] if len(Z) == 1 else np.einsum("id,id->i", Z, Z))
-        if max(np.max(half_norm, initial=0.0), self._max_half_norm) > _EXPANSION_MAX:
+        if len(Z) == 1:  # one query: a scalar (the einsum costs more than the row)
+            half_norm = 0.5 * float(Z[0] @ Z[0])
+            far = half_norm > _EXPANSION_MAX
+        else:
+            half_norm = 0.5 * np.einsum("id,id->i", Z, Z)[:, np.newaxis]
+            far = np.max(half_norm, initial=0.0) > _EXPANSION_MAX
+        if far or self._far_support:
             return -0.5 * cdist(Z, self._S_T.T, metric="sqeuclidean")
         D = Z @ self._S_T
         D -= self._half_norm
-        D -= half_norm if len(Z) == 1 else half_norm[:, np.newaxis]
+        D -= half_norm
         return D
 
     def cross(self, Q):

@@ -13,10 +13,11 @@ from contextlib import contextmanager
 
 import numpy as np
 from scipy.linalg import cho_solve
+from scipy.linalg.blas import dsyr
 from scipy.linalg.lapack import dpotrf, dpotri
 from threadpoolctl import ThreadpoolController
 
-from ._kernel_plan import compile_kernel, gram_matrix
+from ._kernel_plan import _mirror_upper, compile_kernel, gram_matrix
 
 # jitter tried, relative to the mean of diag(K), when K is not numerically PD
 _JITTER_LADDER = 10.0 ** np.arange(-10, -1)
@@ -110,10 +111,23 @@ def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False, pl
         return lml
     if plan.n_dims == 0:
         return lml, np.empty(0)
-    W = _inverse_from_factor(U, overwrite=True)  # U is not needed any more
-    np.negative(W, out=W)
-    W += a[:, np.newaxis] * a  # W = a a^T - K^{-1}
-    return lml, 0.5 * plan.contract(W, 1.0)
+    # W = a a^T - K^{-1} = -V; the contraction is linear in W
+    V = _negated_weight_matrix(U, a)  # written over U, which is not needed any more
+    return lml, -0.5 * plan.contract(V, 1.0)
+
+
+def _negated_weight_matrix(U, a):
+    """:math:`V = K^{-1} - a a^T` from the upper factor ``U`` of ``K``, over ``U``.
+
+    LAPACK ``potri`` gives the upper triangle of :math:`K^{-1}`; BLAS ``syr``
+    subtracts :math:`a a^T` from it (upper triangle only, no ``(n, n)``
+    temporary) and the triangle is mirrored.
+    """
+    inv, info = dpotri(U, lower=0, overwrite_c=1)
+    if info != 0:  # pragma: no cover - U comes from a successful potrf
+        raise ValueError("Cholesky inverse failed.")
+    V = _mirror_upper(dsyr(-1.0, a, a=inv, lower=0, overwrite_a=1))
+    return V.T  # symmetric: the transpose of the Fortran-ordered result is C-ordered
 
 
 def _upper_factor_inplace(K):
@@ -132,20 +146,6 @@ def _upper_factor_inplace(K):
     """
     U, info = dpotrf(K.T, lower=0, clean=1, overwrite_a=1)
     return U, info
-
-
-def _inverse_from_factor(U, overwrite=False):
-    """:math:`K^{-1}` (symmetric) from the upper factor ``U`` (LAPACK ``potri``).
-
-    With ``overwrite`` the inverse is written over ``U``.
-    """
-    inv, info = dpotri(U, lower=0, overwrite_c=int(overwrite))
-    if info != 0:  # pragma: no cover - U comes from a successful potrf
-        raise ValueError("Cholesky inverse failed.")
-    diagonal = np.diag(inv).copy()
-    inv += inv.T  # the upper triangle holds K^{-1}; the lower is zero
-    inv[np.diag_indices_from(inv)] = diagonal
-    return inv
 
 
 def _cholesky(make_K, what="kernel matrix"):

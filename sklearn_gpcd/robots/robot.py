@@ -145,6 +145,64 @@ class Robot:
         if self.dh is not None:
             self.dh = np.asarray(self.dh, dtype=float)
 
+    # ----------------------------------------------------------- pickling
+    def __getstate__(self):
+        """State for pickle / joblib / skops, with the model as text.
+
+        A ``pinocchio.Model`` cannot be rebuilt the way skops rebuilds
+        objects (``cls.__new__`` then ``__setstate__``), so the model is
+        stored as pinocchio's text archive (``model.saveToString()``), which
+        writes every double with 17 significant digits: the reloaded model,
+        and so :meth:`rnea` and the regressors, are bit-identical.
+
+        Returns
+        -------
+        state : dict
+            The dataclass fields, ``model`` replaced by a str.
+
+        Examples
+        --------
+        >>> from sklearn_gpcd.robots import load_robot
+        >>> state = load_robot("ur10").__getstate__()
+        >>> type(state["model"]).__name__
+        'str'
+        """
+        state = self.__dict__.copy()
+        state["model"] = self.model.saveToString()
+        return state
+
+    def __setstate__(self, state):
+        """Restore from :meth:`__getstate__` (a ``pinocchio.Model`` is accepted too).
+
+        Parameters
+        ----------
+        state : dict
+            As returned by :meth:`__getstate__`; older pickles hold the
+            ``pinocchio.Model`` itself under ``"model"``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn_gpcd.robots import Robot, load_robot
+        >>> robot = load_robot("ur10")
+        >>> copy = Robot.__new__(Robot)
+        >>> copy.__setstate__(robot.__getstate__())
+        >>> q = np.linspace(-1.0, 1.0, 6)
+        >>> bool(np.array_equal(copy.gravity(q), robot.gravity(q)))
+        True
+        """
+        state = dict(state)
+        model = state.get("model")
+        if isinstance(model, str):
+            state["model"] = pin.Model()
+            state["model"].loadFromString(model)
+        elif not isinstance(model, pin.Model):
+            raise TypeError(
+                "Robot state needs 'model' as a pinocchio.Model or the str of "
+                f"model.saveToString(), got {type(model).__name__}"
+            )
+        self.__dict__.update(state)
+
     # ------------------------------------------------------------------ info
     @property
     def n_joints(self):
