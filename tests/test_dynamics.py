@@ -325,8 +325,12 @@ def test_parameter_vector_checks_lengths():
 def test_joint_selection_and_batch_cache_give_the_same_rows(rng, monkeypatch):
     from sklearn_gpcd.dynamics import regressor as reg
 
-    q, qd, qdd = rng.normal(size=(3, 50, 6))
+    reg._LAST_BATCH.clear()
+    full_regressor("ur10", *rng.normal(size=(3, 5, 6)))  # a few samples: not cached
+    assert not reg._LAST_BATCH
+    q, qd, qdd = rng.normal(size=(3, reg.CACHE_MIN_SAMPLES, 6))
     full = full_regressor("ur10", q, qd, qdd)
+    assert reg._LAST_BATCH["value"].shape == (reg.CACHE_MIN_SAMPLES, 6, 60)
     again = full_regressor("ur10", q, qd, qdd)  # served by the one-batch cache
     assert np.array_equal(full, again)
     for joint in (0, 3, [1, 5]):

@@ -135,11 +135,13 @@ def _joint_torque_rows(model, q, qd, qdd, rows=None):
     samples, needs 38 MB instead of 230 MB).
     """
     n, nv = q.shape
-    key = _batch_key(model, q, qd, qdd)
-    if _LAST_BATCH.get("key") == key:
+    # small batches (e.g. one streaming tick) skip the cache: its key costs
+    # ~30 us, as much as computing one sample
+    key = _batch_key(model, q, qd, qdd) if n >= CACHE_MIN_SAMPLES else None
+    if key is not None and _LAST_BATCH.get("key") == key:
         full = _LAST_BATCH["value"]
         return full if rows is None else full[:, rows, :]
-    cache = n * nv * 10 * nv * 8 <= CACHE_MAX_BYTES
+    cache = key is not None and n * nv * 10 * nv * 8 <= CACHE_MAX_BYTES
     keep = np.arange(nv) if (rows is None or cache) else np.asarray(rows)
     out = np.empty((n, len(keep), 10 * nv))
     data = model.createData()
@@ -158,6 +160,8 @@ def _joint_torque_rows(model, q, qd, qdd, rows=None):
 #: the joints of one recording, fitted one after the other, call pinocchio
 #: once per sample instead of once per joint and per call.
 CACHE_MAX_BYTES = 128 * 2**20
+#: ... and only for batches of at least this many samples.
+CACHE_MIN_SAMPLES = 256
 _LAST_BATCH = {}
 
 

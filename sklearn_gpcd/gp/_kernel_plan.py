@@ -272,7 +272,9 @@ class _Node:
         return _dense(self.cross(Q), Q.shape[0], self._n_support) @ self._weights
 
 
-class _Sum(_Node):
+class _Pair(_Node):
+    """A node of two children whose theta is ``k1``'s followed by ``k2``'s."""
+
     def __init__(self, k1, k2):
         self.k1, self.k2 = k1, k2
         self.n_dims = k1.n_dims + k2.n_dims
@@ -281,14 +283,16 @@ class _Sum(_Node):
         self.k1.set_theta(theta[: self.k1.n_dims])
         self.k2.set_theta(theta[self.k1.n_dims :])
 
+
+class _Sum(_Pair):
     def gram(self, X, keep):
         v1, v2 = self.k1.gram(X, keep), self.k2.gram(X, keep)
         # an array may be updated in place unless a child keeps it for
         # ``contract``; sums and products always return new arrays
         if isinstance(v1, np.ndarray):
-            inplace = not keep or isinstance(self.k1, (_Sum, _Product))
+            inplace = not keep or isinstance(self.k1, _Pair)
         else:  # _add puts an array v2 first
-            inplace = not keep or isinstance(self.k2, (_Sum, _Product))
+            inplace = not keep or isinstance(self.k2, _Pair)
         return _add(v1, v2, inplace=inplace)
 
     def contract(self, W, scale):
@@ -318,15 +322,7 @@ class _Sum(_Node):
         return self.k1.diag(Q) + self.k2.diag(Q)
 
 
-class _Product(_Node):
-    def __init__(self, k1, k2):
-        self.k1, self.k2 = k1, k2
-        self.n_dims = k1.n_dims + k2.n_dims
-
-    def set_theta(self, theta):
-        self.k1.set_theta(theta[: self.k1.n_dims])
-        self.k2.set_theta(theta[self.k1.n_dims :])
-
+class _Product(_Pair):
     def gram(self, X, keep):
         v1, v2 = self.k1.gram(X, keep), self.k2.gram(X, keep)
         if keep:
@@ -655,5 +651,5 @@ def gram_matrix(plan, X, keep=False):
     n = X.shape[0]
     K = plan.gram(X, keep)
     if isinstance(K, np.ndarray):  # sums and products return new arrays
-        return K.copy() if keep and not isinstance(plan, (_Sum, _Product)) else K
+        return K.copy() if keep and not isinstance(plan, _Pair) else K
     return _dense(K, n, n)
