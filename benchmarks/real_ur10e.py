@@ -36,7 +36,6 @@ prints why and exits 0.
 """
 
 import argparse
-import dataclasses
 import datetime
 import platform
 import sys
@@ -49,7 +48,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import real_data_path, require_data, rst_table, write_json  # noqa: E402
 
-from sklearn_gpcd._layout import column_names  # noqa: E402
+from sklearn_gpcd._layout import block_columns, column_names  # noqa: E402
 from sklearn_gpcd.detection import stack_currents  # noqa: E402
 from sklearn_gpcd.experiments.paper import (  # noqa: E402
     ESTIMATORS,
@@ -144,10 +143,10 @@ def push_labels(rec, intervals):
     return labels
 
 
-def rest_poses(X, sigma_v):
+def rest_poses(X, sigma_v, n_joints=6):
     """Joint positions of the rows where every joint is quasi-static."""
-    still = np.all(np.abs(X[:, 6:12]) < sigma_v, axis=1)
-    return X[still, :6]
+    still = np.all(np.abs(X[:, block_columns("qd", n_joints)]) < sigma_v, axis=1)
+    return X[still][:, block_columns("q", n_joints)]
 
 
 def rest_coverage(X_train, test_inputs, sigma_v):
@@ -427,7 +426,7 @@ def main(argv=None):
     # -- nMSE ----------------------------------------------------------------
     nmse, counts = {name: {} for name in ESTIMATORS}, {}
     for test, (Xt, yt) in test_data.items():
-        qd = Xt[:, 6:12]
+        qd = Xt[:, block_columns("qd", 6)]
         for name, model in models.items():
             res = split_nmse(yt, model.predict(Xt), qd, args.sigma_v)
             nmse[name][test] = {k: res[k] for k in ("dynamic", "quasi_static")}

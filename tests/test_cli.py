@@ -1,6 +1,5 @@
 """Tests of the ``gpcd`` command line."""
 
-import json
 import subprocess
 import sys
 from pathlib import Path

@@ -13,7 +13,7 @@ from sklearn.gaussian_process.kernels import RBF, Matern, WhiteKernel
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 from sklearn_gpcd.gp import SemiParametricGPRegressor
-from sklearn_gpcd.gp._kernel_plan import _Gate, _Product, _Sum, compile_kernel, gram_matrix
+from sklearn_gpcd.gp._kernel_plan import _Gate, _Product, compile_kernel, gram_matrix
 from sklearn_gpcd.gp._likelihood import _log_marginal_likelihood, single_threaded_blas
 from sklearn_gpcd.gp._optimize import (
     AdamSettings,
@@ -220,6 +220,63 @@ def test_compiled_lml_and_gradient_equal_sklearn(kernel):
     assert_allclose(gram_matrix(plan, X), kernel.clone_with_theta(theta)(X), rtol=1e-12)
 
 
+@pytest.mark.parametrize(
+    "kernel, lower",
+    [
+        (C(2.0) * RBF([0.5, 1.0, 2.0]) + WhiteKernel(0.3), True),
+        (RBF(1.5) + C(0.5) * ARDRBF([1.0, 2.0], columns=[0, 2]) + C(0.2) + WhiteKernel(0.1), True),
+        (C(2.0) * RBF([0.5, 1.0, 2.0], length_scale_bounds="fixed") + WhiteKernel(0.3), True),
+        (C(2.0) * ARDRBF([0.5, 1.0], columns=[0, 2]) * RBF(1.5) + WhiteKernel(0.3), False),
+        (C(1.0) * QuasiStaticGate(C(0.5) * ARDRBF([1.0, 2.0], columns=[0, 2]), 1, sigma_v=0.05)
+         + WhiteKernel(0.1), False),
+    ],
+    ids=["c-rbf-white", "sum-of-scaled", "fixed-rbf", "rbf-product", "gated"],
+)
+def test_lower_triangle_plans_give_the_full_plans_lml_and_gradient(kernel, lower):
+    # sums of c * RBF, constants and noise are optimised on lower triangles only;
+    # anything else on full matrices; both give sklearn's numbers, evaluation after
+    # evaluation (the plan reuses its arrays)
+    X, y, _ = gated(300)
+    y = y - y.mean()
+    plan = compile_kernel(kernel)
+    assert plan.lower is lower
+    assert find(plan, _Gate) is None or not find(find(plan, _Gate).inner, _Product).lower
+    ref = GaussianProcessRegressor(kernel, optimizer=None).fit(X, y)
+    for step in (0.2, -0.3, 0.2):
+        theta = kernel.theta + step
+        lml, grad = _log_marginal_likelihood(theta, kernel, X, y, 1e-10, True, plan)
+        ref_lml, ref_grad = ref.log_marginal_likelihood(theta, eval_gradient=True)
+        assert_allclose(lml, ref_lml, rtol=1e-10)
+        assert_allclose(grad, ref_grad, rtol=1e-7, atol=1e-9)
+    if lower:  # the plan wrote the lower triangle; the full Gram matrix is intact
+        K = gram_matrix(plan, X, keep=True)
+        full = kernel.clone_with_theta(theta)(X)
+        assert_allclose(np.tril(K), np.tril(full), rtol=1e-12)
+        assert_allclose(gram_matrix(plan, X), full, rtol=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 2, 31, 32, 33, 500])
+def test_squared_exponential_gram_in_row_blocks(n, monkeypatch):
+    from scipy.spatial.distance import cdist
+
+    from sklearn_gpcd.gp import _kernel_plan
+
+    monkeypatch.setattr(_kernel_plan, "_BLOCK_BYTES", 8 * 32 * max(n, 1))  # 32-row blocks
+    Z = np.random.RandomState(n).normal(size=(n, 4))
+    Z -= Z.mean(axis=0)
+    expected = np.exp(-0.5 * cdist(Z, Z, "sqeuclidean"))
+    K = _kernel_plan._se_gram(Z, np.empty((n, n)))
+    assert np.array_equal(K, K.T) and np.all(np.diag(K) == 1.0)
+    assert_allclose(K, expected, rtol=1e-12)
+    scaled, lower = np.zeros((n, n)), np.zeros((n, n))
+    _kernel_plan._se_gram(Z, lower, scaled=(3.0, scaled), lower=True)
+    assert_allclose(np.tril(lower), np.tril(expected), rtol=1e-12)
+    assert_allclose(np.tril(scaled), 3.0 * np.tril(lower), rtol=1e-15)
+    far = 1e4 * Z  # expansion round-off too large: exact differences
+    assert_allclose(_kernel_plan._se_gram(far, np.empty((n, n))),
+                    np.exp(-0.5 * cdist(far, far, "sqeuclidean")), rtol=1e-12)
+
+
 def test_gated_block_is_skipped_for_moving_samples():
     X, y, kernel = gated(200)
     gp = SemiParametricGPRegressor(kernel, optimizer=None).fit(X, y)
@@ -332,9 +389,11 @@ def test_weight_matrix_is_the_symmetric_inverse_minus_a_a_t(n):
     K = A @ A.T + n * np.eye(n)
     U, info = dpotrf(K, lower=0, clean=1)
     a = np.random.RandomState(0).normal(size=n)
-    V = _negated_weight_matrix(U, a)  # K^{-1} - a a^T
+    V = _negated_weight_matrix(U.copy(order="F"), a)  # K^{-1} - a a^T
     assert info == 0 and np.array_equal(V, V.T) and V.flags.c_contiguous
     assert_allclose(V, np.linalg.inv(K) - np.outer(a, a), rtol=1e-9, atol=1e-12)
+    lower = _negated_weight_matrix(U, a, mirror=False)  # zeros above the diagonal
+    assert lower.flags.c_contiguous and np.array_equal(lower, np.tril(V))
     upper = np.triu(A)
     assert np.array_equal(_mirror_upper(upper.copy(), tile=64), upper + np.triu(upper, 1).T)
 

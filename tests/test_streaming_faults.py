@@ -28,30 +28,17 @@ from sklearn_gpcd.detection import (
 )
 from sklearn_gpcd.gp import make_sp_p
 
+from _synthetic import augmented_run
+
 N_JOINTS = 2
 STATE = ("predicted", "residual", "signal", "ratio", "alarms")
 
 
 # ----------------------------------------------------------------- helpers
-def augmented_run(n_samples, rng, period=0.008):
-    """Inputs x^a (Eq. 13) and currents of a move-rest-move-rest run."""
-    t = np.arange(n_samples) * period
-    phase = rng.uniform(0, np.pi, N_JOINTS)
-    moving = (np.arange(n_samples) // (n_samples // 4)) % 2 == 0
-    qd = np.where(moving[:, None], np.cos(t[:, None] + phase), 0.0)
-    q = np.cumsum(qd, axis=0) * period
-    qdd = np.gradient(qd, period, axis=0)
-    e_q = 1e-3 * np.sin(3 * t[:, None] + phase)
-    de_q = np.gradient(e_q, period, axis=0)
-    clean = 2.0 * np.sin(q) + 0.5 * np.tanh(50 * qd) + 0.1 * qdd
-    X = np.hstack([q, qd, qdd, e_q, de_q, clean + 0.05])
-    return X, clean + 0.02 * rng.normal(size=clean.shape)
-
-
 @pytest.fixture(scope="module")
 def data():
     rng = np.random.default_rng(0)
-    X, current = augmented_run(800, rng)
+    X, current = augmented_run(800, N_JOINTS, rng)
     Z_train = stack_currents(X[::2], current[::2])
     test_current = current + 0.01 * rng.normal(size=current.shape)
     test_current[300:360, 0] += 2.0  # a contact on joint 0
@@ -150,7 +137,7 @@ def test_inputs_and_currents_given_separately(ridge_detector, data):
 
 def test_named_columns_are_named_in_the_fault_reason(rng):
     pd = pytest.importorskip("pandas")
-    X, current = augmented_run(200, rng)
+    X, current = augmented_run(200, N_JOINTS, rng)
     names = [f"c{i}" for i in range(6 * N_JOINTS)] + ["i_left", "i_right"]
     frame = pd.DataFrame(stack_currents(X, current), columns=names)
     monitor = StreamingMonitor(CollisionDetector(Ridge(), n_joints=N_JOINTS).fit(frame))
@@ -342,7 +329,7 @@ def test_fault_on_the_first_tick_leaves_the_filter_fresh(data):
 
 
 def test_std_normalisation_recovers_after_a_fault(rng):
-    X, current = augmented_run(200, rng)
+    X, current = augmented_run(200, N_JOINTS, rng)
     gp = GaussianProcessRegressor(C(1.0) * RBF([3.0] * 12) + WhiteKernel(0.01), optimizer=None)
     det = CollisionDetector(gp, n_joints=N_JOINTS, normalize="std", threshold="std", k=3.0,
                             filter_cutoff=5.0).fit(stack_currents(X, current))

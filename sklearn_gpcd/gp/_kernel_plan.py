@@ -30,6 +30,14 @@ the kernel computes, but
       = \sum_i z_{id}^2 \big(\textstyle\sum_j M_{ij} + M_{ji}\big)
         - 2\, z_{\cdot d}^T M z_{\cdot d};
 
+* **touching each ``(n, n)`` array as few times as possible**: a
+  squared-exponential Gram matrix is built row block by row block, each
+  block in cache while it is multiplied, shifted, exponentiated and scaled
+  (:func:`_se_gram`), and the gradient contraction above runs on the same
+  blocks without forming :math:`M`; for the common sums of
+  :math:`c\,K_{SE}`, constants and noise, only the lower triangles are
+  computed while optimising (LAPACK reads and returns those), and arrays are
+  reused from one likelihood evaluation to the next;
 * **evaluating only what a prediction needs** (:meth:`_Node.prepare` then
   :meth:`_Node.cross_dot`): the posterior mean :math:`k_*^T w` is a sum over
   blocks, each with its support points scaled once; a
@@ -42,17 +50,21 @@ Hyperparameters are set from a ``theta`` vector laid out like
 kernel objects at every step.
 """
 
+import math
+
 import numpy as np
-from scipy.linalg.blas import dsyrk
 from scipy.spatial.distance import cdist, pdist, squareform
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Product, Sum, WhiteKernel
+
+from ..kernels import ARDRBF, QuasiStaticGate
 
 #: Largest half squared norm of scaled, centred coordinates for which cross
 #: kernels use the expansion |z - s|^2 = |z|^2 + |s|^2 - 2 z.s (one matrix
 #: product): its round-off, ~4 eps |z|^2, stays below 1e-9 in the exponent.
 _EXPANSION_MAX = 1e6
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Product, Sum, WhiteKernel
-
-from ..kernels import ARDRBF, QuasiStaticGate
+#: Largest half squared norm of a scaled query for the one-row prediction
+#: path, which exponentiates up to it before scaling (exp(700) < 1.8e308).
+_ROW_MAX_HALF_NORM = 700.0
 
 
 def compile_kernel(kernel):
@@ -68,12 +80,21 @@ def compile_kernel(kernel):
     -------
     plan : _Node
         Root of the compiled tree; ``plan.n_dims == kernel.n_dims``.
+        ``plan.lower`` tells whether, while optimising, it works on lower
+        triangles only (see :func:`gram_matrix`).
     """
+    plan = _compile(kernel)
+    if _lower_ready(plan):
+        _set_lower(plan)
+    return plan
+
+
+def _compile(kernel):
     kind = type(kernel)
     if kind is Sum:
-        return _Sum(compile_kernel(kernel.k1), compile_kernel(kernel.k2))
+        return _Sum(_compile(kernel.k1), _compile(kernel.k2))
     if kind is Product:
-        return _Product(compile_kernel(kernel.k1), compile_kernel(kernel.k2))
+        return _Product(_compile(kernel.k1), _compile(kernel.k2))
     if kind is ConstantKernel:
         return _Constant(kernel)
     if kind is WhiteKernel:
@@ -83,6 +104,30 @@ def compile_kernel(kernel):
     if kind is QuasiStaticGate:
         return _Gate(kernel)
     return _Opaque(kernel)
+
+
+def _lower_ready(node):
+    r"""Whether every node can optimise on lower triangles: sums of constants,
+    white noise, squared exponentials and products :math:`c\,K_{SE}`.
+
+    Only the lower triangle of :math:`K` is needed: LAPACK factorises it
+    and its inverse comes back in it, so a tree of such nodes computes half
+    of each Gram matrix and contracts the gradient on half of
+    :math:`W` (see :meth:`_SquaredExponential.contract`); the triangle is
+    never mirrored.
+    """
+    if isinstance(node, (_Constant, _White, _SquaredExponential)):
+        return True
+    if isinstance(node, _Sum):
+        return _lower_ready(node.k1) and _lower_ready(node.k2)
+    return isinstance(node, _Product) and node._scaled_exponential() is not None
+
+
+def _set_lower(node):
+    node.lower = True
+    for child in (getattr(node, "k1", None), getattr(node, "k2", None)):
+        if child is not None:
+            _set_lower(child)
 
 
 # -- values: a float (same value everywhere), a _Diagonal, or an ndarray ----
@@ -198,31 +243,72 @@ def _mirror_upper(A, tile=256):
     return A
 
 
-def _neg_half_sq_dist_gram(Z):
-    r""":math:`-\tfrac12 \|z_i - z_j\|^2` for all pairs of rows of the centred ``Z``.
+#: Bytes of one row block of the fused Gram and gradient loops: small enough
+#: to stay in a core's L2 cache while every elementwise step runs on it.
+_BLOCK_BYTES = 256 * 1024
 
-    By the expansion :math:`z_i^T z_j - \tfrac12 \|z_i\|^2 - \tfrac12
-    \|z_j\|^2` with one BLAS ``syrk`` (symmetric by construction), which is
-    several times faster than ``pdist`` + ``squareform``; when the coordinates
-    are so large that its round-off would matter (see
-    :data:`_EXPANSION_MAX`), by exact differences (``pdist``), as
-    scikit-learn's ``RBF``.
 
-    Returns
-    -------
-    D : ndarray of shape (n, n)
-        A new C-contiguous array.
+def _row_blocks(n_rows, n_cols):
+    """Slices of ``n_rows`` rows, each of about :data:`_BLOCK_BYTES` at ``n_cols`` columns."""
+    step = max(1, _BLOCK_BYTES // (8 * max(n_cols, 1)))
+    return [slice(start, min(start + step, n_rows)) for start in range(0, n_rows, step)]
+
+
+def _se_gram(Z, out, scaled=None, lower=False):
+    r""":math:`K_{ij} = \exp(-\tfrac12 \|z_i - z_j\|^2)` for the rows of the centred ``Z``.
+
+    Row block by row block of the lower triangle, so that all steps run on
+    data in cache: one matrix product :math:`z_i^T z_j`, minus
+    :math:`\tfrac12 \|z_i\|^2 + \tfrac12 \|z_j\|^2`, clipped at 0
+    (round-off) and exponentiated, several times faster than separate passes
+    over the ``(n, n)`` array; then mirrored (exactly symmetric) unless
+    ``lower``. When the coordinates are so large that the expansion's
+    round-off would matter (see :data:`_EXPANSION_MAX`), exact differences
+    (``pdist``), as scikit-learn's ``RBF``.
+
+    Parameters
+    ----------
+    Z : ndarray of shape (n, d)
+        Scaled, centred inputs.
+    out : ndarray of shape (n, n)
+        C-contiguous array written over and returned.
+    scaled : (float, ndarray of shape (n, n)), default=None
+        ``(c, out_c)``: also write :math:`c K` into ``out_c`` (in the same pass).
+    lower : bool, default=False
+        Compute the lower triangle only (row block ``i:j``, columns ``:j``);
+        the rest of ``out`` (and of ``out_c``) is left as it was.
     """
     half_norm = 0.5 * np.einsum("id,id->i", Z, Z)
     if np.max(half_norm, initial=0.0) > _EXPANSION_MAX:
         d = pdist(Z, metric="sqeuclidean")
         d *= -0.5
-        return squareform(d)
-    G = dsyrk(1.0, Z)  # upper triangle of Z Z^T, Fortran-ordered
-    D = _mirror_upper(G).T  # symmetric: the transpose is the same, C-ordered
-    D -= half_norm[:, np.newaxis]
-    D -= half_norm
-    return D
+        out[...] = squareform(d)
+        np.exp(out, out=out)
+        if scaled is not None:
+            np.multiply(out, scaled[0], out=scaled[1])
+        return out
+    Z_T = np.ascontiguousarray(Z.T)
+    for rows in _row_blocks(*out.shape):
+        cols = slice(0, rows.stop)
+        block = out[rows, cols]
+        np.matmul(Z[rows], Z_T[:, cols], out=block)
+        block -= half_norm[rows, np.newaxis] + half_norm[cols]
+        np.minimum(block, 0.0, out=block)
+        np.exp(block, out=block)
+        diagonal = np.arange(rows.stop - rows.start)
+        block[diagonal, rows.start + diagonal] = 1.0
+        if scaled is not None:
+            np.multiply(block, scaled[0], out=scaled[1][rows, cols])
+    if not lower:  # the transposes are Fortran-ordered with the triangle above
+        _mirror_upper(out.T)
+        if scaled is not None:
+            _mirror_upper(scaled[1].T)
+    return out
+
+
+def _is_float(value):
+    """Whether a value is one number (a constant's)."""
+    return not isinstance(value, (np.ndarray, _Diagonal, _RowBlock))
 
 
 def _rows_of(value, rows):
@@ -256,6 +342,9 @@ class _Node:
     """
 
     n_dims = 0
+    #: while optimising (``gram(X, keep=True)`` and ``contract``), Gram
+    #: matrices and W are valid in their lower triangle only
+    lower = False
 
     def set_theta(self, theta):  # pragma: no cover - overridden when n_dims
         pass
@@ -270,6 +359,10 @@ class _Node:
 
     def cross_dot(self, Q):
         return _dense(self.cross(Q), Q.shape[0], self._n_support) @ self._weights
+
+    def row_leaf(self):
+        """The node whose ``cross_dot`` equals this one's, fewest calls down (after prepare)."""
+        return self
 
 
 class _Pair(_Node):
@@ -288,7 +381,7 @@ class _Sum(_Pair):
     def gram(self, X, keep):
         v1, v2 = self.k1.gram(X, keep), self.k2.gram(X, keep)
         # an array may be updated in place unless a child keeps it for
-        # ``contract``; sums and products always return new arrays
+        # ``contract``; sums and products return arrays no other node keeps
         if isinstance(v1, np.ndarray):
             inplace = not keep or isinstance(self.k1, _Pair)
         else:  # _add puts an array v2 first
@@ -311,6 +404,9 @@ class _Sum(_Pair):
     def cross(self, Q):
         return _add(self.k1.cross(Q), self.k2.cross(Q), inplace=True)
 
+    def row_leaf(self):
+        return self._live[0].row_leaf() if len(self._live) == 1 else self
+
     def cross_dot(self, Q):
         if len(self._live) == 1:
             return self._live[0].cross_dot(Q)
@@ -324,28 +420,65 @@ class _Sum(_Pair):
 
 class _Product(_Pair):
     def gram(self, X, keep):
+        if keep and self._scaled_exponential() is not None:
+            return self._scaled_exponential_gram(X)
         v1, v2 = self.k1.gram(X, keep), self.k2.gram(X, keep)
         if keep:
             self._v1, self._v2, self._n = v1, v2, X.shape[0]
         return _multiply(v1, v2, inplace=not keep)
 
+    def _scaled_exponential(self):
+        """``(constant, squared exponential)`` children of ``C * RBF``, else None."""
+        for c, k in ((self.k1, self.k2), (self.k2, self.k1)):
+            if isinstance(c, _Constant) and isinstance(k, _SquaredExponential):
+                return c, k
+        return None
+
+    def _scaled_exponential_gram(self, X):
+        """:math:`c K` while optimising: computed with the kept :math:`K` in one
+        pass, into memory reused across evaluations of one size."""
+        constant, exponential = self._scaled_exponential()
+        n = X.shape[0]
+        buffer = getattr(self, "_buffer", None)
+        if buffer is None or buffer.shape != (n, n):  # zeros: finite where never written
+            buffer = self._buffer = np.zeros((n, n))
+        c = constant.gram(X, True)
+        K = exponential.gram(X, True, scaled=(c, buffer))
+        self._v1, self._v2 = (c, K) if constant is self.k1 else (K, c)
+        self._n = n
+        return buffer
+
     def contract(self, W, scale):
-        parts = []
-        for child, other in ((self.k1, self._v2), (self.k2, self._v1)):
+        parts = {}
+        # the constant last: its gradient, c sum(W o K), may come from K's contraction
+        for child, other in sorted(((self.k1, self._v2), (self.k2, self._v1)),
+                                   key=lambda pair: pair[0].is_scalar()):
             if not child.n_dims:
                 continue
             if child.is_scalar() and isinstance(other, np.ndarray):
                 # d(c K)/d log c = c K: the gradient is c sum(W o K), one dot
                 # product instead of the (n, n) array W o K
-                parts.append(np.array([scale * child.value * np.vdot(W, other)]))
+                parts[id(child)] = [scale * child.value * self._weighted_sum(W, other)]
             elif isinstance(other, (np.ndarray, _Diagonal)):
-                parts.append(child.contract(W * _dense(other, self._n, self._n), scale))
+                parts[id(child)] = child.contract(W * _dense(other, self._n, self._n), scale)
             else:  # a scalar factor: fold it into the scale
-                parts.append(child.contract(W, scale * other))
-        return np.concatenate(parts) if parts else np.empty(0)
+                parts[id(child)] = child.contract(W, scale * other)
+        ordered = [parts[id(k)] for k in (self.k1, self.k2) if id(k) in parts]
+        return np.concatenate(ordered) if ordered else np.empty(0)
+
+    def _weighted_sum(self, W, K):
+        r""":math:`\sum_{ij} W_{ij} K_{ij}`, from the other child's contraction if it has it."""
+        for child in (self.k1, self.k2):
+            total = getattr(child, "_weighted_sum", None)
+            if total is not None and total[0] is W and child._K is K:
+                return total[1]
+        if self.lower:  # W is zero above its diagonal: twice the lower sum, less the diagonal
+            return 2.0 * np.vdot(W, K) - np.diag(W) @ np.diag(K)
+        return np.vdot(W, K)
 
     def prepare(self, S, weights):
         self._n_support, self._weights = S.shape[0], weights
+        self._buffer = self._v1 = self._v2 = None  # arrays of the fit
         # a constant factor c is folded into the weights: (c K) w = K (c w)
         self._other = None
         if self.k1.is_scalar():
@@ -365,6 +498,9 @@ class _Product(_Pair):
 
     def cross(self, Q):
         return _multiply(self.k1.cross(Q), self.k2.cross(Q), inplace=True)
+
+    def row_leaf(self):
+        return self if self._other is None else self._other.row_leaf()
 
     def cross_dot(self, Q):
         if self._other is not None:
@@ -389,7 +525,8 @@ class _Constant(_Node):
         return self.value
 
     def contract(self, W, scale):
-        return np.array([scale * self.value * W.sum()])
+        total = 2.0 * W.sum() - np.trace(W) if self.lower else W.sum()  # zeros above
+        return np.array([scale * self.value * total])
 
     def prepare(self, S, weights):
         self._n_support, self._weights = S.shape[0], weights
@@ -457,38 +594,60 @@ class _SquaredExponential(_Node):
     def _scaled(self, X):
         return (X if self.columns is None else X[:, self.columns]) / self.length_scale
 
-    def gram(self, X, keep):
+    def gram(self, X, keep, scaled=None):
+        """``k(X, X)``; with ``scaled=(c, out)`` also ``c * k(X, X)`` into ``out``."""
         Z = self._scaled(X)
         Z -= Z.mean(axis=0)  # centred: smaller round-off
-        # while optimising (keep), K lives until the next evaluation: reuse it
-        K = _neg_half_sq_dist_gram(Z)
-        np.minimum(K, 0.0, out=K)  # round-off can leave tiny positive values
-        np.exp(K, out=K)
-        np.fill_diagonal(K, 1.0)
-        if keep and self.n_dims:
-            self._Z, self._K = Z, K
+        n = Z.shape[0]
+        if not (keep and self.n_dims):
+            K = _se_gram(Z, np.empty((n, n)), scaled)
+        else:  # while optimising, K lives until the next evaluation: its memory is reused
+            K = _se_gram(Z, self._buffer((n, n)), scaled, self.lower)
+            self._Z, self._K, self._weighted_sum = Z, K, None
         return K
 
     def contract(self, W, scale):
-        # with M = W o K (symmetric) and D_d = (z_id - z_jd)^2:
-        # sum_ij M_ij D_d = 2 sum_i z_id^2 (M 1)_i - 2 z_d^T M z_d
-        M = self._buffer(W.shape)
-        np.multiply(W, self._K, out=M)
+        r"""Per-length-scale gradient from :math:`M = W \circ K`, block by block.
+
+        With :math:`D_d = (z_{id} - z_{jd})^2` and :math:`M` symmetric,
+        :math:`\sum_{ij} M_{ij} D_d = 2 \sum_i z_{id}^2 (M 1)_i - 2 z_d^T M z_d`:
+        one product :math:`M [Z, 1]` per row block of :math:`M`, which is never
+        stored whole.
+        """
         Z = self._Z
-        row_col = 2.0 * M.sum(axis=1)
-        per_dim = (Z * Z).T @ row_col - 2.0 * np.einsum("id,id->d", Z, M @ Z)
+        Z_1 = np.empty((Z.shape[0], Z.shape[1] + 1))
+        Z_1[:, :-1], Z_1[:, -1] = Z, 1.0
+        MZ_1 = np.zeros_like(Z_1)
+        blocks = _row_blocks(*W.shape)
+        scratch = np.empty((blocks[0].stop, W.shape[1]))
+        for rows in blocks:
+            cols = slice(0, rows.stop if self.lower else W.shape[1])
+            block = scratch[: rows.stop - rows.start, cols]
+            np.multiply(W[rows, cols], self._K[rows, cols], out=block)
+            if not self.lower:
+                MZ_1[rows] = block @ Z_1
+                continue
+            # M = L + L^T with L the lower triangle, its diagonal halved
+            # (W is zero above its diagonal)
+            diagonal = np.arange(rows.stop - rows.start)
+            block[diagonal, rows.start + diagonal] *= 0.5
+            MZ_1[rows] += block @ Z_1[cols]
+            MZ_1[cols] += block.T @ Z_1[rows]
+        per_dim = (Z * Z).T @ (2.0 * MZ_1[:, -1]) - 2.0 * np.einsum("id,id->d", Z, MZ_1[:, :-1])
+        self._weighted_sum = (W, float(MZ_1[:, -1].sum()))  # sum(W o K), for a constant factor
         per_dim *= scale
         return per_dim if self.anisotropic else np.array([per_dim.sum()])
 
     def _buffer(self, shape):
-        """An (n, n) work array kept across likelihood evaluations of one size."""
-        buffer = getattr(self, "_M", None)
-        if buffer is None or buffer.shape != shape:
-            buffer = self._M = np.empty(shape)
+        """An (n, n) array kept across likelihood evaluations of one size."""
+        buffer = getattr(self, "_K_buffer", None)
+        if buffer is None or buffer.shape != shape:  # zeros: finite where never written
+            buffer = self._K_buffer = np.zeros(shape)
         return buffer
 
     def prepare(self, S, weights):
-        self._M = None  # the work array of the fit is not needed for prediction
+        # the arrays of the fit are not needed for prediction
+        self._K_buffer = self._K = self._Z = self._weighted_sum = None
         Z = self._scaled(S)
         self._center = Z.mean(axis=0) if len(Z) else 0.0
         self._S_T = np.ascontiguousarray((Z - self._center).T)
@@ -521,8 +680,30 @@ class _SquaredExponential(_Node):
         return np.exp(D, out=D)
 
     def cross_dot(self, Q):
+        if Q.shape[0] == 1 and not self._far_support:  # one control tick
+            value = self._row_dot(Q)
+            if value is not None:
+                return value
         D = self._neg_half_sq_dists(Q)
         return np.exp(D, out=D) @ self._weights
+
+    def _row_dot(self, Q):
+        r""":math:`k(q, S)\,w` for one query, or None for a far-out one.
+
+        As :math:`e^{-\|z\|^2/2} \sum_j e^{z^T s_j - \|s_j\|^2/2} w_j`: the
+        query's own factor is one float, not a pass over the support. The
+        exponents are at most :math:`\|z\|^2/2`, so this is used while that is
+        below :data:`_ROW_MAX_HALF_NORM` (no overflow).
+        """
+        z = self._scaled(Q)[0]
+        z -= self._center
+        half_norm = 0.5 * float(z @ z)
+        if half_norm > _ROW_MAX_HALF_NORM:
+            return None
+        d = z @ self._S_T
+        d -= self._half_norm
+        np.exp(d, out=d)
+        return np.array([math.exp(-half_norm) * float(d @ self._weights)])
 
     def diag(self, Q):
         return 1.0
@@ -533,7 +714,7 @@ class _Gate(_Node):
     r""":math:`a(x) k(x, x') a(x')` (Eq. 16): the inner kernel on gated rows only."""
 
     def __init__(self, kernel):
-        self.inner = compile_kernel(kernel.kernel)
+        self.inner = _compile(kernel.kernel)
         self.column = int(kernel.velocity_column)
         self.sigma_v = float(kernel.sigma_v)
         self.n_dims = self.inner.n_dims
@@ -641,8 +822,10 @@ def gram_matrix(plan, X, keep=False):
     plan : _Node
     X : ndarray of shape (n_samples, n_features)
     keep : bool, default=False
-        Keep the parts needed by ``plan.contract`` (then the returned array
-        is still a fresh one, safe to modify).
+        Keep the parts needed by ``plan.contract``. The returned array is
+        then safe to modify, but the plan reuses its memory at the next
+        ``keep=True`` call of the same size (likelihood evaluations while
+        optimising).
 
     Returns
     -------
@@ -650,6 +833,6 @@ def gram_matrix(plan, X, keep=False):
     """
     n = X.shape[0]
     K = plan.gram(X, keep)
-    if isinstance(K, np.ndarray):  # sums and products return new arrays
+    if isinstance(K, np.ndarray):  # sums and products return arrays no other node keeps
         return K.copy() if keep and not isinstance(plan, _Pair) else K
     return _dense(K, n, n)

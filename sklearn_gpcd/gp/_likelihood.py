@@ -112,21 +112,27 @@ def _log_marginal_likelihood(theta, kernel, X, y, alpha, eval_gradient=False, pl
     if plan.n_dims == 0:
         return lml, np.empty(0)
     # W = a a^T - K^{-1} = -V; the contraction is linear in W
-    V = _negated_weight_matrix(U, a)  # written over U, which is not needed any more
+    # written over U, which is not needed any more; a lower plan reads the
+    # lower triangle only (the factor's clean=1 left zeros above it)
+    V = _negated_weight_matrix(U, a, mirror=not plan.lower)
     return lml, -0.5 * plan.contract(V, 1.0)
 
 
-def _negated_weight_matrix(U, a):
+def _negated_weight_matrix(U, a, mirror=True):
     """:math:`V = K^{-1} - a a^T` from the upper factor ``U`` of ``K``, over ``U``.
 
     LAPACK ``potri`` gives the upper triangle of :math:`K^{-1}`; BLAS ``syr``
     subtracts :math:`a a^T` from it (upper triangle only, no ``(n, n)``
-    temporary) and the triangle is mirrored.
+    temporary) and the triangle is mirrored, unless ``mirror`` is False:
+    then the returned C-ordered array holds V in its lower triangle and
+    whatever ``U`` held above it (zeros after :func:`_upper_factor_inplace`).
     """
     inv, info = dpotri(U, lower=0, overwrite_c=1)
     if info != 0:  # pragma: no cover - U comes from a successful potrf
         raise ValueError("Cholesky inverse failed.")
-    V = _mirror_upper(dsyr(-1.0, a, a=inv, lower=0, overwrite_a=1))
+    V = dsyr(-1.0, a, a=inv, lower=0, overwrite_a=1)
+    if mirror:
+        _mirror_upper(V)
     return V.T  # symmetric: the transpose of the Fortran-ordered result is C-ordered
 
 

@@ -61,6 +61,8 @@ class _Posterior:
         self._L = L if L.nbytes <= FACTOR_KEEP_BYTES else None
         del L
         self.plan.prepare(X, y_std * self.weights)
+        # the node that computes k_*^T w alone (e.g. the RBF of C * RBF + White)
+        self._leaf = self.plan.row_leaf()
 
     def _make_K(self):
         K = gram_matrix(self.plan, self.X)
@@ -127,7 +129,7 @@ class _Posterior:
 
     def _mean(self, X):
         """``mu_y + s_y k(X, support) w``, block by block (gates skipped where 0)."""
-        return self.plan.cross_dot(X) + self.y_mean
+        return self.__dict__.get("_leaf", self.plan).cross_dot(X) + self.y_mean
 
     def _std(self, X, K_trans):
         V = solve_triangular(self.L, K_trans.T, lower=True, check_finite=False)

@@ -1,0 +1,23 @@
+"""Synthetic runs shared by the detection and streaming test modules."""
+
+import numpy as np
+
+
+def augmented_run(n_samples, n_joints, rng, period=0.008):
+    """Inputs x^a (Eq. 13) and currents of a move-rest-move-rest run.
+
+    Every joint rests (|qd| = 0, all gates open) in the 2nd and 4th quarter.
+    """
+    t = np.arange(n_samples) * period
+    phase = rng.uniform(0, np.pi, n_joints)
+    moving = (np.arange(n_samples) // (n_samples // 4)) % 2 == 0
+    qd = np.where(moving[:, None], np.cos(t[:, None] + phase), 0.0)
+    q = np.cumsum(qd, axis=0) * period
+    qdd = np.gradient(qd, period, axis=0)
+    e_q = 1e-3 * np.sin(3 * t[:, None] + phase)
+    de_q = np.gradient(e_q, period, axis=0)
+    clean = 2.0 * np.sin(q) + 0.5 * np.tanh(50 * qd) + 0.1 * qdd
+    i_c = clean + 0.05
+    X = np.hstack([q, qd, qdd, e_q, de_q, i_c])
+    current = clean + 0.02 * rng.normal(size=clean.shape)
+    return X, current
