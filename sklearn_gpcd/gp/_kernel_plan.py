@@ -826,7 +826,8 @@ def gram_matrix(plan, X, keep=False):
         Keep the parts needed by ``plan.contract``. The returned array is
         then safe to modify, but the plan reuses its memory at the next
         ``keep=True`` call of the same size (likelihood evaluations while
-        optimising).
+        optimising); when ``plan.lower``, only its lower triangle is
+        computed (all that LAPACK's Cholesky factorisation reads).
 
     Returns
     -------
