@@ -306,9 +306,30 @@ def _se_gram(Z, out, scaled=None, lower=False):
     return out
 
 
-def _is_float(value):
-    """Whether a value is one number (a constant's)."""
-    return not isinstance(value, (np.ndarray, _Diagonal, _RowBlock))
+def _kept_array(owner, name, shape):
+    """An array stored as ``owner.<name>``, reused while its shape stays ``shape``.
+
+    Zeros when new, so that entries a lower-triangle plan never writes stay
+    finite.
+    """
+    array = getattr(owner, name, None)
+    if array is None or array.shape != shape:
+        array = np.zeros(shape)
+        setattr(owner, name, array)
+    return array
+
+
+def _weighted_total(W, K, lower):
+    r""":math:`\sum_{ij} W_{ij} K_{ij}` for symmetric ``W`` and ``K`` (``K=None``: ones).
+
+    With ``lower``, ``W`` holds its lower triangle and zeros above it: the
+    total is twice the lower sum less the diagonal.
+    """
+    total = W.sum() if K is None else np.vdot(W, K)
+    if not lower:
+        return total
+    diagonal = np.trace(W) if K is None else np.diag(W) @ np.diag(K)
+    return 2.0 * total - diagonal
 
 
 def _rows_of(value, rows):
@@ -439,9 +460,7 @@ class _Product(_Pair):
         pass, into memory reused across evaluations of one size."""
         constant, exponential = self._scaled_exponential()
         n = X.shape[0]
-        buffer = getattr(self, "_buffer", None)
-        if buffer is None or buffer.shape != (n, n):  # zeros: finite where never written
-            buffer = self._buffer = np.zeros((n, n))
+        buffer = _kept_array(self, "_buffer", (n, n))
         c = constant.gram(X, True)
         K = exponential.gram(X, True, scaled=(c, buffer))
         self._v1, self._v2 = (c, K) if constant is self.k1 else (K, c)
@@ -472,9 +491,7 @@ class _Product(_Pair):
             total = getattr(child, "_weighted_sum", None)
             if total is not None and total[0] is W and child._K is K:
                 return total[1]
-        if self.lower:  # W is zero above its diagonal: twice the lower sum, less the diagonal
-            return 2.0 * np.vdot(W, K) - np.diag(W) @ np.diag(K)
-        return np.vdot(W, K)
+        return _weighted_total(W, K, self.lower)
 
     def prepare(self, S, weights):
         self._n_support, self._weights = S.shape[0], weights
@@ -525,8 +542,7 @@ class _Constant(_Node):
         return self.value
 
     def contract(self, W, scale):
-        total = 2.0 * W.sum() - np.trace(W) if self.lower else W.sum()  # zeros above
-        return np.array([scale * self.value * total])
+        return np.array([scale * self.value * _weighted_total(W, None, self.lower)])
 
     def prepare(self, S, weights):
         self._n_support, self._weights = S.shape[0], weights
@@ -602,7 +618,7 @@ class _SquaredExponential(_Node):
         if not (keep and self.n_dims):
             K = _se_gram(Z, np.empty((n, n)), scaled)
         else:  # while optimising, K lives until the next evaluation: its memory is reused
-            K = _se_gram(Z, self._buffer((n, n)), scaled, self.lower)
+            K = _se_gram(Z, _kept_array(self, "_K_buffer", (n, n)), scaled, self.lower)
             self._Z, self._K, self._weighted_sum = Z, K, None
         return K
 
@@ -637,13 +653,6 @@ class _SquaredExponential(_Node):
         self._weighted_sum = (W, float(MZ_1[:, -1].sum()))  # sum(W o K), for a constant factor
         per_dim *= scale
         return per_dim if self.anisotropic else np.array([per_dim.sum()])
-
-    def _buffer(self, shape):
-        """An (n, n) array kept across likelihood evaluations of one size."""
-        buffer = getattr(self, "_K_buffer", None)
-        if buffer is None or buffer.shape != shape:  # zeros: finite where never written
-            buffer = self._K_buffer = np.zeros(shape)
-        return buffer
 
     def prepare(self, S, weights):
         # the arrays of the fit are not needed for prediction
