@@ -6,6 +6,9 @@ watches the interaction test: a circle, then rest, with four pushes on link 1
 (two while moving, two at rest). Every push must raise an alarm, and no
 sample outside the pushes may alarm — in the rest phases (including the
 stretch after the last push) or while moving.
+
+Detection runs on the causal path (``CausalFeatures``: no look-ahead), the
+one that can run on the robot; the model is trained on the zero-phase inputs.
 """
 
 import numpy as np
@@ -19,7 +22,7 @@ from sklearn_gpcd.experiments.paper import (
     build_estimators,
     make_detector,
 )
-from sklearn_gpcd.features import make_inputs
+from sklearn_gpcd.features import CausalFeatures, make_inputs
 from sklearn_gpcd.robots import load_robot
 
 CONFIG = PaperConfig(d1_targets=12, d2_targets=3, n_support=400, batch_size=200,
@@ -35,13 +38,15 @@ def interaction():
                                           rest_duration=CONFIG.rest_duration, random_state=3)
     sp_p = build_estimators(robot, CONFIG, random_state=0, n_jobs=2)["SP_P"]
     sp_p.fit(*make_inputs(d1))
-    detector = make_detector(sp_p, robot.n_joints).fit(stack_currents(*make_inputs(d2)))
-    Z = stack_currents(*make_inputs(test))
-    return detector, Z, test
+    causal = CausalFeatures().fit(d1)
+    detector = make_detector(sp_p, robot.n_joints).fit(
+        stack_currents(causal.transform(d2), d2.current))
+    Z = stack_currents(causal.transform(test), test.current)
+    return detector, Z, test, causal
 
 
 def test_every_push_is_detected(interaction):
-    detector, Z, test = interaction
+    detector, Z, test, _ = interaction
     alarms = detector.predict(Z) == -1
     rest = _commanded_rest(test, CONFIG.sigma_v)
     kinds = []
@@ -53,7 +58,7 @@ def test_every_push_is_detected(interaction):
 
 
 def test_no_alarm_outside_the_pushes(interaction):
-    detector, Z, test = interaction
+    detector, Z, test, _ = interaction
     alarms = detector.predict(Z) == -1
     free = test.labels == 0
     rest = _commanded_rest(test, CONFIG.sigma_v)
@@ -63,6 +68,16 @@ def test_no_alarm_outside_the_pushes(interaction):
 
 
 def test_streaming_monitor_agrees_with_batch(interaction):
-    detector, Z, _ = interaction
+    detector, Z, _, _ = interaction
     out = StreamingMonitor(detector).replay(Z)
     assert np.array_equal(out.prediction, detector.predict(Z))
+
+
+def test_raw_samples_through_the_monitor_agree_with_batch(interaction):
+    """From raw robot samples (t, q, qd, i, targets) to decisions == batch, sample for sample."""
+    detector, Z, test, causal = interaction
+    out = StreamingMonitor(detector, features=causal).replay_recording(test)
+    batch = detector.monitoring_signal(Z)
+    assert np.array_equal(out.prediction, detector.predict(Z))
+    np.testing.assert_allclose(out.signal, batch.signal, rtol=1e-9, atol=1e-12)
+    assert (out.prediction == -1).any()

@@ -1,13 +1,21 @@
-"""The real-UR10e benchmark script (``benchmarks/real_ur10e.py``)."""
+"""The real-UR10e detection benchmark (``benchmarks/real_ur10e.py``) and the causal
+path on a real recording (both skip without the data)."""
 
 import importlib.util
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor, stack_currents
+from sklearn_gpcd.dynamics import ControllerCurrent
+from sklearn_gpcd.features import CausalFeatures
+from sklearn_gpcd.io import load_recording
+
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "real_ur10e.py"
+LABELS = Path(__file__).resolve().parents[1] / "benchmarks" / "labels" / "ur10e_events.json"
 
 
 @pytest.fixture(scope="module")
@@ -24,11 +32,32 @@ def test_unloaded_selection_keeps_unload_and_drops_load(bench):
     assert [bench.is_unloaded(n) for n in names] == [True, False, False, False, True]
 
 
-def test_alarm_episodes_merge_short_gaps(bench):
-    t = np.arange(100) * 0.01
-    alarm = np.zeros(100, dtype=bool)
-    alarm[10:20] = alarm[25:30] = alarm[70:75] = True  # gap 0.05 s, then 0.4 s
-    assert bench.alarm_episodes(alarm, t, gap=0.3) == [(10, 30), (70, 75)]
+def test_loro_margin_is_the_worst_left_out_excess(bench):
+    peaks = {"a": np.ones((3, 6)), "b": np.full((3, 6), 2.0), "c": np.ones((3, 6))}
+    peaks["c"][2, 1] = 3.0
+    cell = bench.loro_margin(peaks, list(peaks), "cell")
+    # b exceeds max(a, c) = 1 by 2 everywhere but at (rest, joint 2), where c is 3
+    assert cell[0, 0] == 2.0 and cell[2, 1] == pytest.approx(1.5)
+    assert np.all(bench.loro_margin(peaks, list(peaks), "global") == 2.0)
+    rule = bench.loro_margin(peaks, list(peaks), "regime")
+    assert rule.shape == (3, 6) and np.all(rule == 2.0)
+
+
+def test_levels_fill_an_absent_regime_with_the_largest(bench):
+    peaks = {"a": np.array([[1.0, 2.0], [0.0, 0.0], [0.5, 0.2]])}
+    np.testing.assert_array_equal(bench.levels(peaks, ["a"])[1], [1.0, 2.0])
+
+
+def test_labels_are_stored_with_their_method():
+    data = json.loads(LABELS.read_text())
+    assert "method" in data and len(data["method"]) > 200
+    pushes = [f for f in data["files"] if "push_pose" in f]
+    assert len(pushes) == 2
+    for name in pushes:
+        events = data["files"][name]["events"]
+        assert len(events) >= 3
+        assert all(e["start_s"] < e["stop_s"] for e in events)
+    assert data["files"]["collision_detection_data_2020/collision_free.csv"]["events"] == []
 
 
 def test_missing_data_exits_zero_with_message(bench, tmp_path, capsys):
@@ -39,19 +68,40 @@ def test_missing_data_exits_zero_with_message(bench, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.realdata
+def test_batch_equals_streaming_on_a_real_push_recording(ur10e_dir):
+    """Raw UR10e samples through StreamingMonitor == the batch detector, sample for sample."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        free = load_recording(ur10e_dir / "validation_data" / "ur-20_01_17-ptp_10_points.csv")
+        push = load_recording(ur10e_dir / "collision_push_pose" / "ur-20_01_22-push_pose_1.csv")
+    features = CausalFeatures().fit(free)
+    det = CollisionDetector(ControllerCurrent(6), n_joints=6, threshold="per_joint",
+                            false_alarm_rate=0.0, margin=1.5, filter_cutoff=2.0,
+                            min_duration=5, sample_time="auto", regimes=True,
+                            rest_reference=5.0)
+    det.fit(stack_currents(features.transform(free), free.current), time=free.time)
+    out = StreamingMonitor(det, features=features).replay_recording(push)
+    Z = stack_currents(features.transform(push), push.current)
+    batch = det.monitoring_signal(Z)
+    assert np.array_equal(out.prediction, det.predict(Z))
+    np.testing.assert_allclose(out.signal, batch.signal, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(out.regime, batch.regime)
+    assert (out.prediction == -1).any() and (out.prediction == 1).any()
+
+
 @pytest.mark.slow
 def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
     out = tmp_path / "out"
-    results = bench.main(["--quick", "--data", str(ur10e_dir), "--output", str(out)])
+    bench.main(["--quick", "--n-support", "100", "--data", str(ur10e_dir),
+                "--output", str(out)])
     saved = json.loads((out / "real_ur10e.json").read_text())
-    assert saved["n_support"] == 500
-    assert set(saved["nmse"]) == {"P_f", "SP_S", "SP_P"}
-    # the still poses have no dynamic samples; every joint has quasi-static ones
-    assert saved["counts"]["p1..p10"]["n_dynamic"] == [0] * 6
-    assert min(saved["counts"]["p1..p10"]["n_quasi_static"]) > 1000
-    assert all(name.endswith(".csv") and "load" not in name.replace("unload", "").lower()
-               for name in saved["train_files"])
-    assert bench.HELD_OUT not in saved["train_files"]
-    for name in ("P_f", "SP_S", "SP_P"):
-        assert len(results["detection"][name]["files"]) == 2
-    assert (out / bench.TABLES).read_text().count("estimator") >= 8
+    assert saved["n_support"] == 100
+    assert set(saved["monitors"]) == {"i - i_des", "P_f", "SP_S", "SP_P", "SP_C",
+                                      "i - i_des +R", "SP_C +R"}
+    assert saved["unseen_minutes"] > 10
+    assert not set(saved["train_files"]) & set(bench.HELD_OUT)
+    for result in saved["monitors"].values():
+        assert result["n_events"] == 10
+        assert len(result["folds"]) == len(saved["unseen_collision_free"])
+    assert (out / bench.TABLES).read_text().count("SP_C +R") >= 5

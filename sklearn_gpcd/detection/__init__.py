@@ -6,10 +6,14 @@
   bounded memory and a compiled single-sample GP prediction;
 * :class:`CollisionThresholdCV` -- tunes thresholds, ``sigma_v`` and filter
   settings by grouped cross-validation over labelled recordings;
+* regimes (``moving``, ``settling``, ``rest``) with per-regime thresholds and
+  the rest re-reference (:mod:`~sklearn_gpcd.detection._regimes`, our
+  extension for the history-dependent current at rest);
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
 """
 
-from .detector import CollisionDetector, default_regressor, stack_currents
+from ._regimes import REGIME_NAMES
+from .detector import CollisionDetector, SampleTimeWarning, default_regressor, stack_currents
 from .model_selection import CollisionThresholdCV, DetectionRefit, select_candidate
 from .streaming import MonitorStatus, StreamingMonitor
 
@@ -18,6 +22,8 @@ __all__ = [
     "CollisionThresholdCV",
     "DetectionRefit",
     "MonitorStatus",
+    "REGIME_NAMES",
+    "SampleTimeWarning",
     "StreamingMonitor",
     "default_regressor",
     "select_candidate",

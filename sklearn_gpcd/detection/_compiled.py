@@ -282,6 +282,18 @@ def _compile_mean(mean, wrap):
 
         return linear
 
+    from ..dynamics import ControllerFeatures  # layer 2, lazily
+
+    if (type(mean) is ParametricMean and type(mean.features_) is ControllerFeatures
+            and np.ndim(coef) == 1 and not len(mean.friction_columns_)):
+        column, gain = mean.features_.column_, float(coef[0])
+        offset = float(mean.intercept_)
+
+        def controller(x, row):  # w * i_c + intercept (make_sp_c)
+            return gain * x[column] + offset
+
+        return controller
+
     def generic(x, row):
         row[0] = x
         return float(np.ravel(mean.predict(wrap(row)))[0])

@@ -1,14 +1,17 @@
 """Collision detection by thresholding the current residual (paper Sec. II-III)."""
 
 import inspect
+import warnings
 from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, OutlierMixin, clone
 from sklearn.utils import Bunch
-from sklearn.utils.validation import check_is_fitted, validate_data
+from sklearn.utils.validation import _num_samples, check_is_fitted, validate_data
 
+from .._layout import block_columns
 from .._persistence import VersionedStateMixin
+from ._regimes import REGIME_NAMES, regime_pass
 from ._signal import (
     debounce_segments,
     filter_segments,
@@ -17,7 +20,35 @@ from ._signal import (
 )
 from ._thresholds import contamination_level, false_alarm_level, rms_scale
 
-_THRESHOLD_RULES = ("contamination", "false_alarm_rate", "std")
+_THRESHOLD_RULES = ("contamination", "false_alarm_rate", "per_joint", "std")
+#: Relative deviation of ``sample_time`` from the data's median step that warns.
+_SAMPLE_TIME_RTOL = 0.2
+
+
+class SampleTimeWarning(UserWarning):
+    """``CollisionDetector.sample_time`` differs from the data's sampling period.
+
+    The low-pass filter, the settle time and the false-alarm rates are
+    computed with ``sample_time``; when the recordings are sampled at another
+    rate all three are off by the same factor. Raised by
+    :meth:`CollisionDetector.fit` when ``time`` is given and the median time
+    step differs by more than 20 %; pass ``sample_time="auto"`` to take it
+    from the data.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> from sklearn.linear_model import LinearRegression
+    >>> from sklearn_gpcd.detection import CollisionDetector, SampleTimeWarning
+    >>> X = np.column_stack([np.arange(50.0), 2 * np.arange(50.0)])
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _ = CollisionDetector(LinearRegression(), sample_time=0.008).fit(
+    ...         X, time=np.arange(50) * 0.01)
+    >>> [w.category.__name__ for w in caught]
+    ['SampleTimeWarning']
+    """
 
 
 def stack_currents(X, current):
@@ -123,6 +154,12 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         - ``"false_alarm_rate"``: same scale, smallest level whose alarm
           onsets on the training data stay within ``false_alarm_rate`` per
           hour;
+        - ``"per_joint"``: a level per joint (and per regime with
+          ``regimes=True``): the false-alarm budget ``false_alarm_rate`` is
+          split equally across joints and regimes, and each joint's level is
+          the smallest whose alarm onsets on the training data (in that
+          regime) stay within its share; ``margin`` multiplies every level.
+          One heavy-tailed joint then no longer inflates the others;
         - ``"std"``: ``k`` predictive standard deviations. With
           ``normalize="std"`` the band follows ``sigma_l(x)`` sample by sample
           (``scale_ = 1``); otherwise ``scale_`` is the RMS of the predictive
@@ -136,6 +173,13 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     k : float, default=3.0
         Width of the band in predictive standard deviations, for
         ``threshold="std"``.
+    margin : float >= 1 or array-like, default=1.0
+        Factor on the levels of ``threshold="per_joint"``: thresholds that
+        were just not crossed on the calibration data are crossed on unseen
+        data by the next-largest excursion; a margin buys robustness at the
+        cost of sensitivity. A scalar, or one value per joint (shape
+        ``(n_joints,)``) or per regime and joint (the shape of ``scale_``),
+        e.g. chosen by leave-one-recording-out (see the user guide).
     normalize : {None, "std"}, default=None
         Divide the residual by the predictive std before filtering.
     filter_cutoff : float, default=None
@@ -145,25 +189,60 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         First-order lag or second-order Butterworth filter.
     min_duration : int, default=1
         Samples the band must be exceeded in a row before a joint fires.
-    sample_time : float, default=0.008
-        Sampling period in seconds (the paper's UR10 logs at 8 ms); used by
-        the filter and by ``threshold="false_alarm_rate"``.
+    sample_time : float or "auto", default=0.008
+        Sampling period in seconds (the paper's UR10 logs at 8 ms, the UR10e
+        logs of Mamedov et al. at 10 ms); used by the filter, the settle time,
+        the rest reference and the false-alarm rates. ``"auto"`` takes the
+        median time step of ``time`` passed to :meth:`fit`; a number that
+        differs from it by more than 20 % warns (:class:`SampleTimeWarning`).
     sigma_v : float, default=None
         Velocity threshold of the quasi-static gate (Sec. IV-B, the paper uses
         ``1e-2``). When set, it is passed on as the regressor's ``sigma_v``
-        parameter; ``None`` keeps the regressor's own value.
+        parameter; ``None`` keeps the regressor's own value. The regimes use
+        it too (``1e-2`` when None).
+    regimes : bool, default=False
+        Separate thresholds for the arm's motion regimes ``moving``,
+        ``settling`` and ``rest`` (see
+        :mod:`sklearn_gpcd.detection._regimes`): the residual of a still arm
+        is small and slow, that of a moving one large and fast, so one band
+        for both is either blind at rest or noisy in motion. Needs the joint
+        velocities among the regressor inputs (``velocity_columns``).
+    settle_time : float, default=0.5
+        Seconds the arm must be still after a motion before it is at rest;
+        until then it is ``settling`` (the friction transient of a stop).
+    rest_reference : float or None, default=None
+        With ``regimes=True``: re-reference the monitoring signal at rest
+        entry and let the reference follow it with this time constant in
+        seconds (``numpy.inf``: a fixed reference). The held current of a
+        still joint depends on its history (stiction); the re-reference
+        removes that offset, which no pose feature predicts. Our extension
+        of the paper (Eq. 13-17); see the user guide.
+    velocity_columns : list of int or None, default=None
+        Columns of the regressor inputs holding the joint velocities, for
+        ``regimes``. None takes the ``qd`` block of the paper's layout
+        (:mod:`sklearn_gpcd._layout`) when the inputs have ``3 * n_joints``
+        or ``6 * n_joints`` columns.
 
     Attributes
     ----------
     regressor_ : regressor
         The fitted clone of ``regressor``.
-    scale_ : ndarray of shape (n_joints,)
-        Per-joint scale of the monitoring signal (see ``threshold``).
+    scale_ : ndarray of shape (n_joints,) or (3, n_joints)
+        Per-joint scale of the monitoring signal (see ``threshold``); one row
+        per regime (``regime_names_``) when ``regimes=True``.
     offset_ : float
         ``-gamma``: a joint fires when ``|m_l| / scale_l > -offset_``.
-    thresholds_ : ndarray of shape (n_joints,)
-        ``sigma_CD`` per joint, in units of the monitoring signal (current
-        units, or standard deviations when ``normalize="std"``).
+    thresholds_ : ndarray of shape (n_joints,) or (3, n_joints)
+        ``sigma_CD`` per joint (and regime), in units of the monitoring
+        signal (current units, or standard deviations when
+        ``normalize="std"``).
+    regime_names_ : tuple of str
+        Rows of ``scale_`` / ``thresholds_``: ``("moving", "settling",
+        "rest")`` with ``regimes=True``, else ``("all",)``.
+    sample_time_ : float
+        Sampling period used (``sample_time``, or the data's with "auto").
+    velocity_columns_ : list of int or None
+        Velocity columns of the regressor inputs used by the regimes.
     filter_coefficients_ : tuple of ndarray or None
         ``(b, a)`` of the low-pass filter.
     n_features_in_ : int
@@ -211,12 +290,17 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         contamination=0.001,
         false_alarm_rate=1.0,
         k=3.0,
+        margin=1.0,
         normalize=None,
         filter_cutoff=None,
         filter_order=1,
         min_duration=1,
         sample_time=0.008,
         sigma_v=None,
+        regimes=False,
+        settle_time=0.5,
+        rest_reference=None,
+        velocity_columns=None,
     ):
         self.regressor = regressor
         self.n_joints = n_joints
@@ -224,15 +308,20 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         self.contamination = contamination
         self.false_alarm_rate = false_alarm_rate
         self.k = k
+        self.margin = margin
         self.normalize = normalize
         self.filter_cutoff = filter_cutoff
         self.filter_order = filter_order
         self.min_duration = min_duration
         self.sample_time = sample_time
         self.sigma_v = sigma_v
+        self.regimes = regimes
+        self.settle_time = settle_time
+        self.rest_reference = rest_reference
+        self.velocity_columns = velocity_columns
 
     # ------------------------------------------------------------------ fit
-    def fit(self, X, y=None, *, labels=None, groups=None):
+    def fit(self, X, y=None, *, labels=None, groups=None, time=None):
         """Learn the collision-free currents and the thresholds.
 
         Parameters
@@ -248,20 +337,56 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         groups : array-like of shape (n_samples,), default=None
             Recording id of each row; the filter and debounce restart where
             it changes.
+        time : array-like of shape (n_samples,), default=None
+            Time stamps [s] of the rows: checks ``sample_time`` against the
+            median step within each recording (or sets it, with "auto").
 
         Returns
         -------
         self : CollisionDetector
         """
-        residual, std, starts = self._fit_regressor(
+        self._validate_params()
+        self.sample_time_ = self._check_sample_time(time, groups, _num_samples(X))
+        residual, std, starts, qd = self._fit_regressor(
             X, labels, groups, self._needs_std(fitting=True)
         )
-        self._calibrate(residual, std, starts)
+        self._calibrate(residual, std, starts, qd)
         return self
 
+    def _check_sample_time(self, time, groups, n_rows):
+        """``sample_time_``: given, or the median step of ``time`` ("auto")."""
+        if time is None:
+            if self.sample_time == "auto":
+                raise ValueError(
+                    "sample_time='auto' takes the sampling period from the data: pass "
+                    "fit(..., time=time_stamps)"
+                )
+            return float(self.sample_time)
+        time = np.asarray(time, dtype=float)
+        if time.shape != (n_rows,):
+            raise ValueError(f"time must have shape ({n_rows},), got {time.shape}")
+        steps = np.diff(time)
+        if groups is not None:
+            groups = np.asarray(groups)
+            steps = steps[groups[1:] == groups[:-1]]
+        steps = steps[steps > 0]
+        if not steps.size:
+            raise ValueError("time has no positive step within a recording")
+        median = float(np.median(steps))
+        if self.sample_time == "auto":
+            return median
+        if abs(self.sample_time - median) > _SAMPLE_TIME_RTOL * median:
+            warnings.warn(
+                f"sample_time={self.sample_time:g} s but the data's median time step is "
+                f"{median:g} s: the filter, settle time and false-alarm rates are off "
+                f"by a factor {median / self.sample_time:.2f}; pass sample_time={median:g} "
+                "or sample_time='auto'",
+                SampleTimeWarning, stacklevel=3,
+            )
+        return float(self.sample_time)
+
     def _fit_regressor(self, X, labels, groups, return_std):
-        """Fit ``regressor_`` on the collision-free rows; their residuals and starts."""
-        self._validate_params()
+        """Fit ``regressor_`` on the collision-free rows; residuals, starts, velocities."""
         X = validate_data(self, X, dtype=np.float64)
         n = self.n_joints
         if X.shape[1] <= n:
@@ -270,6 +395,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                 f"needs the regressor inputs followed by {n} current column(s), i.e. "
                 f"at least {n + 1} columns"
             )
+        self.velocity_columns_ = self._velocity_columns(X.shape[1] - n)
         keep = None
         if labels is not None:
             labels = np.asarray(labels)
@@ -282,10 +408,36 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         if keep is not None:
             X = X[keep]
         inputs, current = self._inputs(X), X[:, -n:]
-        self.regressor_ = self._make_regressor()
+        self.regressor_ = self._make_regressor(X.shape[1] - n)
         self.regressor_.fit(inputs, current[:, 0] if n == 1 else current)
         mean, std = self._predict_currents(inputs, return_std)
-        return current - mean, std, starts
+        return current - mean, std, starts, self._velocities(X)
+
+    def _velocity_columns(self, n_inputs):
+        """Velocity columns of the regressor inputs (None when regimes are off)."""
+        if not self.regimes:
+            return None
+        if self.velocity_columns is not None:
+            columns = [int(c) for c in self.velocity_columns]
+            if len(columns) != self.n_joints or not all(0 <= c < n_inputs for c in columns):
+                raise ValueError(
+                    f"velocity_columns must list {self.n_joints} column indices below "
+                    f"{n_inputs} (the regressor inputs), got {self.velocity_columns!r}"
+                )
+            return columns
+        if n_inputs in (3 * self.n_joints, 6 * self.n_joints):
+            return block_columns("qd", self.n_joints)
+        raise ValueError(
+            f"regimes=True needs the joint velocities: the {n_inputs} regressor inputs "
+            f"are not the paper's layout for {self.n_joints} joints (3 or 6 columns per "
+            "joint); pass velocity_columns"
+        )
+
+    def _velocities(self, X):
+        """Joint velocities of validated rows, or None without regimes."""
+        if self.velocity_columns_ is None:
+            return None
+        return X[:, self.velocity_columns_]
 
     def fit_predict(self, X, y=None, *, labels=None, groups=None):
         """Fit, then label the same rows (+1 normal, -1 collision).
@@ -316,14 +468,22 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "false_alarm_rate": isinstance(self.false_alarm_rate, Real)
             and self.false_alarm_rate >= 0.0,
             "k": isinstance(self.k, Real) and self.k > 0.0,
+            "margin": _valid_margin(self.margin),
             "normalize": self.normalize in (None, "std"),
             "filter_cutoff": self.filter_cutoff is None
             or (isinstance(self.filter_cutoff, Real) and self.filter_cutoff > 0.0),
             "filter_order": self.filter_order in (1, 2),
             "min_duration": isinstance(self.min_duration, Integral) and self.min_duration >= 1,
-            "sample_time": isinstance(self.sample_time, Real) and self.sample_time > 0.0,
+            "sample_time": self.sample_time == "auto"
+            or (isinstance(self.sample_time, Real) and self.sample_time > 0.0),
             "sigma_v": self.sigma_v is None
             or (isinstance(self.sigma_v, Real) and self.sigma_v > 0.0),
+            "regimes": isinstance(self.regimes, (bool, np.bool_))
+            and not (self.regimes and self.threshold == "std"),
+            "settle_time": isinstance(self.settle_time, Real) and self.settle_time >= 0.0,
+            "rest_reference": self.rest_reference is None
+            or (self.regimes and isinstance(self.rest_reference, Real)
+                and self.rest_reference > 0.0),
         }
         allowed = {
             "n_joints": "an int >= 1",
@@ -331,12 +491,17 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "contamination": "a float in (0, 0.5]",
             "false_alarm_rate": "a float >= 0 (alarms per hour)",
             "k": "a float > 0",
+            "margin": "a float >= 1 or an array of floats >= 1",
             "normalize": "None or 'std'",
             "filter_cutoff": "None or a float > 0 (Hz)",
             "filter_order": "1 or 2",
             "min_duration": "an int >= 1 (samples)",
-            "sample_time": "a float > 0 (seconds)",
+            "sample_time": "a float > 0 (seconds) or 'auto'",
             "sigma_v": "None or a float > 0 (rad/s)",
+            "regimes": "a bool (and not combined with threshold='std')",
+            "settle_time": "a float >= 0 (seconds)",
+            "rest_reference": "None, or a time constant > 0 in seconds (inf: fixed), "
+            "with regimes=True",
         }
         for name, ok in checks.items():
             if not ok:
@@ -359,11 +524,20 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         return pd.DataFrame(inputs, columns=names[: -self.n_joints])
 
-    def _make_regressor(self):
+    def _make_regressor(self, n_inputs):
         if self.regressor is None:
+            _check_joint_count(n_inputs, self.n_joints, 6, "the default SP_P regressor")
             regressor = default_regressor(self.n_joints)
         else:
             regressor = clone(self.regressor)
+            kernels = regressor.get_params(deep=False).get("kernel")
+            if isinstance(kernels, (list, tuple)) and len(kernels) != self.n_joints:
+                raise ValueError(
+                    f"CollisionDetector(n_joints={self.n_joints}) but the regressor has "
+                    f"{len(kernels)} kernels (one per joint): the data has "
+                    f"{len(kernels)} joints, or the regressor was built for another robot; "
+                    f"set n_joints={len(kernels)} or rebuild the regressor"
+                )
         if self.sigma_v is not None:
             if "sigma_v" not in regressor.get_params(deep=False):
                 raise ValueError(
@@ -397,37 +571,108 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         return np.reshape(np.asarray(mean, dtype=float), (n_rows, self.n_joints)), std
 
     # ---------------------------------------------------------- calibration
-    def _signal(self, residual, std, starts):
-        """Monitoring signal m: normalised, then low-pass filtered residual."""
+    def _signal(self, residual, std, starts, qd):
+        """Monitoring signal m, its regimes and rest reference.
+
+        Normalised, low-pass filtered residual, re-referenced at rest
+        (``rest_reference``); regimes all 0 without ``regimes``.
+        """
         u = residual / std if self.normalize == "std" else residual
         if self.filter_coefficients_ is not None:
             u = filter_segments(u, *self.filter_coefficients_, starts)
-        return u
+        if not self.regimes:
+            return u, np.zeros(u.shape[0], dtype=np.intp), None
+        return regime_pass(u, qd, starts, **self._regime_settings())
 
-    def _ratio(self, signal, starts):
-        """Debounced ratio r_l = min over min_duration samples of |m_l| / scale_l."""
-        return debounce_segments(np.abs(signal) / self.scale_, self.min_duration, starts)
+    def _regime_settings(self):
+        """Keyword arguments of :func:`regime_pass` (also read by StreamingMonitor)."""
+        beta = None
+        if self.rest_reference is not None:
+            beta = float(-np.expm1(-self.sample_time_ / self.rest_reference))
+        return {
+            "sigma_v": 1e-2 if self.sigma_v is None else float(self.sigma_v),
+            "settle": int(round(self.settle_time / self.sample_time_)),
+            "beta": beta,
+        }
 
-    def _calibrate(self, residual, std, starts):
+    def _ratio(self, signal, regimes, starts):
+        """Debounced ratio: min of |m_l| over min_duration samples, / scale of the regime."""
+        debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
+        return debounced / np.atleast_2d(self.scale_)[regimes]
+
+    def _calibrate(self, residual, std, starts, qd):
         """Set filter_coefficients_, scale_, offset_ and thresholds_ from training residuals."""
         self.filter_coefficients_ = None
         if self.filter_cutoff is not None:
             self.filter_coefficients_ = lowpass_coefficients(
-                self.filter_cutoff, self.sample_time, self.filter_order
+                self.filter_cutoff, self.sample_time_, self.filter_order
             )
-        signal = self._signal(residual, std, starts)
+        self.regime_names_ = REGIME_NAMES if self.regimes else ("all",)
+        signal, regimes, _ = self._signal(residual, std, starts, qd)
         if self.threshold == "std":
             self.scale_ = np.ones(self.n_joints) if self.normalize == "std" else rms_scale(std)
             gamma = float(self.k)
+        elif self.threshold == "per_joint":
+            levels = self._joint_levels(signal, regimes, starts)
+            margin = np.asarray(self.margin, dtype=float)
+            if margin.shape not in ((), (self.n_joints,), levels.shape):
+                raise ValueError(
+                    f"margin has shape {margin.shape}; expected a scalar, ({self.n_joints},) "
+                    f"or {levels.shape} (regimes x joints)"
+                )
+            self.scale_ = margin * levels
+            gamma = 1.0
         else:
-            self.scale_ = rms_scale(signal)
-            peak = self._ratio(signal, starts).max(axis=1)
+            self.scale_ = self._regime_rows(
+                lambda rows: rms_scale(signal[rows]), regimes
+            )
+            peak = self._ratio(signal, regimes, starts).max(axis=1)
             if self.threshold == "contamination":
                 gamma = contamination_level(peak, self.contamination)
             else:
-                gamma = false_alarm_level(peak, starts, self.sample_time, self.false_alarm_rate)
+                gamma = false_alarm_level(peak, starts, self.sample_time_, self.false_alarm_rate)
         self.offset_ = -gamma
         self.thresholds_ = gamma * self.scale_
+
+    def _regime_rows(self, per_regime, regimes):
+        """``per_regime(rows)`` for each regime, stacked (one row without regimes).
+
+        A regime absent from the training data takes the largest value of
+        the others (no data, no tighter band).
+        """
+        if not self.regimes:
+            return per_regime(slice(None))
+        table = np.full((len(REGIME_NAMES), self.n_joints), np.nan)
+        for code in range(len(REGIME_NAMES)):
+            rows = regimes == code
+            if rows.any():
+                table[code] = per_regime(rows)
+        fill = np.nanmax(table, axis=0)
+        return np.where(np.isnan(table), np.nan_to_num(fill, nan=1.0), table)
+
+    def _joint_levels(self, signal, regimes, starts):
+        """Per joint (and regime) false-alarm levels of the debounced |m|.
+
+        The budget ``false_alarm_rate`` is split equally over the joints and
+        the regimes present; joint ``l``'s level in regime ``g`` is
+        :func:`false_alarm_level` of its debounced ``|m_l|``, set to zero
+        outside ``g``, with that share.
+        """
+        debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
+        n_regimes = len(np.unique(regimes)) if self.regimes else 1
+        share = self.false_alarm_rate / (self.n_joints * n_regimes)
+        tiny = np.finfo(float).tiny
+
+        def levels(rows):
+            out = np.empty(self.n_joints)
+            for joint in range(self.n_joints):
+                peak = np.where(rows, debounced[:, joint], 0.0)
+                out[joint] = false_alarm_level(peak, starts, self.sample_time_, share)
+            return np.maximum(out, tiny)
+
+        if not self.regimes:
+            return levels(np.ones(signal.shape[0], dtype=bool))
+        return self._regime_rows(lambda rows: levels(rows), regimes)
 
     # ------------------------------------------------------------- predict
     def monitoring_signal(self, X, groups=None):
@@ -446,8 +691,12 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             With arrays of shape (n_samples, n_joints):
             ``predicted`` (``i_hat``), ``std`` (predictive std, or None when
             not needed), ``residual`` (``s = i - i_hat``), ``signal`` (``m``,
-            normalised and filtered), ``ratio`` (debounced ``|m| / scale_``)
-            and ``alarms`` (bool, joints that fired).
+            normalised, filtered and re-referenced at rest), ``reference``
+            (the rest reference subtracted from the filtered residual, or
+            None without ``rest_reference``), ``ratio`` (debounced ``|m|`` over
+            the scale of the sample's regime) and ``alarms`` (bool, joints
+            that fired); and ``regime`` of shape (n_samples,), the regime
+            code of each sample (index into ``regime_names_``).
 
         Examples
         --------
@@ -466,13 +715,15 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         X = validate_data(self, X, dtype=np.float64, reset=False)
         starts = segment_starts(X.shape[0], groups)
         predicted, std, residual = self._residual(X, self._needs_std())
-        signal = self._signal(residual, std, starts)
-        ratio = self._ratio(signal, starts)
+        signal, regimes, reference = self._signal(residual, std, starts, self._velocities(X))
+        ratio = self._ratio(signal, regimes, starts)
         return Bunch(
             predicted=predicted,
             std=std,
             residual=residual,
             signal=signal,
+            regime=regimes,
+            reference=reference,
             ratio=ratio,
             alarms=ratio > -self.offset_,
         )
@@ -550,6 +801,30 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         fired : ndarray of bool, shape (n_samples, n_joints)
         """
         return self.monitoring_signal(X, groups).alarms
+
+
+def _valid_margin(margin):
+    """A number or an array of numbers, all finite and >= 1."""
+    try:
+        values = np.asarray(margin, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return values.size > 0 and bool(np.all(np.isfinite(values) & (values >= 1.0)))
+
+
+def _check_joint_count(n_inputs, n_joints, per_joint, what):
+    """ValueError naming both joint counts when the inputs do not fit ``n_joints``."""
+    if n_inputs == per_joint * n_joints:
+        return
+    hint = ""
+    if (n_inputs + n_joints) % (per_joint + 1) == 0:
+        hint = (f"; the {n_inputs + n_joints} columns fit "
+                f"{(n_inputs + n_joints) // (per_joint + 1)} joints")
+    raise ValueError(
+        f"CollisionDetector(n_joints={n_joints}): {what} expects {per_joint} input "
+        f"columns per joint ({per_joint * n_joints}) followed by {n_joints} currents, "
+        f"but X has {n_inputs} input columns{hint}"
+    )
 
 
 def default_regressor(n_joints):

@@ -353,21 +353,27 @@ def _evaluate_fold(detector, heavy, lights, X, labels, groups, train, test, max_
     base = clone(detector).set_params(**heavy)
     variants = [clone(base).set_params(**light) for light in lights]
     needs_std = any(v._needs_std(fitting=True) for v in variants)
-    residual, std, train_starts = base._fit_regressor(
+    base._validate_params()
+    base.sample_time_ = base._check_sample_time(None, None, len(train))
+    residual, std, train_starts, _ = base._fit_regressor(
         X[train], labels[train], groups[train], needs_std
     )
-    X_test = X[test]
+    X_train, X_test = X[train][labels[train] == 0], X[test]
     _, test_std, test_residual = base._residual(X_test, any(v._needs_std() for v in variants))
     test_starts = segment_starts(len(test), groups[test])
     results = []
     for variant in variants:
         variant._validate_params()
+        variant.sample_time_ = variant._check_sample_time(None, None, len(train))
         variant.regressor_ = base.regressor_
-        variant._calibrate(residual, std, train_starts)
-        signal = variant._signal(test_residual, test_std, test_starts)
-        alarms = variant._ratio(signal, test_starts).max(axis=1) > -variant.offset_
+        variant.velocity_columns_ = variant._velocity_columns(X.shape[1] - variant.n_joints)
+        variant._calibrate(residual, std, train_starts, variant._velocities(X_train))
+        signal, regimes, _ = variant._signal(
+            test_residual, test_std, test_starts, variant._velocities(X_test)
+        )
+        alarms = variant._ratio(signal, regimes, test_starts).max(axis=1) > -variant.offset_
         kwargs = dict(
-            max_delay=max_delay, sample_time=variant.sample_time, groups=groups[test]
+            max_delay=max_delay, sample_time=variant.sample_time_, groups=groups[test]
         )
         results.append(
             {

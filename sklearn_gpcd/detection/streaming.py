@@ -10,6 +10,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._layout import column_names
 from .._persistence import VersionedStateMixin
 from ._compiled import compile_predictor
+from ._regimes import RegimeState
 
 
 class MonitorStatus(str, Enum):
@@ -129,10 +130,29 @@ class StreamingMonitor(VersionedStateMixin):
     error, not a sensor fault: :meth:`update` raises ``ValueError`` and
     leaves the state and the counters unchanged.
 
+    **Raw samples.** Given ``features`` (a fitted
+    :class:`~sklearn_gpcd.features.CausalFeatures`, the one whose
+    ``transform`` built the detector's training inputs),
+    :meth:`update_raw` takes what the robot logs -- time, ``q``, ``qd``,
+    currents and the controller's targets -- and builds the input row
+    causally (:class:`~sklearn_gpcd.features.OnlineFeatures`). The batch
+    equivalent of :meth:`replay_recording` is ``detector.predict`` on
+    ``stack_currents(features.transform(recording), recording.current)``,
+    sample for sample. A raw sample with a non-finite value or a time stamp
+    that does not advance is a sensor fault that leaves the feature state
+    untouched too.
+
+    **Regimes and rest reference** (``CollisionDetector(regimes=True,
+    rest_reference=...)``) run in the same
+    :class:`~sklearn_gpcd.detection._regimes.RegimeState` as the batch
+    detector; ``regime`` holds the last tick's regime code.
+
     Parameters
     ----------
     detector : CollisionDetector
         A fitted detector.
+    features : CausalFeatures, default=None
+        Fitted causal features, for :meth:`update_raw`.
 
     Attributes
     ----------
@@ -143,9 +163,13 @@ class StreamingMonitor(VersionedStateMixin):
     residual : ndarray of shape (n_joints,)
         ``s = i - i_hat``.
     signal : ndarray of shape (n_joints,)
-        Monitoring signal ``m`` (normalised, filtered).
+        Monitoring signal ``m`` (normalised, filtered, re-referenced at
+        rest).
     ratio : ndarray of shape (n_joints,)
-        Debounced ``|m| / scale_``.
+        Debounced ``|m|`` over the scale of the current regime.
+    regime : int
+        Regime code of the last valid tick (index into the detector's
+        ``regime_names_``; always 0 without regimes).
     alarms : ndarray of bool, shape (n_joints,)
         Joints that fired.
     score : float
@@ -189,9 +213,10 @@ class StreamingMonitor(VersionedStateMixin):
     True
     """
 
-    def __init__(self, detector):
+    def __init__(self, detector, features=None):
         check_is_fitted(detector)
         self.detector = detector
+        self.features = features
         n = self.n_joints = detector.n_joints
         self.n_inputs = detector.n_features_in_ - n
         self._row = np.empty(detector.n_features_in_)
@@ -207,8 +232,25 @@ class StreamingMonitor(VersionedStateMixin):
         self._use_std = detector.normalize == "std"
         self._std_row = np.empty((1, self.n_inputs))
         self.std = np.ones(n)
-        self._scale = np.asarray(detector.scale_, dtype=float)
+        self._scales = np.atleast_2d(np.asarray(detector.scale_, dtype=float))
         self._level = -float(detector.offset_)
+        self._regime_state = None
+        self.regime = 0
+        if getattr(detector, "velocity_columns_", None) is not None:
+            self._regime_state = RegimeState(
+                n_joints=n, **detector._regime_settings()
+            )
+            self._velocity_columns = np.asarray(detector.velocity_columns_, dtype=np.intp)
+            self._qd = np.empty(n)
+        self._online = None
+        if features is not None:
+            self._online = features.online()
+            if self._online.row.shape[0] != self.n_inputs:
+                raise ValueError(
+                    f"features build {self._online.row.shape[0]} input columns but the "
+                    f"detector's regressor takes {self.n_inputs}"
+                )
+            self._dt_sum, self._dt_count = 0.0, 0
         if detector.filter_coefficients_ is not None:
             b, a = detector.filter_coefficients_
             self._b, self._a = b, a
@@ -236,6 +278,8 @@ class StreamingMonitor(VersionedStateMixin):
     #: Attributes rebuilt on load rather than stored: views into ``_row``
     #: (a pickle would turn them into copies) and the compiled predictor.
     _REBUILT = ("_inputs", "_current", "_wrap", "_predictor")
+    #: Ticks after which update_raw compares the mean time step with sample_time_.
+    _DT_CHECK_TICKS = 100
 
     def __getstate__(self):
         """State to pickle: filter, debounce and counters, without derived objects.
@@ -273,6 +317,10 @@ class StreamingMonitor(VersionedStateMixin):
         self._window[:] = 0.0
         self._position = 0
         self.last_time = None
+        if self._regime_state is not None:
+            self._regime_state.reset()
+        if self._online is not None:
+            self._online.reset()
 
     def update(self, x, current=None, time=None):
         """Process one sample.
@@ -336,11 +384,14 @@ class StreamingMonitor(VersionedStateMixin):
                 np.copyto(self._z, self._z_saved)  # the rejected tick leaves no trace
                 self._fresh = fresh
                 return self._fault(self._signal_reason())
+        if self._regime_state is not None:
+            np.take(self._inputs, self._velocity_columns, out=self._qd)
+            self.regime = self._regime_state.step(self._qd, self.signal)
         np.abs(self.signal, out=self._raw_ratio)
-        self._raw_ratio /= self._scale
         self._window[self._position] = self._raw_ratio
         self._position = (self._position + 1) % self._window.shape[0]
         np.min(self._window, axis=0, out=self.ratio)
+        self.ratio /= self._scales[self.regime]
         np.greater(self.ratio, self._level, out=self.alarms)
         self.score = -float(self.ratio.max())
         self.last_time = stamp
@@ -348,6 +399,121 @@ class StreamingMonitor(VersionedStateMixin):
         self.fault_reason = None
         self.status = MonitorStatus.COLLISION if self.alarms.any() else MonitorStatus.OK
         return self.status
+
+    def update_raw(self, time, q, qd, current, target_q=None, target_qd=None,
+                   target_current=None):
+        """Process one raw robot sample (needs ``features``).
+
+        Parameters
+        ----------
+        time : float
+            Time stamp [s].
+        q, qd, current : array-like of shape (n_joints,)
+            Measured positions, velocities and motor currents.
+        target_q, target_qd, target_current : array-like of shape (n_joints,), default=None
+            Controller signals, required when the features were fitted with
+            them (``features.signals_``).
+
+        Returns
+        -------
+        status : MonitorStatus
+
+        Raises
+        ------
+        ValueError
+            Without ``features``, or when a signal the model was trained on
+            is missing (a wiring error, not a sensor fault).
+        """
+        if self._online is None:
+            raise ValueError(
+                "update_raw needs StreamingMonitor(detector, features=CausalFeatures(...)"
+                ".fit(recordings)); use update() for ready-made input rows"
+            )
+        signals = {"target_q": target_q, "target_qd": target_qd,
+                   "target_current": target_current}
+        values = [time, q, qd, current, *(signals[s] for s in self._online.signals)]
+        if any(v is None for v in values[:4]) or not all(
+            np.isfinite(_numbers(v, "sample")).all() for v in values
+        ):
+            for name in self._online.signals:
+                if signals[name] is None:
+                    raise ValueError(
+                        f"{name} is missing, but the model was trained with it; pass it "
+                        "(or fit the features with allow_missing=True)"
+                    )
+            self.n_ticks += 1
+            return self._fault("missing or non-finite value in the raw sample")
+        stamp = float(time)
+        if (reason := self._time_fault(stamp)):
+            self.n_ticks += 1
+            return self._fault(reason)
+        last = self._online.last_time
+        row = self._online.step(stamp, q, qd, **{s: signals[s] for s in self._online.signals})
+        if last is not None:
+            self._check_time_step(stamp - last)
+        return self.update(row, current, stamp)
+
+    def _check_time_step(self, dt):
+        """Warn once when the mean step of the first ticks is off sample_time_."""
+        if self._dt_count >= self._DT_CHECK_TICKS:
+            return
+        self._dt_sum += dt
+        self._dt_count += 1
+        if self._dt_count == self._DT_CHECK_TICKS:
+            from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning
+
+            mean = self._dt_sum / self._dt_count
+            expected = self.detector.sample_time_
+            if abs(mean - expected) > _SAMPLE_TIME_RTOL * mean:
+                import warnings
+
+                warnings.warn(
+                    f"the stream's mean time step is {mean:g} s but the detector was "
+                    f"calibrated with sample_time={expected:g} s",
+                    SampleTimeWarning, stacklevel=3,
+                )
+
+    def replay_recording(self, recordings):
+        """Feed recordings through :meth:`update_raw`, sample by sample.
+
+        :meth:`reset` is called at the start of each recording.
+
+        Parameters
+        ----------
+        recordings : Recording or list of Recording
+            Recordings with the signals the features were fitted with.
+
+        Returns
+        -------
+        result : Bunch
+            As :meth:`replay`, plus ``regime`` (int, (n_samples,)).
+        """
+        from ..features.inputs import _as_recordings
+
+        recordings = _as_recordings(recordings)
+        names = ("predicted", "residual", "signal", "ratio")
+        n = sum(rec.n_samples for rec in recordings)
+        out = Bunch(status=np.empty(n, dtype=object),
+                    **{name: np.empty((n, self.n_joints)) for name in names},
+                    alarms=np.zeros((n, self.n_joints), dtype=bool),
+                    regime=np.zeros(n, dtype=np.intp))
+        row = 0
+        for rec in recordings:
+            self.reset()
+            targets = {s: getattr(rec, s) for s in self._online.signals}
+            for k in range(rec.n_samples):
+                status = self.update_raw(rec.time[k], rec.q[k], rec.qd[k], rec.current[k],
+                                         **{s: v[k] for s, v in targets.items()})
+                out.status[row] = status.value
+                for name in (*names, "alarms"):
+                    out[name][row] = getattr(self, name)
+                out.regime[row] = self.regime
+                row += 1
+        out.status = out.status.astype(str)
+        out.prediction = np.select(
+            [out.status == "collision", out.status == "ok"], [-1, 1], default=0
+        )
+        return out
 
     def _load(self, x, current):
         """Copy one sample into the preallocated row; ValueError on a wiring error."""

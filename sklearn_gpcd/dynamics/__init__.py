@@ -6,6 +6,7 @@
 """
 
 from .base_parameters import base_parameters
+from .controller import ControllerCurrent, ControllerFeatures
 from .regressor import (
     FRICTION_TERMS,
     INERTIAL_PARAMETERS,
@@ -18,6 +19,8 @@ from .regressor import (
 from .rigid_body import RigidBodyRegressor
 
 __all__ = [
+    "ControllerCurrent",
+    "ControllerFeatures",
     "RigidBodyRegressor",
     "parameter_vector",
     "parameter_names",

@@ -213,6 +213,7 @@ def write_report(out, results, recs, data, models, detector, s_cyclic, outcome):
     md += ["## Human-interaction test (Sec. V-B)", "",
            "Thresholds calibrated on the SP_P residuals of the collision-free D2 (not used for training): "
            + ", ".join(f"{v:.3g}" for v in results["detector"]["thresholds"]) + ".", "",
+           f"Detection path: {results['detector'].get('path', 'not recorded')}.", "",
            "| push | interval [s] | robot | detected | delay [s] |",
            "| --- | --- | --- | --- | --- |"]
     for p in inter["pushes"]:

@@ -138,7 +138,52 @@ def targets(recordings):
     return np.concatenate([rec.current for rec in recordings])
 
 
-class InverseDynamicsFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
+class _RecordingFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
+    """What the recording-to-inputs transformers share: checks, names, tags."""
+
+    def _check_common(self):
+        """Validate ``augmented`` and ``sign`` (every subclass has both)."""
+        if not isinstance(self.augmented, (bool, np.bool_)):
+            raise ValueError(f"augmented must be a bool, got {self.augmented!r}")
+        if self.sign not in SIGN_CONVENTIONS:
+            raise ValueError(f"sign must be one of {SIGN_CONVENTIONS}, got {self.sign!r}")
+
+    def _fitted_recordings(self, recordings):
+        """``recordings`` as a list with the fitted joint count (ValueError otherwise)."""
+        check_is_fitted(self)
+        recordings = _as_recordings(recordings)
+        n_joints = _check_joint_counts(recordings)
+        if n_joints != self.n_joints_:
+            raise ValueError(
+                f"recordings have {n_joints} joints, the transformer was fitted "
+                f"on {self.n_joints_}"
+            )
+        return recordings
+
+    def get_feature_names_out(self, input_features=None):
+        """Names of the output columns, e.g. ``q_0``, ``qd_3``, ``i_c_5``.
+
+        Parameters
+        ----------
+        input_features : None
+            Ignored (the inputs are recordings, not named columns).
+
+        Returns
+        -------
+        feature_names_out : ndarray of str objects
+            :func:`sklearn_gpcd._layout.column_names` of the fitted layout.
+        """
+        check_is_fitted(self)
+        return np.asarray(column_names(self.n_joints_, self.augmented), dtype=object)
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.input_tags.two_d_array = False
+        tags.requires_fit = True
+        return tags
+
+
+class InverseDynamicsFeatures(_RecordingFeatures):
     """Build the paper's GP inputs from recordings.
 
     ``transform`` returns, row per sample, either the standard inputs
@@ -247,8 +292,7 @@ default="target-minus-actual"
         self.sign = sign
 
     def _check_params(self):
-        if not isinstance(self.augmented, (bool, np.bool_)):
-            raise ValueError(f"augmented must be a bool, got {self.augmented!r}")
+        self._check_common()
         if self.acceleration not in ACCELERATION_SOURCES:
             raise ValueError(
                 f"acceleration must be one of {ACCELERATION_SOURCES}, "
@@ -264,8 +308,6 @@ default="target-minus-actual"
                 f"differentiation_options must be a dict or None, got {options!r}"
             )
         _check_options(self.differentiation, options or {})
-        if self.sign not in SIGN_CONVENTIONS:
-            raise ValueError(f"sign must be one of {SIGN_CONVENTIONS}, got {self.sign!r}")
 
     def _acceleration_source(self, rec, index):
         """Which signal gives qdd for ``rec`` (ValueError if unavailable)."""
@@ -384,14 +426,7 @@ default="target-minus-actual"
         MissingSignalWarning
             Once per call, when augmented signals had to be substituted.
         """
-        check_is_fitted(self)
-        recordings = _as_recordings(recordings)
-        n_joints = _check_joint_counts(recordings)
-        if n_joints != self.n_joints_:
-            raise ValueError(
-                f"recordings have {n_joints} joints, the transformer was fitted "
-                f"on {self.n_joints_}"
-            )
+        recordings = self._fitted_recordings(recordings)
         rows, substitutions = [], {}
         for i, rec in enumerate(recordings):
             X, notes = self._recording_inputs(rec, i)
@@ -402,28 +437,6 @@ default="target-minus-actual"
             warnings.warn(_substitution_message(substitutions), MissingSignalWarning,
                           stacklevel=2)
         return np.concatenate(rows)
-
-    def get_feature_names_out(self, input_features=None):
-        """Names of the output columns, e.g. ``q_0``, ``qd_3``, ``i_c_5``.
-
-        Parameters
-        ----------
-        input_features : None
-            Ignored (the inputs are recordings, not named columns).
-
-        Returns
-        -------
-        feature_names_out : ndarray of str objects
-            :func:`sklearn_gpcd._layout.column_names` of the fitted layout.
-        """
-        check_is_fitted(self)
-        return np.asarray(column_names(self.n_joints_, self.augmented), dtype=object)
-
-    def __sklearn_tags__(self):
-        tags = super().__sklearn_tags__()
-        tags.input_tags.two_d_array = False
-        tags.requires_fit = True
-        return tags
 
 
 _AUGMENTED_SIGNALS = ("target_q", "target_qd", "target_current")

@@ -5,10 +5,12 @@
 * :class:`SemiParametricGPRegressor` -- one GP per output on the residual of
   the mean, hyperparameters by maximum marginal likelihood;
 * :func:`make_p_f`, :func:`make_sp_s`, :func:`make_sp_p` -- the paper's three
-  estimators P_f, SP_S and SP_P built from a feature layout.
+  estimators P_f, SP_S and SP_P built from a feature layout;
+* :func:`make_sp_c` -- our extension: the controller's target current as the
+  parametric mean, a GP correction on top.
 """
 
-from .factories import make_p_f, make_sp_p, make_sp_s
+from .factories import make_p_f, make_sp_c, make_sp_p, make_sp_s
 from .mean import ParametricMean
 from .regressor import SemiParametricGPRegressor
 
@@ -18,4 +20,5 @@ __all__ = [
     "make_p_f",
     "make_sp_s",
     "make_sp_p",
+    "make_sp_c",
 ]

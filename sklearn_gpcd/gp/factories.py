@@ -177,6 +177,52 @@ def make_sp_p(features, n_joints, *, sigma_v=1e-2, friction_columns="auto", **gp
     return _estimator(kernels, means, gp_params)
 
 
+def make_sp_c(n_joints, **gp_params):
+    r"""SP_C: the controller's current model as the mean, a GP correction on top.
+
+    .. math::
+
+        y_\ell = w_\ell\, i_{c,\ell} + f_\ell(x) + e, \qquad
+        f_\ell \sim \mathcal{GP}(0, \lambda\, k_{RBK}(x, x')),
+
+    SP_S (Sec. III-A) with the feature map :math:`\phi_\ell = [i_{c,\ell}]`
+    (:class:`~sklearn_gpcd.dynamics.ControllerFeatures`): the robot vendor's
+    model of the current, logged as the target current (UR ``i_des``),
+    replaces the rigid-body regressor, and the GP on :math:`x = [q, \dot q,
+    \ddot q]` learns what it misses. Our extension of the paper, for logs
+    that have :math:`i_c`; pair it with ``CollisionDetector(regimes=True,
+    rest_reference=...)`` for the history-dependent current at rest.
+
+    Parameters
+    ----------
+    n_joints : int
+        Number of joints; ``X`` needs the augmented layout (``6 * n_joints``
+        columns) with the target current in its last block.
+    **gp_params
+        Other :class:`SemiParametricGPRegressor` parameters
+        (``normalize_y`` defaults to True).
+
+    Returns
+    -------
+    estimator : SemiParametricGPRegressor
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.gp import make_sp_c
+    >>> rng = np.random.default_rng(0)
+    >>> X = rng.normal(size=(200, 6))                    # 1 joint, augmented
+    >>> y = 1.1 * X[:, 5] + 0.3 * np.sin(X[:, 0])        # i = 1.1 i_c + f(q)
+    >>> gp = make_sp_c(1).fit(X, y)
+    >>> round(float(gp.mean_.coef_[0]), 1)
+    1.1
+    """
+    from ..dynamics import ControllerFeatures
+
+    features = [ControllerFeatures(joint, n_joints) for joint in range(n_joints)]
+    return make_sp_s(features, n_joints, **gp_params)
+
+
 def _kinetic(n_joints):
     """``C * ARDRBF`` on the state columns [q, qd, qdd] (Eq. 11)."""
     columns = state_columns(n_joints)
