@@ -55,6 +55,58 @@ REST_VELOCITY = 1e-3
 DELAYS = (-0.016, -0.008, 0.004, 0.008, 0.016, 0.032, 0.064)
 #: Default grid of Stribeck velocities [rad/s] searched by ``stribeck_friction``.
 STRIBECK_VELOCITIES = tuple(np.geomspace(0.004, 0.25, 10).round(5))
+#: Rated payload [kg] of the built-in robots (manufacturer data sheets); the
+#: ``payload`` bound is twice this. Other robots use :data:`DEFAULT_RATED_PAYLOAD`.
+RATED_PAYLOAD = {"ur3": 3.0, "ur5": 5.0, "ur10": 10.0, "ur3e": 3.0, "ur5e": 5.0,
+                 "ur10e": 12.5, "ur16e": 16.0}
+#: Rated payload [kg] assumed for robots not in :data:`RATED_PAYLOAD`.
+DEFAULT_RATED_PAYLOAD = 20.0
+#: Physical bounds of the plausibility check (see :meth:`Effect.implausible`).
+BOUNDS = {
+    "torque_constant_scale": (0.5, 1.5),
+    "delay": 0.2,  # |d| [s]
+    "tilt": 0.1,  # |roll|, |pitch| [rad] (5.7 deg)
+    "stribeck_velocity": (0.002, 0.5),  # [rad/s]
+    "rotor_inertia": 5.0,  # |delta J| [kg m^2]
+    "payload_com": 0.5,  # |c| [m]
+    "joint_position": 2 * np.pi + 0.25,  # |q_0| [rad]: a UR joint spans +-2 pi
+    "coulomb_rate": 1.0,  # |rate| [Nm/s]
+}
+
+
+def rated_payload(robot):
+    """Rated payload [kg] of ``robot`` (:data:`RATED_PAYLOAD`, else the default).
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.robots import load_robot
+    >>> rated_payload(load_robot("ur10e"))
+    12.5
+    """
+    return float(RATED_PAYLOAD.get(str(getattr(robot, "name", "")).lower(),
+                                   DEFAULT_RATED_PAYLOAD))
+
+
+def nominal_friction_levels(nominal, joint):
+    """Nominal (Coulomb, viscous) friction of ``joint`` [Nm, Nm s/rad]; zeros without one.
+
+    Read off the nominal friction law at +-1e-6 rad/s and +-1 rad/s.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.diagnosis import NominalModel
+    >>> nominal = NominalModel("ur10", friction={"coulomb": [2.0] * 6, "viscous": [0.5] * 6})
+    >>> [round(v, 6) for v in nominal_friction_levels(nominal, 1)]
+    [2.0, 0.5]
+    """
+    if nominal.friction is None:
+        return 0.0, 0.0
+    qd = np.zeros((4, nominal.n_joints))
+    qd[:, joint] = [1e-6, -1e-6, 1.0, -1.0]
+    tau = np.asarray(nominal.friction(qd), dtype=float)[:, joint]
+    slow, fast = 0.5 * (tau[0] - tau[1]), 0.5 * (tau[2] - tau[3])  # c + v * speed
+    viscous = (fast - slow) / (1.0 - 1e-6)
+    return float(slow - 1e-6 * viscous), float(viscous)
 
 
 def _delta(func, theta, cov, eps=1e-7):
@@ -207,6 +259,27 @@ class Effect:
         """
         return settings
 
+    def implausible(self, params, target, nominal):
+        """Why fitted parameters are physically implausible, or None when they are not.
+
+        Each library effect checks its parameters against physical bounds
+        (:data:`BOUNDS`, signs of friction terms, the robot's rated payload
+        and link masses); an estimate outside them is rejected rather than
+        reported. The base class accepts everything.
+
+        Parameters
+        ----------
+        params : dict
+            ``{name: (value, std)}`` from :meth:`physical`.
+        target : int or None
+        nominal : NominalModel
+
+        Returns
+        -------
+        reason : str or None
+        """
+        return None
+
     def sentence(self, params, joints):
         """One plain-words sentence about the fitted effect (see subclasses)."""
         values = ", ".join(f"{k} = {_pm(*v)}" for k, v in params.items())
@@ -222,10 +295,14 @@ def _pm(value, std, digits=3):
 
 
 def _joint_list(joints):
-    joints = list(joints)
-    if len(joints) == 1:
-        return f"joint {joints[0]}"
-    return "joints " + ", ".join(map(str, joints))
+    """Joints in words, numbered from 1: ``[1]`` -> ``"joint 2"``, ``[0, 1, 2]`` ->
+    ``"joints 1-3"``, ``[0, 2]`` -> ``"joints 1, 3"``."""
+    js = sorted(int(j) + 1 for j in joints)
+    if len(js) == 1:
+        return f"joint {js[0]}"
+    if len(js) > 2 and js == list(range(js[0], js[-1] + 1)):
+        return f"joints {js[0]}-{js[-1]}"
+    return "joints " + ", ".join(map(str, js))
 
 
 class CoulombFriction(Effect):
@@ -244,6 +321,13 @@ class CoulombFriction(Effect):
 
     def design(self, signals, nominal, target, **settings):
         return _per_joint_column(signals, target, np.sign(signals.qd[:, target]))
+
+    def implausible(self, params, target, nominal):
+        total = nominal_friction_levels(nominal, target)[0] + params["delta_coulomb"][0]
+        if total < 0:
+            return (f"the total dry friction would be {total:.3g} Nm: dry friction opposes "
+                    "the motion, it cannot be negative")
+        return None
 
     def sentence(self, params, joints):
         value, std = params["delta_coulomb"]
@@ -268,6 +352,13 @@ class ViscousFriction(Effect):
 
     def design(self, signals, nominal, target, **settings):
         return _per_joint_column(signals, target, signals.qd[:, target])
+
+    def implausible(self, params, target, nominal):
+        total = nominal_friction_levels(nominal, target)[1] + params["delta_viscous"][0]
+        if total < 0:
+            return (f"the total viscous friction would be {total:.3g} Nm s/rad: viscous "
+                    "friction dissipates energy, it cannot be negative")
+        return None
 
     def sentence(self, params, joints):
         value, std = params["delta_viscous"]
@@ -338,6 +429,18 @@ class StribeckFriction(Effect):
         std = v * np.sqrt(2.0 / curvature) if curvature > 0 else np.nan
         return {"stribeck_velocity": v, "stribeck_velocity_std": float(std)}
 
+    def implausible(self, params, target, nominal):
+        value = params["delta_stribeck"][0]
+        vs = params["stribeck_velocity"][0]
+        lo, hi = BOUNDS["stribeck_velocity"]
+        if value < 0:
+            return (f"a negative peak ({value:.3g} Nm) is not a Stribeck effect (friction "
+                    "above the dry level at low speed): it is the low-speed softening of "
+                    "dry friction")
+        if not lo <= vs <= hi:
+            return f"Stribeck velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
+        return None
+
     def sentence(self, params, joints):
         value, std = params["delta_stribeck"]
         vs = params["stribeck_velocity"][0]
@@ -362,6 +465,19 @@ class RotorInertia(Effect):
 
     def design(self, signals, nominal, target, **settings):
         return _per_joint_column(signals, target, signals.qdd[:, target])
+
+    def implausible(self, params, target, nominal):
+        value = params["delta_rotor_inertia"][0]
+        armature = getattr(nominal.robot.model, "armature", None)
+        nominal_j = float(armature[target]) if armature is not None and len(armature) > \
+            target else 0.0
+        if nominal_j + value < 0:
+            return (f"the total rotor inertia would be {nominal_j + value:.3g} kg m^2 "
+                    "(negative)")
+        if abs(value) > BOUNDS["rotor_inertia"]:
+            return (f"a change of {value:.3g} kg m^2 exceeds {BOUNDS['rotor_inertia']:g} "
+                    "kg m^2, far beyond the reflected rotor inertia of a robot joint")
+        return None
 
     def sentence(self, params, joints):
         value, std = params["delta_rotor_inertia"]
@@ -457,6 +573,18 @@ class PayloadEffect(Effect):
     def refine(self, objective, settings):
         return settings  # the m c c^T fixed point is done by joint_fit
 
+    def implausible(self, params, target, nominal):
+        m = params["mass"][0]
+        limit = 2.0 * rated_payload(nominal.robot)
+        if not 0 < m <= limit:
+            return (f"payload mass {m:.3g} kg outside (0, {limit:g}] kg (twice the rated "
+                    "payload)")
+        com = np.array([params[k][0] for k in ("com_x", "com_y", "com_z")])
+        if not np.all(np.isfinite(com)) or np.linalg.norm(com) > BOUNDS["payload_com"]:
+            return (f"centre of mass {np.linalg.norm(com):.3g} m from the flange (more than "
+                    f"{BOUNDS['payload_com']:g} m)")
+        return None
+
     def sentence(self, params, joints):
         m, sm = params["mass"]
         com = ", ".join(f"{params[k][0]:.3f}" for k in ("com_x", "com_y", "com_z"))
@@ -501,6 +629,14 @@ class LinkMass(Effect):
                                   + [np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)])
         Y = signals.rigid_body_regressor(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * target:10 * target + 10], mapping)
+
+    def implausible(self, params, target, nominal):
+        dm = params["delta_mass"][0]
+        link = float(nominal.robot.model.inertias[target + 1].mass)
+        if abs(dm) > link:
+            return (f"a mass change of {dm:.3g} kg on a link of {link:.3g} kg (more than the "
+                    "link's own mass)")
+        return None
 
     def sentence(self, params, joints):
         m, sm = params["delta_mass"]
@@ -555,6 +691,13 @@ class GravityTilt(Effect):
         values, stds = _delta(lambda t: np.array([-t[1] / g0, t[0] / g0]), theta, cov)
         return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
 
+    def implausible(self, params, target, nominal):
+        worst = max(abs(params["roll"][0]), abs(params["pitch"][0]))
+        if worst > BOUNDS["tilt"]:
+            return (f"a tilt of {np.degrees(worst):.1f} deg (more than "
+                    f"{np.degrees(BOUNDS['tilt']):.1f} deg would be visible)")
+        return None
+
     def sentence(self, params, joints):
         roll, pitch = (np.degrees(params[k][0]) for k in ("roll", "pitch"))
         sr, sp = (np.degrees(params[k][1]) for k in ("roll", "pitch"))
@@ -589,6 +732,14 @@ class TorqueConstant(Effect):
         k = nominal.torque_constants[target]
         values, stds = _delta(lambda t: np.array([1 / (1 + t[0]), k / (1 + t[0])]), theta, cov)
         return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
+
+    def implausible(self, params, target, nominal):
+        scale = params["scale"][0]
+        lo, hi = BOUNDS["torque_constant_scale"]
+        if not lo <= scale <= hi:
+            return (f"torque constant scale {scale:.3g} outside [{lo:g}, {hi:g}] (a motor that "
+                    f"lost or gained {abs(100 * (scale - 1)):.0f} % of its torque)")
+        return None
 
     def sentence(self, params, joints):
         s, ss = params["scale"]
@@ -683,6 +834,12 @@ class TimeDelay(Effect):
         moving_then = np.abs(_shift(signals, signals.qd, delay)) >= REST_VELOCITY
         return np.where(moving_then & (np.abs(signals.qd) >= REST_VELOCITY), term, 0.0)
 
+    def implausible(self, params, target, nominal):
+        d = params["delay"][0]
+        if abs(d) >= BOUNDS["delay"]:
+            return f"a delay of {d:.3g} s (at least {BOUNDS['delay']:g} s)"
+        return None
+
     def sentence(self, params, joints):
         value, std = params["delay"]
         word = "lags" if value > 0 else "leads"
@@ -728,6 +885,15 @@ class JointSpring(Effect):
                               theta, cov)
         return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
 
+    def implausible(self, params, target, nominal):
+        k, q0 = params["stiffness"][0], params["rest_position"][0]
+        if not k > 0:
+            return f"stiffness {k:.3g} Nm/rad: a spring pulls towards its rest position (k > 0)"
+        if not abs(q0) <= BOUNDS["joint_position"]:
+            return (f"rest position {q0:.3g} rad outside the joint's range (+-2 pi; positions "
+                    "in degrees?)")
+        return None
+
     def sentence(self, params, joints):
         k, sk = params["stiffness"]
         q0 = params["rest_position"][0]
@@ -760,11 +926,19 @@ class FrictionDrift(Effect):
         qd, t = signals.qd[:, target], signals.time
         return _per_joint_column(signals, target, np.column_stack([t * np.sign(qd), t * qd]))
 
+    def implausible(self, params, target, nominal):
+        rate = params["coulomb_rate"][0]
+        if abs(rate) > BOUNDS["coulomb_rate"]:
+            return f"dry friction changing by {rate:.3g} Nm/s ({60 * rate:.3g} Nm per minute)"
+        return None
+
     def sentence(self, params, joints):
         rate, std = params["coulomb_rate"]
         word = "rises" if rate > 0 else "falls"
-        return (f"the friction of {_joint_list(joints)} {word} over time by {abs(rate) * 60:.3g} "
-                f"+- {std * 60:.2g} Nm per minute (Coulomb level)")
+        vrate, vstd = params["viscous_rate"]
+        return (f"the friction of {_joint_list(joints)} {word} over time: Coulomb level by "
+                f"{abs(rate) * 60:.3g} +- {std * 60:.2g} Nm per minute, viscous coefficient "
+                f"by {vrate * 60:.3g} +- {vstd * 60:.2g} Nm s/rad per minute")
 
 
 #: The effect library, in order of prior plausibility: on ties within one
