@@ -6,7 +6,8 @@ When a simulation and real recordings differ, :class:`DynamicsDiagnosis`
    (rest, creep, moving, reversals, high acceleration), configuration region
    and time (:func:`residual_breakdown`);
 2. **names** the missing physics: a library of named effects
-   (:mod:`~sklearn_gpcd.diagnosis.effects`: friction terms, rotor inertia,
+   (:mod:`~sklearn_gpcd.diagnosis.effects`: friction terms (Coulomb, viscous,
+   Stribeck peak, low-speed softening), rotor inertia,
    payload, link mass, gravity tilt, torque constant, current offset, time
    delay, joint spring, friction drift) competes in a forward selection on
    held-out time blocks (:mod:`~sklearn_gpcd.diagnosis.selection`);
@@ -17,7 +18,7 @@ When a simulation and real recordings differ, :class:`DynamicsDiagnosis`
 
 >>> from sklearn_gpcd.diagnosis import effect_library
 >>> len(effect_library())
-12
+13
 """
 
 from .align import align_recordings, estimate_lag

@@ -21,7 +21,10 @@ payload's centre of mass enters its inertia quadratically (fixed point).
 ``viscous_friction``   :math:`\\Delta F_v\\,\\dot q_\\ell`, per joint
 ``stribeck_friction``  :math:`\\Delta F_s\\,\\mathrm{sign}(\\dot q_\\ell)
                        e^{-(\\dot q_\\ell/v_s)^2}`, per joint; :math:`v_s` by
-                       1-D search
+                       1-D search; a peak: :math:`\\Delta F_s \\ge 0`
+``friction_softening`` the same law with :math:`-\\Delta F_0 \\le 0`: dry
+                       friction softening at low speed (regularised or
+                       constraint-based friction)
 ``rotor_inertia``      :math:`\\Delta J\\,\\ddot q_\\ell`, per joint
 ``payload``            point mass ``m`` with centre of mass ``c`` at the flange:
                        last link's regressor times a fixed map of ``(m, m c)``
@@ -447,6 +450,62 @@ class StribeckFriction(Effect):
         word = "higher" if value > 0 else "lower"
         return (f"{_joint_list(joints)} has a {word} breakaway (Stribeck) friction peak: "
                 f"{abs(value):.3g} +- {std:.2g} Nm below about {vs:.3g} rad/s")
+
+
+class FrictionSoftening(StribeckFriction):
+    """Dry friction that softens at low speed (regularised or constraint-based friction).
+
+    .. math::
+
+        \tau = -\Delta F_0\, \mathrm{sign}(\dot q_\ell)\,
+            e^{-(\dot q_\ell / v_0)^2}, \qquad \Delta F_0 \ge 0
+
+    The friction is :math:`\Delta F_0` below the Coulomb level as the
+    velocity goes to zero, over a velocity scale :math:`v_0` (the smooth
+    ``tanh``/saturated laws of simulators, the soft friction constraint of
+    MuJoCo, the pre-sliding regime of a real gearbox). Same columns as
+    :class:`StribeckFriction` with the opposite, physically constrained
+    sign: a Stribeck peak raises the friction at low speed, softening lowers
+    it; a fit of one with the other's sign is rejected.
+
+    Examples
+    --------
+    >>> FrictionSoftening().name, FrictionSoftening().parameter_names
+    ('friction_softening', ('softening', 'softening_velocity'))
+    """
+
+    name = "friction_softening"
+    title = "low-speed softening of dry friction"
+    parameter_names = ("softening", "softening_velocity")
+    units = ("Nm", "rad/s")
+
+    def design(self, signals, nominal, target, stribeck_velocity=0.02, **ignored):
+        cols = super().design(signals, nominal, target, stribeck_velocity=stribeck_velocity)
+        return {j: -c for j, c in cols.items()}
+
+    def physical(self, theta, cov, target, settings, nominal):
+        peak = super().physical(theta, cov, target, settings, nominal)
+        return dict(zip(self.parameter_names, peak.values()))
+
+    def implausible(self, params, target, nominal):
+        value, vs = params["softening"][0], params["softening_velocity"][0]
+        lo, hi = BOUNDS["stribeck_velocity"]
+        if value < 0:
+            return (f"a negative softening ({value:.3g} Nm) is a Stribeck peak, not a softening "
+                    "of dry friction")
+        coulomb = nominal_friction_levels(nominal, target)[0]
+        if coulomb > 0 and value > 1.5 * coulomb:
+            return (f"softening of {value:.3g} Nm exceeds 1.5 times the dry friction "
+                    f"({coulomb:.3g} Nm)")
+        if not lo <= vs <= hi:
+            return f"softening velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
+        return None
+
+    def sentence(self, params, joints):
+        value, std = params["softening"]
+        vs = params["softening_velocity"][0]
+        return (f"the dry friction of {_joint_list(joints)} softens at low speed: "
+                f"{value:.3g} +- {std:.2g} Nm below the Coulomb level under about {vs:.3g} rad/s")
 
 
 class RotorInertia(Effect):
@@ -943,7 +1002,8 @@ class FrictionDrift(Effect):
 
 #: The effect library, in order of prior plausibility: on ties within one
 #: standard error the selection prefers the effect listed first.
-EFFECTS = (CoulombFriction, ViscousFriction, StribeckFriction, PayloadEffect, TorqueConstant,
+EFFECTS = (CoulombFriction, ViscousFriction, StribeckFriction, FrictionSoftening, PayloadEffect,
+           TorqueConstant,
            CurrentOffset, RotorInertia, GravityTilt, TimeDelay, JointSpring, FrictionDrift,
            LinkMass)
 
