@@ -76,6 +76,7 @@ def mjcf(robot, armature, injection=None):
     model = robot.model
     frame = model.frames[robot.flange_frame_id]
     lines = ['<mujoco model="plant">',
+             '<compiler angle="radian"/>',
              f'<option timestep="{STEP}" integrator="implicitfast"/>',
              "<worldbody>"]
     closing = []

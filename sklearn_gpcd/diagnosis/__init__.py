@@ -22,13 +22,14 @@ When a simulation and real recordings differ, :class:`DynamicsDiagnosis`
 """
 
 from .align import align_recordings, estimate_lag
-from .core import DynamicsDiagnosis
+from .core import DynamicsDiagnosis, units_problem
 from .effects import EFFECTS, Effect, effect_library
 from .locate import ResidualBreakdown, residual_breakdown
 from .model import DiagnosedModel, FittedEffect, JointFeatures, joint_fit
 from .nominal import NominalModel, Signals
 from .report import DiagnosisReport
-from .selection import Candidate, Step, forward_selection
+from .selection import Candidate, Step, forward_selection, plausibility_check, \
+    separating_excitation
 
 __all__ = [
     "Candidate",
@@ -48,5 +49,8 @@ __all__ = [
     "estimate_lag",
     "forward_selection",
     "joint_fit",
+    "plausibility_check",
     "residual_breakdown",
+    "separating_excitation",
+    "units_problem",
 ]

@@ -72,6 +72,7 @@ BOUNDS = {
     "stribeck_velocity": (0.002, 0.5),  # [rad/s]
     "rotor_inertia": 5.0,  # |delta J| [kg m^2]
     "payload_com": 0.5,  # |c| [m]
+    "payload_fraction": 0.05,  # smallest payload named, share of the rated payload
     "joint_position": 2 * np.pi + 0.25,  # |q_0| [rad]: a UR joint spans +-2 pi
     "coulomb_rate": 1.0,  # |rate| [Nm/s]
 }
@@ -457,10 +458,10 @@ class FrictionSoftening(StribeckFriction):
 
     .. math::
 
-        \tau = -\Delta F_0\, \mathrm{sign}(\dot q_\ell)\,
-            e^{-(\dot q_\ell / v_0)^2}, \qquad \Delta F_0 \ge 0
+        \\tau = -\\Delta F_0\\, \\mathrm{sign}(\\dot q_\\ell)\\,
+            e^{-(\\dot q_\\ell / v_0)^2}, \\qquad \\Delta F_0 \\ge 0
 
-    The friction is :math:`\Delta F_0` below the Coulomb level as the
+    The friction is :math:`\\Delta F_0` below the Coulomb level as the
     velocity goes to zero, over a velocity scale :math:`v_0` (the smooth
     ``tanh``/saturated laws of simulators, the soft friction constraint of
     MuJoCo, the pre-sliding regime of a real gearbox). Same columns as
@@ -634,10 +635,14 @@ class PayloadEffect(Effect):
 
     def implausible(self, params, target, nominal):
         m = params["mass"][0]
-        limit = 2.0 * rated_payload(nominal.robot)
-        if not 0 < m <= limit:
-            return (f"payload mass {m:.3g} kg outside (0, {limit:g}] kg (twice the rated "
+        rated = rated_payload(nominal.robot)
+        if not 0 < m <= 2.0 * rated:
+            return (f"payload mass {m:.3g} kg outside (0, {2.0 * rated:g}] kg (twice the rated "
                     "payload)")
+        if m < BOUNDS["payload_fraction"] * rated:
+            return (f"payload mass {m:.3g} kg is below {100 * BOUNDS['payload_fraction']:g} % "
+                    f"of the rated payload ({rated:g} kg): within what link-mass and "
+                    "friction calibration errors produce, not a finding")
         com = np.array([params[k][0] for k in ("com_x", "com_y", "com_z")])
         if not np.all(np.isfinite(com)) or np.linalg.norm(com) > BOUNDS["payload_com"]:
             return (f"centre of mass {np.linalg.norm(com):.3g} m from the flange (more than "

@@ -359,8 +359,14 @@ class DiagnosisReport:
                     f"{separating_excitation(first, second, joints)}.")
         if self.implausible:
             lines += ["", "   Rejected estimates (not reported as findings):"]
+            by_effect = {}
             for r in self.implausible:
-                lines.append(f"   - {r['name']}: {r['reason']}.")
+                by_effect.setdefault(r["effect"], []).append(r)
+            for name, group in by_effect.items():
+                joints = sorted({j for r in group for j in r["joints"]})
+                more = (f" (and {len(group) - 1} more like it)" if len(group) > 1 else "")
+                lines.append(f"   - {name.replace('_', ' ')} on {_joint_list(joints)}: "
+                             f"{group[0]['reason']}{more}.")
         where = ("held-out recordings" if self.heldout else
                  "training recordings (in-sample: pass test recordings for a fair figure)")
         lines += ["", f"3. Fit before -> after, nMSE per joint while moving, on {where}:"]
