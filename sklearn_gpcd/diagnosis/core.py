@@ -18,7 +18,7 @@ from .locate import residual_breakdown
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
 from .selection import MIN_GAIN, MIN_SHARE, MIN_T, build_candidates, fold_index, \
-    fold_statistics, forward_selection, plausibility_check
+    expand_composites, fold_statistics, forward_selection, plausibility_check
 
 #: Significance level of the Wald test on a named effect's parameters
 #: (autocorrelation-corrected covariance): the parameters must differ from
@@ -343,7 +343,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         zero (Wald test at :data:`WALD_LEVEL` with the autocorrelation-
         corrected covariance).
         """
-        selected = list(selected)
+        selected = expand_composites(selected)
         while True:
             guard = any(s.candidate.effect.rest_guard for s in selected)
             model = joint_fit(signals, self.nominal_, selected,

@@ -69,7 +69,7 @@ given all the others. The chosen set is refitted jointly on all data
 (:func:`joint_fit`).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import linalg
@@ -130,6 +130,10 @@ class Candidate:
         Indices of its columns in the stacked design.
     order : int
         Position of the effect in the library (prior plausibility).
+    parts : tuple of Candidate
+        For a composite (a Stribeck peak together with a low-speed softening
+        on one joint, which can cancel each other when tried one at a
+        time): its constituents, which share its columns; empty otherwise.
 
     Examples
     --------
@@ -147,6 +151,7 @@ class Candidate:
     joints: tuple
     columns: np.ndarray
     order: int
+    parts: tuple = ()
 
     @property
     def n_params(self):
@@ -161,10 +166,11 @@ class Candidate:
     @property
     def label(self):
         """Readable name, joints and links counted from 1: ``"coulomb_friction[joint 3]"``."""
+        name = "+".join(p.effect.name for p in self.parts) or self.effect.name
         if self.target is None:
-            return self.effect.name
+            return name
         kind = "link" if self.effect.name == "link_mass" else "joint"
-        return f"{self.effect.name}[{kind} {self.target + 1}]"
+        return f"{name}[{kind} {self.target + 1}]"
 
 
 def build_candidates(signals, nominal, effects):
@@ -199,7 +205,65 @@ def build_candidates(signals, nominal, effects):
                 for j, values in cols.items():
                     design[j].append((len(candidates), values))
                 candidates.append(cand)
-    return candidates, design
+    return candidates + _friction_pairs(candidates), design
+
+
+#: A composite Stribeck peak + softening pairs a peak at ``v_s`` with a
+#: softening at ``v_0 <= v_s / PAIR_SEPARATION`` (apart enough to be told apart).
+PAIR_SEPARATION = 3.0
+
+
+def _friction_pairs(candidates):
+    """Composites of a Stribeck peak and a low-speed softening on the same joint.
+
+    A peak added to friction that softens at lower speed cancels part of the
+    softening: tried one at a time, neither lowers the error much. The
+    composite shares the columns of its two parts (no new columns).
+    """
+    peaks = [c for c in candidates if c.effect.name == "stribeck_friction"]
+    softenings = [c for c in candidates if c.effect.name == "friction_softening"]
+    pairs = []
+    for peak in peaks:
+        vs = peak.settings.get("stribeck_velocity")
+        for soft in softenings:
+            v0 = soft.settings.get("stribeck_velocity")
+            if soft.target != peak.target or vs is None or v0 is None or \
+                    v0 * PAIR_SEPARATION > vs:
+                continue
+            pairs.append(Candidate(peak.effect, peak.target,
+                                   {**peak.settings, "softening_velocity": v0}, peak.joints,
+                                   np.concatenate([peak.columns, soft.columns]), peak.order,
+                                   parts=(peak, soft)))
+    return pairs
+
+
+def expand_composites(steps):
+    """Selected steps with every composite replaced by its parts (same evidence).
+
+    Parameters
+    ----------
+    steps : list of Step or Candidate
+
+    Returns
+    -------
+    steps : list of Step or Candidate
+    """
+    out = []
+    for step in steps:
+        cand = step.candidate if hasattr(step, "candidate") else step
+        if not cand.parts:
+            out.append(step)
+            continue
+        start = 0
+        for part in cand.parts:
+            if hasattr(step, "candidate"):
+                theta = None if step.theta is None else \
+                    step.theta[start:start + part.n_params]
+                out.append(replace(step, candidate=part, theta=theta))
+            else:
+                out.append(part)
+            start += part.n_params
+    return out
 
 
 @dataclass
@@ -233,8 +297,11 @@ class FoldStatistics:
         return self.gram.shape[0]
 
     def totals(self):
-        """Statistics summed over folds: (gram, cross, rss, counts)."""
-        return self.gram.sum(0), self.cross.sum(0), self.rss.sum(0), self.counts.sum(0)
+        """Statistics summed over folds: (gram, cross, rss, counts), computed once."""
+        if "totals" not in self._cache:
+            self._cache["totals"] = (self.gram.sum(0), self.cross.sum(0), self.rss.sum(0),
+                                     self.counts.sum(0))
+        return self._cache["totals"]
 
 
 def fold_index(signals, n_splits):
@@ -334,11 +401,7 @@ def cv_losses(stats, columns, weights):
         Held-out SSE / (rows * variance of the current).
     """
     F, J = stats.rss.shape
-    gram_all = stats._cache.get("gram_all")
-    if gram_all is None:
-        gram_all = stats._cache["gram_all"] = stats.gram.sum(0)
-        stats._cache["cross_all"] = stats.cross.sum(0)
-    cross_all = stats._cache["cross_all"]
+    gram_all, cross_all = stats.totals()[:2]
     c = np.asarray(columns, dtype=int)
     losses = np.empty((F, J))
     sub_gram = stats.gram[:, :, c[:, None], c[None, :]]  # (F, J, k, k)
@@ -666,10 +729,7 @@ def _one_standard_error(eligible):
 
 def _contribution_correlation(stats, base, a, b):
     """Correlation (over joints and training rows) of two candidates' fitted terms."""
-    gram = stats._cache.get("gram_all")
-    if gram is None:
-        gram = stats._cache["gram_all"] = stats.gram.sum(0)
-        stats._cache["cross_all"] = stats.cross.sum(0)
+    gram = stats.totals()[0]
     ca, cb = a.candidate.columns, b.candidate.columns
     ta, tb = a.theta, b.theta
     ab = np.einsum("a,jab,b->", ta, gram[:, ca[:, None], cb[None, :]], tb)
@@ -690,8 +750,8 @@ def _record_ambiguity(stats, base, pick, close, ambiguities, check):
         if check is not None and check(other, step.theta) is not None:
             continue
         corr = _contribution_correlation(stats, base, pick, step)
-        if abs(corr) >= AMBIGUOUS_CORRELATION and abs(corr) > abs(
-                rivals.get(other.effect.name, (0.0, None))[0]):
+        # both terms fit the same residual: confusable ones are positively correlated
+        if corr >= AMBIGUOUS_CORRELATION and corr > rivals.get(other.effect.name, (0.0,))[0]:
             rivals[other.effect.name] = (corr, step)
     for name, (corr, step) in rivals.items():
         joints = sorted(set(pick.candidate.joints) | set(step.candidate.joints))
@@ -762,6 +822,14 @@ def plausibility_check(nominal):
         if theta is None:
             return None
         theta = np.asarray(theta, dtype=float)
+        if candidate.parts:
+            start = 0
+            for part in candidate.parts:
+                reason = check(part, theta[start:start + part.n_params])
+                if reason is not None:
+                    return f"{part.effect.name.replace('_', ' ')}: {reason}"
+                start += part.n_params
+            return None
         effect = candidate.effect
         params = effect.physical(theta, np.zeros((theta.size, theta.size)), candidate.target,
                                  candidate.settings, nominal)
