@@ -245,3 +245,38 @@ def test_separating_excitation_names_joints_from_one():
     text = separating_excitation("rotor_inertia", "link_mass", [0, 1])
     assert text.startswith("on joints 1, 2")
     assert "oscillations" in text and "gravity" in text
+
+
+# ---------------------------------------------------------- friction family
+def test_stribeck_peak_over_softening_dry_friction_is_found_with_both_signs():
+    """A peak (+6 Nm at 0.04 rad/s) on friction that softens at lower speed (-8 Nm at
+    0.004 rad/s): tried alone each is cancelled by the other; the pair is found, each with
+    its physical sign."""
+    rng = np.random.default_rng(1)
+    nominal = NominalModel("ur10")
+    n = 3000
+    qd = rng.uniform(-1, 1, (n, 6)) * 10 ** rng.uniform(-3.5, -0.5, (n, 6))
+    X = np.hstack([rng.uniform(-1, 1, (n, 6)), qd, np.zeros((n, 6))])
+    s = Signals.from_states(nominal, X)
+    v = s.qd[:, 1]
+    k = s.torque_constants[1]
+    s.current = s.reference + 0.01 * rng.normal(size=(n, 6))
+    s.current[:, 1] += (6.0 * np.sign(v) * np.exp(-(v / 0.04) ** 2)
+                        - 8.0 * np.sign(v) * np.exp(-(v / 0.004) ** 2)) / k
+    library = effect_library(["stribeck_friction", "friction_softening"])
+    candidates, design = build_candidates(s, nominal, library)
+    assert any(c.parts for c in candidates)
+    stats = fold_statistics(candidates, design, s.current - s.reference,
+                            np.ones((n, 6), dtype=bool), fold_index(s, 5), 5, s.current)
+    check = plausibility_check(nominal)
+    selected, _ = forward_selection(stats, candidates, check=check)
+    assert [st.candidate.label for st in selected] == [
+        "stribeck_friction+friction_softening[joint 2]"]
+    from sklearn_gpcd.diagnosis import joint_fit
+    from sklearn_gpcd.diagnosis.selection import expand_composites
+
+    model = joint_fit(s, nominal, expand_composites(selected), np.ones((n, 6), dtype=bool))
+    fitted = {f.name: f.parameters for f in model.effects}
+    assert fitted["stribeck_friction"]["delta_stribeck"][0] == pytest.approx(6.0, rel=0.2)
+    assert fitted["stribeck_friction"]["stribeck_velocity"][0] == pytest.approx(0.04, rel=0.2)
+    assert fitted["friction_softening"]["softening"][0] == pytest.approx(8.0, rel=0.2)

@@ -17,8 +17,8 @@ from .effects import effect_library
 from .locate import residual_breakdown
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
-from .selection import MIN_GAIN, MIN_SHARE, MIN_T, build_candidates, fold_index, \
-    expand_composites, fold_statistics, forward_selection, plausibility_check
+from .selection import MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, build_candidates, \
+    expand_composites, fold_index, fold_statistics, forward_selection, plausibility_check
 
 #: Significance level of the Wald test on a named effect's parameters
 #: (autocorrelation-corrected covariance): the parameters must differ from
@@ -29,6 +29,35 @@ WALD_LEVEL = 1e-3
 def _nmse(current, prediction, mask):
     """Per-joint nMSE (paper Eq. 18) over ``mask``; NaN where the current is constant."""
     return np.asarray(nmse(current, prediction, mask=mask), dtype=float)
+
+
+def _inseparable_friction(effects):
+    """A Stribeck peak and a softening on one joint with velocity scales too close to tell.
+
+    Returns ``[(index, reason)]`` for the one of the pair that explains less
+    (the refit may move the two scales together, where their difference is
+    only a reshaping of the friction curve), else an empty list.
+    """
+    velocity = {"stribeck_friction": "stribeck_velocity",
+                "friction_softening": "softening_velocity"}
+    by_joint = {}
+    for k, f in enumerate(effects):
+        if f.name in velocity:
+            by_joint.setdefault(f.target, {})[f.name] = k
+    out = []
+    for pair in by_joint.values():
+        if len(pair) < 2:
+            continue
+        (a, ka), (b, kb) = sorted(pair.items())
+        va = effects[ka].parameters[velocity[a]][0]
+        vb = effects[kb].parameters[velocity[b]][0]
+        if max(va, vb) < PAIR_SEPARATION * min(va, vb):
+            weak, other = sorted([ka, kb], key=lambda k: effects[k].explained_variance)
+            out.append((weak, f"its velocity scale is within a factor {PAIR_SEPARATION:g} of "
+                              f"the {effects[other].name.replace('_', ' ')} on the same joint "
+                              f"({va:.3g} and {vb:.3g} rad/s): the recordings cannot separate "
+                              "a peak from a softening there"))
+    return out
 
 
 def units_problem(recording):
@@ -349,7 +378,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             model = joint_fit(signals, self.nominal_, selected,
                               guarded_mask if guard else mask)
             problems = [(k, reason) for k, f in enumerate(model.effects)
-                        if (reason := self._problem(f))]
+                        if (reason := self._problem(f))] or _inseparable_friction(model.effects)
             if not problems:
                 return model
             k, reason = min(problems, key=lambda p: model.effects[p[0]].explained_variance)

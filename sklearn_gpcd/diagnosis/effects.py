@@ -665,6 +665,12 @@ class LinkMass(Effect):
     [kg m] in the link frame (the centre of mass moving). Linear in the
     link's 10 inertial parameters: ``Y_k @ [dm [1, c_k, I(c_k)] + [0, dh, 0]]``.
 
+    Two variants compete: the mass change alone (at the nominal centre of
+    mass, one parameter; the first-moment changes are reported as 0) and
+    with the centre of mass moving (four parameters, weakly told apart from
+    the mass by gravity alone); the selection prefers the simpler one unless
+    the other is clearly better.
+
     Only links ``1 .. n-2`` (0-based) are candidates: the mass of link 0
     does not load the (vertical) base joint, and a change of the last link is
     the ``payload`` effect. A payload whose centre of mass lies on the last
@@ -687,12 +693,24 @@ class LinkMass(Effect):
     def targets(self, nominal):
         return list(range(1, nominal.n_joints - 1))
 
-    def design(self, signals, nominal, target, **settings):
+    def settings_grid(self):
+        # mass at the nominal centre of mass only, or with the centre of mass moving;
+        # the one-standard-error rule prefers the first (1 parameter against 4)
+        return [{"com_shift": False}, {"com_shift": True}]
+
+    def design(self, signals, nominal, target, com_shift=True, **settings):
         com = nominal.robot.model.inertias[target + 1].lever
         mapping = np.column_stack([_point_mass_parameters(1.0, np.zeros(3), com)]
-                                  + [np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)])
+                                  + ([np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)]
+                                     if com_shift else []))
         Y = signals.rigid_body_regressor(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * target:10 * target + 10], mapping)
+
+    def physical(self, theta, cov, target, settings, nominal):
+        params = super().physical(theta, cov, target, settings, nominal)
+        for name in self.parameter_names[len(theta):]:
+            params[name] = (0.0, 0.0)  # centre of mass kept (com_shift=False)
+        return params
 
     def implausible(self, params, target, nominal):
         dm = params["delta_mass"][0]

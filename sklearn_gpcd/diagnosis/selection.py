@@ -743,8 +743,9 @@ def _record_ambiguity(stats, base, pick, close, ambiguities, check):
     rivals = {}
     for step in close:
         other = step.candidate
-        if other.effect.name == pick.candidate.effect.name:
-            continue
+        names = {c.effect.name for c in (pick.candidate, *pick.candidate.parts)}
+        if names & {c.effect.name for c in (other, *other.parts)}:
+            continue  # the same effect (or a composite holding it)
         if not set(other.joints) & set(pick.candidate.joints):
             continue
         if check is not None and check(other, step.theta) is not None:
