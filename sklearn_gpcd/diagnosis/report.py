@@ -244,7 +244,11 @@ class DiagnosisReport:
         )
 
     def to_dict(self):
-        """JSON-ready dictionary: ``effects``, ``nmse_before``, ``nmse_after`` and more."""
+        """JSON-ready dictionary of the report.
+
+        Keys: ``schema`` (joints are 0-based here), ``effects``, ``nmse_before``,
+        ``nmse_after``, ``rejected_estimates``, ``ambiguous`` and more.
+        """
         out = {
             "schema": JSON_SCHEMA_NOTE,
             "effects": self.effects,
@@ -318,15 +322,21 @@ class DiagnosisReport:
             lines.append(
                 f"   Nothing. None of the {len(s.get('effects_tested', []))} effects tested "
                 f"({tested}; {s.get('n_candidates', '?')} candidates over joints, links and "
-                "settings) lowers the held-out error reliably. The nominal model explains the "
+                "settings) lowers the held-out error both reliably and by a practical amount "
+                "with plausible parameters. The nominal model explains the "
                 "data as far as these effects can tell.")
             if self.rejected:
                 r = self.rejected[0]
                 lines.append(
                     f"   Closest call: {r['name']} would remove "
                     f"{100 * r['relative_gain']:.1f} % of the held-out error of its joints "
-                    f"(t = {r['t_statistic'] or float('nan'):.1f}; needs >= "
-                    f"{100 * s.get('min_gain', 0):.0f} % and t >= {s.get('min_t', 0):g}).")
+                    f"(t = {r['t_statistic'] or float('nan'):.1f}, lower in "
+                    f"{r['folds_improved']} folds, "
+                    f"{100 * (r.get('share_of_nominal_residual') or 0):.2g} % of the nominal "
+                    f"residual; naming needs >= {100 * s.get('min_gain', 0):.0f} %, t >= "
+                    f"{s.get('min_t', 0):g} or every fold, >= "
+                    f"{100 * (s.get('min_share') or 0):g} % of the residual and plausible "
+                    "parameters).")
         for k, e in enumerate(self.effects, 1):
             ev = e["evidence"]
             t = ev.get("t_statistic")
