@@ -128,9 +128,21 @@ def main(argv=None):
         diag = DynamicsDiagnosis(base_model=calib.model_).fit(recs[name])
         results["controls"][name] = {"payload": payload_of(diag), "effects": summary(diag)}
         pay = payload_of(diag)
+        rejected = [r["reason"] for r in diag.rejected_effects_ if r["effect"] == "payload"]
         print(f"   {name:36s} " + (f"payload {pay['mass']:.2f} kg (!)" if pay else
-                                  "no payload") + f"; effects: {', '.join(summary(diag)) or '-'}")
+                                  "no payload") + f"; effects: {', '.join(summary(diag)) or '-'}"
+              + (f"; rejected payload estimate: {rejected[0]}" if rejected else ""))
     results["seconds"]["controls"] = time.perf_counter() - t0
+    loaded_direct = sum(results["direct"][n]["payload"] is not None for n in LOADED)
+    loaded_calibrated = sum(results["calibrated"][n]["payload"] is not None for n in LOADED)
+    unloaded_clean = sum(results["controls"][n]["payload"] is None for n in UNLOADED)
+    results["summary"] = {"loaded_with_payload_direct": loaded_direct,
+                          "loaded_with_payload_calibrated": loaded_calibrated,
+                          "unloaded_without_payload": unloaded_clean,
+                          "n_loaded": len(LOADED), "n_unloaded": len(UNLOADED)}
+    print(f"loaded runs diagnosed with a payload: {loaded_direct}/{len(LOADED)} (direct), "
+          f"{loaded_calibrated}/{len(LOADED)} (calibrated); unloaded runs diagnosed without "
+          f"a payload: {unloaded_clean}/{len(UNLOADED)}")
     results["seconds"]["total"] = time.perf_counter() - start
     print(f"total {results['seconds']['total']:.1f} s")
     if args.json:

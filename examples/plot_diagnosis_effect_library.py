@@ -148,7 +148,8 @@ def score(case, diagnosis, test, expected):
     if not expected:
         ok = not found
         return [dict(case=case, effect="(none)", injected="-",
-                     found=", ".join(f"{f.name}{list(f.joints)}" for f in diagnosis.effects_)
+                     found=", ".join(f"{f.name}{[j + 1 for j in f.joints]}"
+                                     for f in diagnosis.effects_)
                      or "-", params=[], nmse=nmse_text, nmse_pair=(before, after, nmse_joints),
                      verdict="OK: nothing found" if ok else "FAIL: spurious effect")]
     rows = []
@@ -185,6 +186,11 @@ def score(case, diagnosis, test, expected):
 # %%
 # Run every case
 # --------------
+def _from_one(joints):
+    """Joint lists counted from 1 for the table (the arrays count from 0)."""
+    return str([j + 1 for j in joints]) if isinstance(joints, list) else str(joints)
+
+
 rows = []
 for case, (effects, delay, expected) in CASES.items():
     train, test = simulate(effects, delay)
@@ -203,8 +209,8 @@ for row in rows:
         else:
             key, truth, value, error = param
             ptext, etext = f"{key}: {truth:.4g} vs {value:.4g}", f"{error:.1f}"
-        cells = ([row["case"], row["effect"], str(row["injected"]), str(row["found"]),
-                  row["nmse"], row["verdict"]] if k == 0 else [""] * 6)
+        cells = ([row["case"], row["effect"], _from_one(row["injected"]),
+                  _from_one(row["found"]), row["nmse"], row["verdict"]] if k == 0 else [""] * 6)
         print(f"{cells[0]:<26} {cells[1]:<18} {cells[2]:<13} {cells[3]:<19} "
               f"{ptext:<36} {etext:>6}  {cells[4]:<20}  {cells[5]}")
 n_ok = sum(row["verdict"].startswith("OK") for row in rows)

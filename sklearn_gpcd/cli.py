@@ -104,6 +104,8 @@ def _cmd_diagnose(args):
             return None
         return [load_recording(path, n_joints=args.robot.n_joints) for path in paths]
 
+    for option, path in (("--json", args.json), ("--plot", args.plot)):
+        _check_output_path(option, path)
     torque_constants = split(args.torque_constants, "--torque-constants")
     friction = None
     if args.coulomb is not None or args.viscous is not None:
@@ -114,7 +116,8 @@ def _cmd_diagnose(args):
     start = time.perf_counter()
     train, test = load(args.train), load(args.test)
     diagnosis = DynamicsDiagnosis(args.robot, torque_constants=torque_constants,
-                                  friction=friction, effects=effects)
+                                  friction=friction, effects=effects,
+                                  check_units=not args.units_confirmed)
     diagnosis.fit(train, simulated=load(args.simulated))
     report = diagnosis.report(test, load(args.test_simulated))
     print(report.text())
@@ -126,6 +129,30 @@ def _cmd_diagnose(args):
         print(f"wrote {args.plot}")
     print(f"done in {time.perf_counter() - start:.1f} s")
     return 0
+
+
+#: Figure formats ``--plot`` accepts (by file suffix).
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+
+
+def _check_output_path(option, path):
+    """Fail before any work when ``path`` cannot be written (missing folder, bad suffix)."""
+    import os
+    from pathlib import Path
+
+    if path is None:
+        return
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise ValueError(f"{option} {path}: is a folder, give a file name")
+    if not folder.is_dir():
+        raise ValueError(f"{option} {path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"{option} {path}: folder {folder} is not writable")
+    if option == "--plot" and path.suffix.lower() not in PLOT_SUFFIXES:
+        raise ValueError(f"{option} {path}: unknown figure format {path.suffix!r}; use one "
+                         f"of {', '.join(PLOT_SUFFIXES)}")
 
 
 def build_parser():
@@ -203,6 +230,9 @@ def build_parser():
                      help="simulated runs of the test trajectories (pair mode)")
     dia.add_argument("--json", default=None, help="write the report as JSON here")
     dia.add_argument("--plot", default=None, help="write the figure here (PNG, PDF, ...)")
+    dia.add_argument("--units-confirmed", action="store_true",
+                     help="diagnose even when positions look like degrees or time like "
+                     "milliseconds (refused by default)")
     dia.set_defaults(func=_cmd_diagnose)
     return parser
 

@@ -346,3 +346,27 @@ def test_real_loaded_ur10e_run_carries_a_payload(ur10e_dir):
     payload = [e for e in diag.effects_ if e.name == "payload"]
     assert payload, [e.name for e in diag.effects_]
     assert 2.0 < payload[0].parameters["mass"][0] < 3.2
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+@pytest.mark.parametrize("control", ["ur-20_02_19_14harm50sec.csv",
+                                     "ur-20_02_19_15harm50sec.csv", "ur-20_01_31-unload.csv"])
+def test_real_unloaded_ur10e_run_carries_no_payload(ur10e_dir, control):
+    """An unloaded run against a model calibrated on the other unloaded runs: no payload."""
+    import warnings
+
+    from sklearn_gpcd.io import RecordingWarning, load_recording
+
+    names = ["ur-20_02_19_14harm50sec.csv", "ur-20_02_19_15harm50sec.csv",
+             "ur-20_01_31-unload.csv"]
+    folder = ur10e_dir / "identification_data"
+    if not all((folder / n).is_file() for n in names):
+        pytest.skip(f"unloaded runs not found in {folder}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RecordingWarning)
+        recs = {n: load_recording(folder / n) for n in names}
+    robot = load_robot("ur10e")
+    calibration = DynamicsDiagnosis(robot).fit([recs[n] for n in names if n != control])
+    diag = DynamicsDiagnosis(base_model=calibration.model_).fit(recs[control])
+    assert "payload" not in [e.name for e in diag.effects_]

@@ -103,6 +103,9 @@ class Case:
     warn: list = None
     dropped: list = None
     cli_status: int = None  # default: 2 for errors, 0 for warnings
+    #: units flagged (degrees, milliseconds): ``gpcd diagnose`` refuses the file
+    #: (exit 2) unless ``--units-confirmed`` (issue #16)
+    units: bool = False
     loader_kwargs: dict = field(default_factory=dict)
 
 
@@ -460,10 +463,10 @@ CASES = {
     "too-short-to-differentiate": Case(_too_short, error=[
         r"short\.csv", r"8 (rows|samples)", r"at least 21"]),
     "single-row": Case(_single_row, error=[r"one_row\.csv", r"too short", r"at least"]),
-    "degrees": Case(_degrees, warn=[r"degrees\.csv", r"look like degrees", r"deg2rad"],
+    "degrees": Case(_degrees, warn=[r"degrees\.csv", r"look like degrees", r"deg2rad"], units=True,
                     dropped=[]),
     "degrees-small-motion": Case(_degrees_small_motion, warn=[
-        r"degrees_small\.csv", r"actual_q_\d", r"degrees", r"57"], dropped=[]),
+        r"degrees_small\.csv", r"actual_q_\d", r"degrees", r"57"], dropped=[], units=True),
     "five-joints-robot-has-six": Case(_five_joints, error=[
         r"five_joints\.csv", r"actual_q_5", r"5 .*n_joints=6|6 joints"]),
     "seven-joints-robot-has-six": Case(_seven_joints, error=[
@@ -483,7 +486,7 @@ CASES = {
         r"line 802: column '\w+': '.*\ufffd' is not a number"], dropped=[502, 802]),
     "time-in-milliseconds": Case(_milliseconds, warn=[
         r"millis\.csv", r"gain g \(1 expected\) of 'actual_q_0' 0\.001",
-        r"time_scale=1e-3"], dropped=[]),
+        r"time_scale=1e-3"], dropped=[], units=True),
     "directory": Case(_directory, error=[r"a_folder\.csv", r"folder"]),
     "no-such-file": Case(_missing_file, error=[r"does_not_exist\.csv", r"no such file"]),
     "headerless-unknown-width": Case(_headerless_wrong_width, error=[
@@ -561,11 +564,20 @@ def test_cli(case_path, request, capsys):
         assert lines[0].startswith("gpcd diagnose: error: "), err
         assert case_path.name in lines[0]
         return
-    assert status == 0, err
     warned = [line for line in lines if line.startswith("gpcd diagnose: warning: ")]
     assert len(warned) == (0 if case.warn is None else 1), err
     if case.warn is not None:
         _assert_names_all(warned[0], case.warn)
+    if case.units:
+        # flagged units: refused with one error line, diagnosed once confirmed
+        assert status == 2, err
+        errors = [line for line in lines if line.startswith("gpcd diagnose: error: ")]
+        assert len(errors) == 1 and len(lines) == 2, err
+        assert case_path.name in errors[0] and "--units-confirmed" in errors[0], err
+        status = main(DIAGNOSE + ["--units-confirmed", str(case_path)])
+        out, err = capsys.readouterr()
+        lines = [line for line in err.splitlines() if line.strip()]
+    assert status == 0, err
     assert all(line.startswith("gpcd diagnose: warning: ") for line in lines), err
 
 

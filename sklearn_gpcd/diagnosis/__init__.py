@@ -6,7 +6,8 @@ When a simulation and real recordings differ, :class:`DynamicsDiagnosis`
    (rest, creep, moving, reversals, high acceleration), configuration region
    and time (:func:`residual_breakdown`);
 2. **names** the missing physics: a library of named effects
-   (:mod:`~sklearn_gpcd.diagnosis.effects`: friction terms, rotor inertia,
+   (:mod:`~sklearn_gpcd.diagnosis.effects`: friction terms (Coulomb, viscous,
+   Stribeck peak, low-speed softening), rotor inertia,
    payload, link mass, gravity tilt, torque constant, current offset, time
    delay, joint spring, friction drift) competes in a forward selection on
    held-out time blocks (:mod:`~sklearn_gpcd.diagnosis.selection`);
@@ -17,17 +18,18 @@ When a simulation and real recordings differ, :class:`DynamicsDiagnosis`
 
 >>> from sklearn_gpcd.diagnosis import effect_library
 >>> len(effect_library())
-12
+13
 """
 
 from .align import align_recordings, estimate_lag
-from .core import DynamicsDiagnosis
+from .core import DynamicsDiagnosis, units_problem
 from .effects import EFFECTS, Effect, effect_library
 from .locate import ResidualBreakdown, residual_breakdown
 from .model import DiagnosedModel, FittedEffect, JointFeatures, joint_fit
 from .nominal import NominalModel, Signals
 from .report import DiagnosisReport
-from .selection import Candidate, Step, forward_selection
+from .selection import Candidate, Step, forward_selection, plausibility_check, \
+    separating_excitation
 
 __all__ = [
     "Candidate",
@@ -47,5 +49,8 @@ __all__ = [
     "estimate_lag",
     "forward_selection",
     "joint_fit",
+    "plausibility_check",
     "residual_breakdown",
+    "separating_excitation",
+    "units_problem",
 ]

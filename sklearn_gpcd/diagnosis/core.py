@@ -7,30 +7,91 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
+from scipy import stats as _stats
+
 from .._persistence import VersionedStateMixin
+from ..io._checks import degrees_note, units_note
+from ..metrics import nmse
 from .align import align_recordings
 from .effects import effect_library
 from .locate import residual_breakdown
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
-from .selection import MIN_GAIN, MIN_T, build_candidates, fold_index, fold_statistics, \
-    forward_selection
+from .selection import MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, build_candidates, \
+    expand_composites, fold_index, fold_statistics, forward_selection, plausibility_check
+
+#: Significance level of the Wald test on a named effect's parameters
+#: (autocorrelation-corrected covariance): the parameters must differ from
+#: zero at this level.
+WALD_LEVEL = 1e-3
 
 
 def _nmse(current, prediction, mask):
     """Per-joint nMSE (paper Eq. 18) over ``mask``; NaN where the current is constant."""
-    try:
-        from ..metrics import nmse
-    except ImportError:  # pragma: no cover - metrics is part of the package
-        nmse = None
-    if nmse is not None:
-        return np.asarray(nmse(current, prediction, mask=mask), dtype=float)
-    out = np.full(current.shape[1], np.nan)
-    for j in range(current.shape[1]):
-        t, p = current[mask[:, j], j], prediction[mask[:, j], j]
-        if t.size and np.var(t) > 0:
-            out[j] = np.mean((t - p) ** 2) / np.var(t)
+    return np.asarray(nmse(current, prediction, mask=mask), dtype=float)
+
+
+def _inseparable_friction(effects):
+    """A Stribeck peak and a softening on one joint with velocity scales too close to tell.
+
+    Returns ``[(index, reason)]`` for the one of the pair that explains less
+    (the refit may move the two scales together, where their difference is
+    only a reshaping of the friction curve), else an empty list.
+    """
+    velocity = {"stribeck_friction": "stribeck_velocity",
+                "friction_softening": "softening_velocity"}
+    by_joint = {}
+    for k, f in enumerate(effects):
+        if f.name in velocity:
+            by_joint.setdefault(f.target, {})[f.name] = k
+    out = []
+    for pair in by_joint.values():
+        if len(pair) < 2:
+            continue
+        (a, ka), (b, kb) = sorted(pair.items())
+        va = effects[ka].parameters[velocity[a]][0]
+        vb = effects[kb].parameters[velocity[b]][0]
+        if max(va, vb) < PAIR_SEPARATION * min(va, vb):
+            weak, other = sorted([ka, kb], key=lambda k: effects[k].explained_variance)
+            out.append((weak, f"its velocity scale is within a factor {PAIR_SEPARATION:g} of "
+                              f"the {effects[other].name.replace('_', ' ')} on the same joint "
+                              f"({va:.3g} and {vb:.3g} rad/s): the recordings cannot separate "
+                              "a peak from a softening there"))
     return out
+
+
+def units_problem(recording):
+    """Why ``recording``'s units look wrong (degrees, milliseconds, ...), or None.
+
+    The checks of the readers (:mod:`sklearn_gpcd.io`): positions beyond
+    ``2 pi`` on many samples, or position steps that disagree with the
+    velocities times the time steps.
+
+    Parameters
+    ----------
+    recording : Recording
+
+    Returns
+    -------
+    reason : str or None
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(0, 2, 0.01)
+    >>> q = np.c_[np.sin(t), np.cos(t)]
+    >>> rec = Recording(time=t, q=q, qd=np.c_[np.cos(t), -np.sin(t)], current=q)
+    >>> units_problem(rec) is None
+    True
+    >>> units_problem(Recording(time=t * 1000, q=q, qd=rec.qd, current=q))[-52:]
+    'time looks like milliseconds (pass time_scale=1e-3).'
+    """
+    labels = [f"q{j + 1}" for j in range(recording.n_joints)]
+    notes = [degrees_note(recording.q),
+             units_note(recording.time, recording.q, recording.qd, labels)]
+    notes = [n for n in notes if n]
+    return " ".join(notes) if notes else None
 
 
 class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
@@ -90,6 +151,13 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         Minimum t-statistic of its per-fold gains.
     max_effects : int, default=None
         Upper bound on the number of selected effects.
+    min_share : float, default=0.01
+        Minimum share of the nominal residual's sum of squares on its joints
+        an effect must explain (practical significance).
+    check_units : bool, default=True
+        Refuse recordings whose units look wrong (positions in degrees, time
+        in milliseconds: :func:`units_problem`) with a ValueError. Set False
+        only after confirming the units.
     base_model : DiagnosedModel, default=None
         A model refined by an earlier diagnosis (e.g. on unloaded runs) to
         diagnose against: its prediction is the reference current, and
@@ -102,6 +170,14 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         Nominal model plus the fitted effects.
     effects_ : list of FittedEffect
         The missing effects found (empty when nothing is missing).
+    rejected_effects_ : list of dict
+        Estimates rejected as physically implausible or insignificant:
+        ``name``, ``effect``, ``joints`` (0-based), ``reason``.
+    ambiguities_ : list of dict
+        Effects the recordings cannot tell apart: ``chosen``,
+        ``alternative``, their effect names, ``joints`` (0-based),
+        ``correlation`` of their fitted terms and the ``excitation`` that
+        would separate them.
     breakdown_ : ResidualBreakdown
         Residual of the nominal model on the training recordings.
     breakdown_after_ : ResidualBreakdown
@@ -134,7 +210,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
     def __init__(self, robot="ur10", torque_constants=None, friction=None, effects="all",
                  sigma_rest=1e-3, rest_guard=0.04, sigma_v=1e-2, n_splits=5,
                  min_gain=MIN_GAIN, min_t=MIN_T,
-                 max_effects=None, base_model=None):
+                 max_effects=None, min_share=MIN_SHARE, check_units=True, base_model=None):
         self.robot = robot
         self.torque_constants = torque_constants
         self.friction = friction
@@ -146,6 +222,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         self.min_gain = min_gain
         self.min_t = min_t
         self.max_effects = max_effects
+        self.min_share = min_share
+        self.check_units = check_units
         self.base_model = base_model
 
     # ------------------------------------------------------------ helpers
@@ -154,8 +232,10 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             value = getattr(self, name)
             if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a number >= 0, got {value!r}")
-        if not (isinstance(self.min_gain, numbers.Real) and 0 <= self.min_gain < 1):
-            raise ValueError(f"min_gain must be in [0, 1), got {self.min_gain!r}")
+        for name in ("min_gain", "min_share"):
+            value = getattr(self, name)
+            if not (isinstance(value, numbers.Real) and 0 <= value < 1):
+                raise ValueError(f"{name} must be in [0, 1), got {value!r}")
         if not (isinstance(self.n_splits, numbers.Integral) and self.n_splits >= 2):
             raise ValueError(f"n_splits must be an integer >= 2, got {self.n_splits!r}")
         if self.max_effects is not None and not (
@@ -180,6 +260,14 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
 
     def _signals(self, recordings, simulated, what):
         recordings = check_recordings(recordings, self.nominal_.n_joints, what)
+        if self.check_units:
+            for k, rec in enumerate(recordings):
+                problem = units_problem(rec)
+                if problem:
+                    raise ValueError(
+                        f"{what}: recording {rec.name or f'#{k}'!r}: {problem} The diagnosis "
+                        "needs rad, rad/s and s; convert the recording, or confirm the units "
+                        "with check_units=False (gpcd diagnose --units-confirmed)")
         references, lags = self._references(recordings, simulated, what)
         return Signals.from_recordings(self.nominal_, recordings, references), lags
 
@@ -244,13 +332,18 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             guarded_mask = self._mask(signals, guard=True)
             guarded = fold_statistics(candidates, design, residual, guarded_mask, folds,
                                       self.n_splits, signals.current)
+        self.rejected_effects_, self.ambiguities_ = [], []
         selected, self.history_ = forward_selection(
-            stats, candidates, self.min_gain, self.min_t, self.max_effects, guarded)
+            stats, candidates, self.min_gain, self.min_t, self.max_effects, guarded,
+            min_share=self.min_share, check=plausibility_check(self.nominal_),
+            rejections=self.rejected_effects_, ambiguities=self.ambiguities_)
         selection_done = _time.perf_counter()
-        if any(s.candidate.effect.rest_guard for s in selected):
-            mask = guarded_mask
-        self.model_ = joint_fit(signals, self.nominal_, selected, mask)
+        self.model_ = self._final_fit(signals, selected, mask, guarded_mask)
         self.effects_ = self.model_.effects
+        kept = {f.effect.name for f in self.effects_}
+        self.ambiguities_ = [a for a in self.ambiguities_ if a["effect"] in kept]
+        if any(f.effect.rest_guard for f in self.effects_):
+            mask = guarded_mask
         after = signals.current - self.model_.predict_signals(signals)
         self.breakdown_after_ = residual_breakdown(signals, after, self.sigma_v, self.sigma_rest,
                                                    units=units)
@@ -269,6 +362,50 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                         "fit": end - selection_done, "total": end - start},
         }
         return self
+
+    def _final_fit(self, signals, selected, mask, guarded_mask):
+        """Joint fit; effects implausible or insignificant after it are dropped, one at a time.
+
+        After the joint refit an effect must still be physically plausible
+        (:meth:`Effect.implausible`), explain at least ``min_share`` of the
+        nominal residual on its joints, and its parameters must differ from
+        zero (Wald test at :data:`WALD_LEVEL` with the autocorrelation-
+        corrected covariance).
+        """
+        selected = expand_composites(selected)
+        while True:
+            guard = any(s.candidate.effect.rest_guard for s in selected)
+            model = joint_fit(signals, self.nominal_, selected,
+                              guarded_mask if guard else mask)
+            problems = [(k, reason) for k, f in enumerate(model.effects)
+                        if (reason := self._problem(f))] or _inseparable_friction(model.effects)
+            if not problems:
+                return model
+            k, reason = min(problems, key=lambda p: model.effects[p[0]].explained_variance)
+            fitted = model.effects[k]
+            label = selected[k].candidate.label if hasattr(selected[k], "candidate") else \
+                fitted.name
+            self.rejected_effects_.append({"name": label, "effect": fitted.name,
+                                           "joints": [int(j) for j in fitted.joints],
+                                           "reason": reason})
+            del selected[k]
+
+    def _problem(self, fitted):
+        """Why a jointly fitted effect is not reported, or None."""
+        reason = fitted.effect.implausible(fitted.parameters, fitted.target, self.nominal_)
+        if reason:
+            return reason
+        share = fitted.explained_variance
+        if np.isfinite(share) and share < self.min_share:
+            return (f"explains {100 * share:.2g} % of the nominal residual on its joints "
+                    f"(needs {100 * self.min_share:g} %)")
+        theta, cov = np.asarray(fitted.theta), np.asarray(fitted.cov)
+        wald = float(theta @ np.linalg.pinv(cov) @ theta) if theta.size else 0.0
+        p_value = float(_stats.chi2.sf(wald, max(theta.size, 1)))
+        if p_value > WALD_LEVEL:
+            return (f"its parameters do not differ from zero (Wald test p = {p_value:.2g}, "
+                    f"needs <= {WALD_LEVEL:g})")
+        return None
 
     def predict(self, recordings, simulated=None):
         """Refined currents of recordings (see :meth:`DiagnosedModel.predict`).

@@ -21,7 +21,10 @@ payload's centre of mass enters its inertia quadratically (fixed point).
 ``viscous_friction``   :math:`\\Delta F_v\\,\\dot q_\\ell`, per joint
 ``stribeck_friction``  :math:`\\Delta F_s\\,\\mathrm{sign}(\\dot q_\\ell)
                        e^{-(\\dot q_\\ell/v_s)^2}`, per joint; :math:`v_s` by
-                       1-D search
+                       1-D search; a peak: :math:`\\Delta F_s \\ge 0`
+``friction_softening`` the same law with :math:`-\\Delta F_0 \\le 0`: dry
+                       friction softening at low speed (regularised or
+                       constraint-based friction)
 ``rotor_inertia``      :math:`\\Delta J\\,\\ddot q_\\ell`, per joint
 ``payload``            point mass ``m`` with centre of mass ``c`` at the flange:
                        last link's regressor times a fixed map of ``(m, m c)``
@@ -55,6 +58,59 @@ REST_VELOCITY = 1e-3
 DELAYS = (-0.016, -0.008, 0.004, 0.008, 0.016, 0.032, 0.064)
 #: Default grid of Stribeck velocities [rad/s] searched by ``stribeck_friction``.
 STRIBECK_VELOCITIES = tuple(np.geomspace(0.004, 0.25, 10).round(5))
+#: Rated payload [kg] of the built-in robots (manufacturer data sheets); the
+#: ``payload`` bound is twice this. Other robots use :data:`DEFAULT_RATED_PAYLOAD`.
+RATED_PAYLOAD = {"ur3": 3.0, "ur5": 5.0, "ur10": 10.0, "ur3e": 3.0, "ur5e": 5.0,
+                 "ur10e": 12.5, "ur16e": 16.0}
+#: Rated payload [kg] assumed for robots not in :data:`RATED_PAYLOAD`.
+DEFAULT_RATED_PAYLOAD = 20.0
+#: Physical bounds of the plausibility check (see :meth:`Effect.implausible`).
+BOUNDS = {
+    "torque_constant_scale": (0.5, 1.5),
+    "delay": 0.2,  # |d| [s]
+    "tilt": 0.1,  # |roll|, |pitch| [rad] (5.7 deg)
+    "stribeck_velocity": (0.002, 0.5),  # [rad/s]
+    "rotor_inertia": 5.0,  # |delta J| [kg m^2]
+    "payload_com": 0.5,  # |c| [m]
+    "payload_fraction": 0.05,  # smallest payload named, share of the rated payload
+    "joint_position": 2 * np.pi + 0.25,  # |q_0| [rad]: a UR joint spans +-2 pi
+    "coulomb_rate": 1.0,  # |rate| [Nm/s]
+}
+
+
+def rated_payload(robot):
+    """Rated payload [kg] of ``robot`` (:data:`RATED_PAYLOAD`, else the default).
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.robots import load_robot
+    >>> rated_payload(load_robot("ur10e"))
+    12.5
+    """
+    return float(RATED_PAYLOAD.get(str(getattr(robot, "name", "")).lower(),
+                                   DEFAULT_RATED_PAYLOAD))
+
+
+def nominal_friction_levels(nominal, joint):
+    """Nominal (Coulomb, viscous) friction of ``joint`` [Nm, Nm s/rad]; zeros without one.
+
+    Read off the nominal friction law at +-1e-6 rad/s and +-1 rad/s.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.diagnosis import NominalModel
+    >>> nominal = NominalModel("ur10", friction={"coulomb": [2.0] * 6, "viscous": [0.5] * 6})
+    >>> [round(v, 6) for v in nominal_friction_levels(nominal, 1)]
+    [2.0, 0.5]
+    """
+    if nominal.friction is None:
+        return 0.0, 0.0
+    qd = np.zeros((4, nominal.n_joints))
+    qd[:, joint] = [1e-6, -1e-6, 1.0, -1.0]
+    tau = np.asarray(nominal.friction(qd), dtype=float)[:, joint]
+    slow, fast = 0.5 * (tau[0] - tau[1]), 0.5 * (tau[2] - tau[3])  # c + v * speed
+    viscous = (fast - slow) / (1.0 - 1e-6)
+    return float(slow - 1e-6 * viscous), float(viscous)
 
 
 def _delta(func, theta, cov, eps=1e-7):
@@ -207,6 +263,27 @@ class Effect:
         """
         return settings
 
+    def implausible(self, params, target, nominal):
+        """Why fitted parameters are physically implausible, or None when they are not.
+
+        Each library effect checks its parameters against physical bounds
+        (:data:`BOUNDS`, signs of friction terms, the robot's rated payload
+        and link masses); an estimate outside them is rejected rather than
+        reported. The base class accepts everything.
+
+        Parameters
+        ----------
+        params : dict
+            ``{name: (value, std)}`` from :meth:`physical`.
+        target : int or None
+        nominal : NominalModel
+
+        Returns
+        -------
+        reason : str or None
+        """
+        return None
+
     def sentence(self, params, joints):
         """One plain-words sentence about the fitted effect (see subclasses)."""
         values = ", ".join(f"{k} = {_pm(*v)}" for k, v in params.items())
@@ -222,10 +299,14 @@ def _pm(value, std, digits=3):
 
 
 def _joint_list(joints):
-    joints = list(joints)
-    if len(joints) == 1:
-        return f"joint {joints[0]}"
-    return "joints " + ", ".join(map(str, joints))
+    """Joints in words, numbered from 1: ``[1]`` -> ``"joint 2"``, ``[0, 1, 2]`` ->
+    ``"joints 1-3"``, ``[0, 2]`` -> ``"joints 1, 3"``."""
+    js = sorted(int(j) + 1 for j in joints)
+    if len(js) == 1:
+        return f"joint {js[0]}"
+    if len(js) > 2 and js == list(range(js[0], js[-1] + 1)):
+        return f"joints {js[0]}-{js[-1]}"
+    return "joints " + ", ".join(map(str, js))
 
 
 class CoulombFriction(Effect):
@@ -244,6 +325,13 @@ class CoulombFriction(Effect):
 
     def design(self, signals, nominal, target, **settings):
         return _per_joint_column(signals, target, np.sign(signals.qd[:, target]))
+
+    def implausible(self, params, target, nominal):
+        total = nominal_friction_levels(nominal, target)[0] + params["delta_coulomb"][0]
+        if total < 0:
+            return (f"the total dry friction would be {total:.3g} Nm: dry friction opposes "
+                    "the motion, it cannot be negative")
+        return None
 
     def sentence(self, params, joints):
         value, std = params["delta_coulomb"]
@@ -268,6 +356,13 @@ class ViscousFriction(Effect):
 
     def design(self, signals, nominal, target, **settings):
         return _per_joint_column(signals, target, signals.qd[:, target])
+
+    def implausible(self, params, target, nominal):
+        total = nominal_friction_levels(nominal, target)[1] + params["delta_viscous"][0]
+        if total < 0:
+            return (f"the total viscous friction would be {total:.3g} Nm s/rad: viscous "
+                    "friction dissipates energy, it cannot be negative")
+        return None
 
     def sentence(self, params, joints):
         value, std = params["delta_viscous"]
@@ -338,12 +433,80 @@ class StribeckFriction(Effect):
         std = v * np.sqrt(2.0 / curvature) if curvature > 0 else np.nan
         return {"stribeck_velocity": v, "stribeck_velocity_std": float(std)}
 
+    def implausible(self, params, target, nominal):
+        value = params["delta_stribeck"][0]
+        vs = params["stribeck_velocity"][0]
+        lo, hi = BOUNDS["stribeck_velocity"]
+        if value < 0:
+            return (f"a negative peak ({value:.3g} Nm) is not a Stribeck effect (friction "
+                    "above the dry level at low speed): it is the low-speed softening of "
+                    "dry friction")
+        if not lo <= vs <= hi:
+            return f"Stribeck velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
+        return None
+
     def sentence(self, params, joints):
         value, std = params["delta_stribeck"]
         vs = params["stribeck_velocity"][0]
         word = "higher" if value > 0 else "lower"
         return (f"{_joint_list(joints)} has a {word} breakaway (Stribeck) friction peak: "
                 f"{abs(value):.3g} +- {std:.2g} Nm below about {vs:.3g} rad/s")
+
+
+class FrictionSoftening(StribeckFriction):
+    """Dry friction that softens at low speed (regularised or constraint-based friction).
+
+    .. math::
+
+        \\tau = -\\Delta F_0\\, \\mathrm{sign}(\\dot q_\\ell)\\,
+            e^{-(\\dot q_\\ell / v_0)^2}, \\qquad \\Delta F_0 \\ge 0
+
+    The friction is :math:`\\Delta F_0` below the Coulomb level as the
+    velocity goes to zero, over a velocity scale :math:`v_0` (the smooth
+    ``tanh``/saturated laws of simulators, the soft friction constraint of
+    MuJoCo, the pre-sliding regime of a real gearbox). Same columns as
+    :class:`StribeckFriction` with the opposite, physically constrained
+    sign: a Stribeck peak raises the friction at low speed, softening lowers
+    it; a fit of one with the other's sign is rejected.
+
+    Examples
+    --------
+    >>> FrictionSoftening().name, FrictionSoftening().parameter_names
+    ('friction_softening', ('softening', 'softening_velocity'))
+    """
+
+    name = "friction_softening"
+    title = "low-speed softening of dry friction"
+    parameter_names = ("softening", "softening_velocity")
+    units = ("Nm", "rad/s")
+
+    def design(self, signals, nominal, target, stribeck_velocity=0.02, **ignored):
+        cols = super().design(signals, nominal, target, stribeck_velocity=stribeck_velocity)
+        return {j: -c for j, c in cols.items()}
+
+    def physical(self, theta, cov, target, settings, nominal):
+        peak = super().physical(theta, cov, target, settings, nominal)
+        return dict(zip(self.parameter_names, peak.values()))
+
+    def implausible(self, params, target, nominal):
+        value, vs = params["softening"][0], params["softening_velocity"][0]
+        lo, hi = BOUNDS["stribeck_velocity"]
+        if value < 0:
+            return (f"a negative softening ({value:.3g} Nm) is a Stribeck peak, not a softening "
+                    "of dry friction")
+        coulomb = nominal_friction_levels(nominal, target)[0]
+        if coulomb > 0 and value > 1.5 * coulomb:
+            return (f"softening of {value:.3g} Nm exceeds 1.5 times the dry friction "
+                    f"({coulomb:.3g} Nm)")
+        if not lo <= vs <= hi:
+            return f"softening velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
+        return None
+
+    def sentence(self, params, joints):
+        value, std = params["softening"]
+        vs = params["softening_velocity"][0]
+        return (f"the dry friction of {_joint_list(joints)} softens at low speed: "
+                f"{value:.3g} +- {std:.2g} Nm below the Coulomb level under about {vs:.3g} rad/s")
 
 
 class RotorInertia(Effect):
@@ -362,6 +525,19 @@ class RotorInertia(Effect):
 
     def design(self, signals, nominal, target, **settings):
         return _per_joint_column(signals, target, signals.qdd[:, target])
+
+    def implausible(self, params, target, nominal):
+        value = params["delta_rotor_inertia"][0]
+        armature = getattr(nominal.robot.model, "armature", None)
+        nominal_j = float(armature[target]) if armature is not None and len(armature) > \
+            target else 0.0
+        if nominal_j + value < 0:
+            return (f"the total rotor inertia would be {nominal_j + value:.3g} kg m^2 "
+                    "(negative)")
+        if abs(value) > BOUNDS["rotor_inertia"]:
+            return (f"a change of {value:.3g} kg m^2 exceeds {BOUNDS['rotor_inertia']:g} "
+                    "kg m^2, far beyond the reflected rotor inertia of a robot joint")
+        return None
 
     def sentence(self, params, joints):
         value, std = params["delta_rotor_inertia"]
@@ -457,6 +633,22 @@ class PayloadEffect(Effect):
     def refine(self, objective, settings):
         return settings  # the m c c^T fixed point is done by joint_fit
 
+    def implausible(self, params, target, nominal):
+        m = params["mass"][0]
+        rated = rated_payload(nominal.robot)
+        if not 0 < m <= 2.0 * rated:
+            return (f"payload mass {m:.3g} kg outside (0, {2.0 * rated:g}] kg (twice the rated "
+                    "payload)")
+        if m < BOUNDS["payload_fraction"] * rated:
+            return (f"payload mass {m:.3g} kg is below {100 * BOUNDS['payload_fraction']:g} % "
+                    f"of the rated payload ({rated:g} kg): within what link-mass and "
+                    "friction calibration errors produce, not a finding")
+        com = np.array([params[k][0] for k in ("com_x", "com_y", "com_z")])
+        if not np.all(np.isfinite(com)) or np.linalg.norm(com) > BOUNDS["payload_com"]:
+            return (f"centre of mass {np.linalg.norm(com):.3g} m from the flange (more than "
+                    f"{BOUNDS['payload_com']:g} m)")
+        return None
+
     def sentence(self, params, joints):
         m, sm = params["mass"]
         com = ", ".join(f"{params[k][0]:.3f}" for k in ("com_x", "com_y", "com_z"))
@@ -472,6 +664,12 @@ class LinkMass(Effect):
     joint origin), and a first-moment change ``delta_first_moment_x/y/z``
     [kg m] in the link frame (the centre of mass moving). Linear in the
     link's 10 inertial parameters: ``Y_k @ [dm [1, c_k, I(c_k)] + [0, dh, 0]]``.
+
+    Two variants compete: the mass change alone (at the nominal centre of
+    mass, one parameter; the first-moment changes are reported as 0) and
+    with the centre of mass moving (four parameters, weakly told apart from
+    the mass by gravity alone); the selection prefers the simpler one unless
+    the other is clearly better.
 
     Only links ``1 .. n-2`` (0-based) are candidates: the mass of link 0
     does not load the (vertical) base joint, and a change of the last link is
@@ -495,12 +693,32 @@ class LinkMass(Effect):
     def targets(self, nominal):
         return list(range(1, nominal.n_joints - 1))
 
-    def design(self, signals, nominal, target, **settings):
+    def settings_grid(self):
+        # mass at the nominal centre of mass only, or with the centre of mass moving;
+        # the one-standard-error rule prefers the first (1 parameter against 4)
+        return [{"com_shift": False}, {"com_shift": True}]
+
+    def design(self, signals, nominal, target, com_shift=True, **settings):
         com = nominal.robot.model.inertias[target + 1].lever
         mapping = np.column_stack([_point_mass_parameters(1.0, np.zeros(3), com)]
-                                  + [np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)])
+                                  + ([np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)]
+                                     if com_shift else []))
         Y = signals.rigid_body_regressor(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * target:10 * target + 10], mapping)
+
+    def physical(self, theta, cov, target, settings, nominal):
+        params = super().physical(theta, cov, target, settings, nominal)
+        for name in self.parameter_names[len(theta):]:
+            params[name] = (0.0, 0.0)  # centre of mass kept (com_shift=False)
+        return params
+
+    def implausible(self, params, target, nominal):
+        dm = params["delta_mass"][0]
+        link = float(nominal.robot.model.inertias[target + 1].mass)
+        if abs(dm) > link:
+            return (f"a mass change of {dm:.3g} kg on a link of {link:.3g} kg (more than the "
+                    "link's own mass)")
+        return None
 
     def sentence(self, params, joints):
         m, sm = params["delta_mass"]
@@ -555,6 +773,13 @@ class GravityTilt(Effect):
         values, stds = _delta(lambda t: np.array([-t[1] / g0, t[0] / g0]), theta, cov)
         return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
 
+    def implausible(self, params, target, nominal):
+        worst = max(abs(params["roll"][0]), abs(params["pitch"][0]))
+        if worst > BOUNDS["tilt"]:
+            return (f"a tilt of {np.degrees(worst):.1f} deg (more than "
+                    f"{np.degrees(BOUNDS['tilt']):.1f} deg would be visible)")
+        return None
+
     def sentence(self, params, joints):
         roll, pitch = (np.degrees(params[k][0]) for k in ("roll", "pitch"))
         sr, sp = (np.degrees(params[k][1]) for k in ("roll", "pitch"))
@@ -589,6 +814,14 @@ class TorqueConstant(Effect):
         k = nominal.torque_constants[target]
         values, stds = _delta(lambda t: np.array([1 / (1 + t[0]), k / (1 + t[0])]), theta, cov)
         return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
+
+    def implausible(self, params, target, nominal):
+        scale = params["scale"][0]
+        lo, hi = BOUNDS["torque_constant_scale"]
+        if not lo <= scale <= hi:
+            return (f"torque constant scale {scale:.3g} outside [{lo:g}, {hi:g}] (a motor that "
+                    f"lost or gained {abs(100 * (scale - 1)):.0f} % of its torque)")
+        return None
 
     def sentence(self, params, joints):
         s, ss = params["scale"]
@@ -683,6 +916,12 @@ class TimeDelay(Effect):
         moving_then = np.abs(_shift(signals, signals.qd, delay)) >= REST_VELOCITY
         return np.where(moving_then & (np.abs(signals.qd) >= REST_VELOCITY), term, 0.0)
 
+    def implausible(self, params, target, nominal):
+        d = params["delay"][0]
+        if abs(d) >= BOUNDS["delay"]:
+            return f"a delay of {d:.3g} s (at least {BOUNDS['delay']:g} s)"
+        return None
+
     def sentence(self, params, joints):
         value, std = params["delay"]
         word = "lags" if value > 0 else "leads"
@@ -728,6 +967,15 @@ class JointSpring(Effect):
                               theta, cov)
         return {n: (float(v), float(s)) for n, v, s in zip(self.parameter_names, values, stds)}
 
+    def implausible(self, params, target, nominal):
+        k, q0 = params["stiffness"][0], params["rest_position"][0]
+        if not k > 0:
+            return f"stiffness {k:.3g} Nm/rad: a spring pulls towards its rest position (k > 0)"
+        if not abs(q0) <= BOUNDS["joint_position"]:
+            return (f"rest position {q0:.3g} rad outside the joint's range (+-2 pi; positions "
+                    "in degrees?)")
+        return None
+
     def sentence(self, params, joints):
         k, sk = params["stiffness"]
         q0 = params["rest_position"][0]
@@ -760,16 +1008,25 @@ class FrictionDrift(Effect):
         qd, t = signals.qd[:, target], signals.time
         return _per_joint_column(signals, target, np.column_stack([t * np.sign(qd), t * qd]))
 
+    def implausible(self, params, target, nominal):
+        rate = params["coulomb_rate"][0]
+        if abs(rate) > BOUNDS["coulomb_rate"]:
+            return f"dry friction changing by {rate:.3g} Nm/s ({60 * rate:.3g} Nm per minute)"
+        return None
+
     def sentence(self, params, joints):
         rate, std = params["coulomb_rate"]
         word = "rises" if rate > 0 else "falls"
-        return (f"the friction of {_joint_list(joints)} {word} over time by {abs(rate) * 60:.3g} "
-                f"+- {std * 60:.2g} Nm per minute (Coulomb level)")
+        vrate, vstd = params["viscous_rate"]
+        return (f"the friction of {_joint_list(joints)} {word} over time: Coulomb level by "
+                f"{abs(rate) * 60:.3g} +- {std * 60:.2g} Nm per minute, viscous coefficient "
+                f"by {vrate * 60:.3g} +- {vstd * 60:.2g} Nm s/rad per minute")
 
 
 #: The effect library, in order of prior plausibility: on ties within one
 #: standard error the selection prefers the effect listed first.
-EFFECTS = (CoulombFriction, ViscousFriction, StribeckFriction, PayloadEffect, TorqueConstant,
+EFFECTS = (CoulombFriction, ViscousFriction, StribeckFriction, FrictionSoftening, PayloadEffect,
+           TorqueConstant,
            CurrentOffset, RotorInertia, GravityTilt, TimeDelay, JointSpring, FrictionDrift,
            LinkMass)
 

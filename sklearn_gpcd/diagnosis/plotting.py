@@ -39,13 +39,13 @@ def plot_residual_breakdown(breakdown, axes=None):
     grid = np.array([breakdown.regimes[r]["rms"] for r in REGIMES])
     image = ax.imshow(np.where(np.isfinite(grid), grid, np.nan), aspect="auto", cmap="magma")
     ax.set_yticks(range(len(REGIMES)), REGIMES)
-    ax.set_xticks(range(breakdown.n_joints), [f"j{j}" for j in range(breakdown.n_joints)])
+    ax.set_xticks(range(breakdown.n_joints), [f"j{j + 1}" for j in range(breakdown.n_joints)])
     ax.set_title(f"nominal residual RMS [{breakdown.units}] by regime")
     plt.colorbar(image, ax=ax)
     ax = axes[1]
     for window in breakdown.time[:1]:
         for j in range(breakdown.n_joints):
-            ax.plot(window["centres"], window["rms"][:, j], marker="o", label=f"j{j}")
+            ax.plot(window["centres"], window["rms"][:, j], marker="o", label=f"j{j + 1}")
         ax.set_title(f"residual RMS over time ({window['name']})")
     ax.set_xlabel("time [s]")
     ax.set_ylabel(f"RMS [{breakdown.units}]")
@@ -75,7 +75,7 @@ def plot_nmse(before, after, ax=None, title="nMSE per joint"):
     ax.bar(x - 0.2, before, 0.4, label="nominal")
     ax.bar(x + 0.2, after, 0.4, label="refined")
     ax.set_yscale("log")
-    ax.set_xticks(x, [f"j{j}" for j in x])
+    ax.set_xticks(x, [f"j{j + 1}" for j in x])
     ax.set_ylabel("nMSE")
     ax.set_title(title)
     ax.legend()

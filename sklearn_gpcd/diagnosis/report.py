@@ -5,6 +5,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .effects import _joint_list
+from .selection import separating_excitation
+
 #: t-statistic thresholds of the words used for the evidence.
 CONFIDENCE_WORDS = ((10.0, "very strong"), (5.0, "strong"), (0.0, "moderate"))
 
@@ -22,6 +25,49 @@ def confidence(t):
         if t >= threshold:
             return word
     return "weak"
+
+
+def relative_change(before, after):
+    """A change of a loss in plain words: ``"0.29 -> 0.05, 83 % lower"``.
+
+    Parameters
+    ----------
+    before, after : float
+        The loss (e.g. nMSE) before and after.
+
+    Returns
+    -------
+    text : str
+
+    Examples
+    --------
+    >>> relative_change(0.29, 0.05)
+    '0.29 -> 0.05, 83 % lower'
+    >>> relative_change(0.1, 0.217)
+    '0.1 -> 0.217, 117 % higher'
+    >>> relative_change(0.1, 0.1)
+    '0.1 -> 0.1, unchanged'
+    >>> relative_change(7.2, 0.0099)
+    '7.2 -> 0.0099, 99.9 % lower'
+    """
+    head = f"{before:.4g} -> {after:.4g}"
+    if not before > 0:
+        return head
+    change = 100.0 * (after - before) / before
+    if abs(change) < 0.5:
+        return f"{head}, unchanged"
+    size = abs(change)
+    size = f"{size:.1f}" if 99.5 <= size < 100 else f"{size:.0f}"  # never "100 % lower" of > 0
+    return f"{head}, {size} % {'lower' if change < 0 else 'higher'}"
+
+
+#: How the JSON counts joints and links (people's text counts from 1).
+JSON_SCHEMA_NOTE = {
+    "joints": "0-based joint indices in this JSON (joint 0 is the base joint); the text "
+              "report counts joints from 1",
+    "link": "0-based link index (link k moves with joint k)",
+    "nmse_before/nmse_after": "one value per joint, in joint order",
+}
 
 
 def _num(x):
@@ -112,6 +158,12 @@ class DiagnosisReport:
         Residual of the nominal and refined models on the training data.
     rejected : list of dict
         The strongest candidates that were not selected, with their evidence.
+    implausible : list of dict
+        Estimates rejected as physically implausible or insignificant, with
+        the reason (``name``, ``effect``, ``joints`` 0-based, ``reason``).
+    ambiguities : list of dict
+        Effects the recordings cannot tell apart, with the excitation that
+        would separate them (see ``DynamicsDiagnosis.ambiguities_``).
 
     Examples
     --------
@@ -130,6 +182,8 @@ class DiagnosisReport:
     breakdown: object = None
     breakdown_after: object = None
     rejected: list = field(default_factory=list)
+    implausible: list = field(default_factory=list)
+    ambiguities: list = field(default_factory=list)
 
     @classmethod
     def from_diagnosis(cls, diagnosis, scores=None):
@@ -174,6 +228,7 @@ class DiagnosisReport:
             "n_candidates": diagnosis.n_candidates_,
             "min_gain": diagnosis.min_gain,
             "min_t": diagnosis.min_t,
+            "min_share": getattr(diagnosis, "min_share", None),
         }
         return cls(
             effects=effects,
@@ -184,11 +239,18 @@ class DiagnosisReport:
             heldout=heldout, summary=summary, breakdown=diagnosis.breakdown_,
             breakdown_after=diagnosis.breakdown_after_,
             rejected=[{"name": s.candidate.label, **s.to_dict()} for s in rejected],
+            implausible=list(getattr(diagnosis, "rejected_effects_", [])),
+            ambiguities=list(getattr(diagnosis, "ambiguities_", [])),
         )
 
     def to_dict(self):
-        """JSON-ready dictionary: ``effects``, ``nmse_before``, ``nmse_after`` and more."""
+        """JSON-ready dictionary of the report.
+
+        Keys: ``schema`` (joints are 0-based here), ``effects``, ``nmse_before``,
+        ``nmse_after``, ``rejected_estimates``, ``ambiguous`` and more.
+        """
         out = {
+            "schema": JSON_SCHEMA_NOTE,
             "effects": self.effects,
             "nmse_before": self.nmse_before,
             "nmse_after": self.nmse_after,
@@ -199,6 +261,8 @@ class DiagnosisReport:
             out["nmse_after_all_samples"] = self.nmse_after_all
         out["summary"] = self.summary
         out["strongest_rejected"] = self.rejected
+        out["rejected_estimates"] = self.implausible
+        out["ambiguous"] = self.ambiguities
         if self.breakdown is not None:
             out["residual_breakdown"] = self.breakdown.to_dict()
         return out
@@ -251,22 +315,28 @@ class DiagnosisReport:
                 after = ""
                 if self.breakdown_after is not None:
                     after = f" -> {self.breakdown_after.rms_moving[j]:.3g} {units} after"
-                lines.append(f"   joint {j}: {b.rms_moving[j]:.3g} {units}{after}{where}")
+                lines.append(f"   joint {j + 1}: {b.rms_moving[j]:.3g} {units}{after}{where}")
         lines += ["", "2. What is missing:"]
         if not self.effects:
             tested = ", ".join(s.get("effects_tested", []))
             lines.append(
                 f"   Nothing. None of the {len(s.get('effects_tested', []))} effects tested "
                 f"({tested}; {s.get('n_candidates', '?')} candidates over joints, links and "
-                "settings) lowers the held-out error reliably. The nominal model explains the "
+                "settings) lowers the held-out error both reliably and by a practical amount "
+                "with plausible parameters. The nominal model explains the "
                 "data as far as these effects can tell.")
             if self.rejected:
                 r = self.rejected[0]
                 lines.append(
                     f"   Closest call: {r['name']} would remove "
                     f"{100 * r['relative_gain']:.1f} % of the held-out error of its joints "
-                    f"(t = {r['t_statistic'] or float('nan'):.1f}; needs >= "
-                    f"{100 * s.get('min_gain', 0):.0f} % and t >= {s.get('min_t', 0):g}).")
+                    f"(t = {r['t_statistic'] or float('nan'):.1f}, lower in "
+                    f"{r['folds_improved']} folds, "
+                    f"{100 * (r.get('share_of_nominal_residual') or 0):.2g} % of the nominal "
+                    f"residual; naming needs >= {100 * s.get('min_gain', 0):.0f} %, t >= "
+                    f"{s.get('min_t', 0):g} or every fold, >= "
+                    f"{100 * (s.get('min_share') or 0):g} % of the residual and plausible "
+                    "parameters).")
         for k, e in enumerate(self.effects, 1):
             ev = e["evidence"]
             t = ev.get("t_statistic")
@@ -274,24 +344,47 @@ class DiagnosisReport:
             rel = ev.get("relative_gain")
             rel = min(rel) if isinstance(rel, list) else rel
             share = e["explained_variance"]
-            lines.append(f"   {k}. {e['name'].replace('_', ' ')} on joints {e['joints']}: "
-                         f"{e['description']}.")
+            lines.append(f"   {k}. {e['name'].replace('_', ' ')} on "
+                         f"{_joint_list(e['joints'])}: {e['description']}.")
             folds = ev.get("folds_improved")
             folds = min(folds) if isinstance(folds, list) else folds
             lines.append(
                 f"      It explains {100 * (share or 0):.0f} % of the nominal residual on those "
-                f"joints. Evidence: {e['confidence']} (held-out error of its joints down "
-                f"{100 * (rel or 0):.0f} %, t = {t_min if t_min is not None else float('inf'):.1f}"
-                f", {folds} folds better).")
+                f"joints. Evidence: {e['confidence']} (held-out error of its joints "
+                f"{100 * (rel or 0):.0f} % lower, lower in {folds} folds, "
+                f"t = {t_min if t_min is not None else float('inf'):.1f}).")
+        if self.ambiguities:
+            lines += ["", "   Not separable on these recordings:"]
+            pairs = {}
+            for a in self.ambiguities:
+                pairs.setdefault((a["effect"], a["alternative_effect"]), []).append(a)
+            for (first, second), group in pairs.items():
+                joints = sorted({j for a in group for j in a["joints"]})
+                corr = min(abs(a["correlation"]) for a in group)
+                lines.append(
+                    f"   - ambiguous between {first.replace('_', ' ')} and "
+                    f"{second.replace('_', ' ')} on {_joint_list(joints)} (correlation of their "
+                    f"fitted terms {corr:.2f}{' or more' if corr < 0.995 else ''}); {first.replace('_', ' ')} is reported "
+                    f"as the simpler. To separate them: "
+                    f"{separating_excitation(first, second, joints)}.")
+        if self.implausible:
+            lines += ["", "   Rejected estimates (not reported as findings):"]
+            by_effect = {}
+            for r in self.implausible:
+                by_effect.setdefault(r["effect"], []).append(r)
+            for name, group in by_effect.items():
+                joints = sorted({j for r in group for j in r["joints"]})
+                more = (f" (and {len(group) - 1} more like it)" if len(group) > 1 else "")
+                lines.append(f"   - {name.replace('_', ' ')} on {_joint_list(joints)}: "
+                             f"{group[0]['reason']}{more}.")
         where = ("held-out recordings" if self.heldout else
                  "training recordings (in-sample: pass test recordings for a fair figure)")
         lines += ["", f"3. Fit before -> after, nMSE per joint while moving, on {where}:"]
         for j, (a, c) in enumerate(zip(self.nmse_before, self.nmse_after)):
             if a is None or c is None:
-                lines.append(f"   joint {j}: n/a")
+                lines.append(f"   joint {j + 1}: n/a")
                 continue
-            change = f"{100 * (1 - c / a):+.0f} % better" if a > 0 else ""
-            lines.append(f"   joint {j}: {a:.4g} -> {c:.4g}  {change}")
+            lines.append(f"   joint {j + 1}: nMSE {relative_change(a, c)}")
         return "\n".join(lines)
 
     def __str__(self):

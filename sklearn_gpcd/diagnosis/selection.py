@@ -43,26 +43,74 @@ added to :math:`S` in turn; its gain per fold is the loss decrease. It is
   every fold (sign test; large effects vary in size between folds, which
   inflates the standard error).
 
+* it is practically significant: fitted on all data, it removes at least
+  ``min_share`` (default 1 %) of the sum of squares of the nominal model's
+  residual on its joints (a 0.1 % share is not a finding, however
+  consistent), and
+* its parameters are physically plausible (``check``, see
+  :meth:`~sklearn_gpcd.diagnosis.Effect.implausible`); an implausible
+  estimate is recorded as rejected, with the reason, and the next candidate
+  is considered.
+
 Among eligible candidates not worse than the best by more than one
 standard error of their paired per-fold differences, the simplest (fewest
 parameters, then library order) wins -- the one-standard-error rule.
+
+Identifiability: when a candidate of *another* effect is within that one
+standard error of the winner and their fitted contributions correlate by
+at least :data:`AMBIGUOUS_CORRELATION` on these recordings, the data cannot
+tell them apart; the pair is recorded as ambiguous (``ambiguities``) with the
+excitation that would separate them (:func:`separating_excitation`).
+
 Selection stops when no candidate is eligible; then a backward pass drops,
 one at a time, any chosen effect that no longer removes ``min_gain`` of the
-held-out loss of its joints given all the others. The chosen set is
-refitted jointly on all data
+held-out loss of its joints (or ``min_share`` of their nominal residual)
+given all the others. The chosen set is refitted jointly on all data
 (:func:`joint_fit`).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import linalg
+
+from .effects import _joint_list
 
 #: Default minimum share of the held-out loss (of the joints an effect acts
 #: on) that an effect must remove to be selected.
 MIN_GAIN = 0.02
 #: Default minimum t-statistic of the per-fold gains.
 MIN_T = 3.0
+#: Default minimum share of the nominal residual's sum of squares (on the
+#: effect's joints, all training rows) an effect must explain.
+MIN_SHARE = 0.01
+#: Correlation of two effects' fitted contributions from which they count as
+#: not separable on the given recordings.
+AMBIGUOUS_CORRELATION = 0.9
+
+#: What excites each effect (for proposing a separating experiment).
+EXCITATION = {
+    "coulomb_friction": "constant-speed sweeps in both directions at 3-4 speeds "
+                        "(0.05-1 rad/s), 5 s each",
+    "viscous_friction": "constant-speed sweeps at 5 speeds up to the joint's limit, "
+                        "5 s each, both directions",
+    "stribeck_friction": "slow sweeps through zero velocity (0.002-0.1 rad/s, 10 reversals)",
+    "rotor_inertia": "fast small oscillations of the joint alone (amplitude 0.1 rad, 2-3 Hz, "
+                     "accelerations above 10 rad/s^2) at a fixed pose, 20 s",
+    "payload": "slow moves of the wrist joints through many orientations "
+               "(gravity torques), 60 s",
+    "link_mass": "slow moves of the joint through its whole range at several poses of the "
+                 "outer joints (gravity torques, accelerations below 1 rad/s^2), 60 s",
+    "gravity_tilt": "slow moves of the base joint through a full turn with the arm "
+                    "stretched out, 60 s",
+    "torque_constant": "moves at several payload-free torque levels: fast and slow "
+                       "accelerations at the same poses, 30 s",
+    "current_offset": "holds at several poses where the gravity torque changes sign, 5 s each",
+    "time_delay": "fast reversals (torque steps), 20 s",
+    "joint_spring": "slow moves over the joint's full range at a constant pose of the "
+                    "others, 60 s",
+    "friction_drift": "the same moves repeated over at least 20 minutes from a cold start",
+}
 
 
 @dataclass
@@ -82,6 +130,10 @@ class Candidate:
         Indices of its columns in the stacked design.
     order : int
         Position of the effect in the library (prior plausibility).
+    parts : tuple of Candidate
+        For a composite (a Stribeck peak together with a low-speed softening
+        on one joint, which can cancel each other when tried one at a
+        time): its constituents, which share its columns; empty otherwise.
 
     Examples
     --------
@@ -89,8 +141,8 @@ class Candidate:
     >>> from sklearn_gpcd.diagnosis import Candidate, effect_library
     >>> c = Candidate(effect_library("coulomb_friction")[0], target=2, settings={},
     ...               joints=(2,), columns=np.array([5]), order=0)
-    >>> c.label, c.n_params, c.family
-    ('coulomb_friction[joint 2]', 1, ('coulomb_friction', 2))
+    >>> c.label, c.n_params, c.family  # joints counted from 1 in labels
+    ('coulomb_friction[joint 3]', 1, ('coulomb_friction', 2))
     """
 
     effect: object
@@ -99,6 +151,7 @@ class Candidate:
     joints: tuple
     columns: np.ndarray
     order: int
+    parts: tuple = ()
 
     @property
     def n_params(self):
@@ -112,11 +165,12 @@ class Candidate:
 
     @property
     def label(self):
-        """Readable name, e.g. ``"coulomb_friction[joint 2]"``."""
+        """Readable name, joints and links counted from 1: ``"coulomb_friction[joint 3]"``."""
+        name = "+".join(p.effect.name for p in self.parts) or self.effect.name
         if self.target is None:
-            return self.effect.name
+            return name
         kind = "link" if self.effect.name == "link_mass" else "joint"
-        return f"{self.effect.name}[{kind} {self.target}]"
+        return f"{name}[{kind} {self.target + 1}]"
 
 
 def build_candidates(signals, nominal, effects):
@@ -151,7 +205,65 @@ def build_candidates(signals, nominal, effects):
                 for j, values in cols.items():
                     design[j].append((len(candidates), values))
                 candidates.append(cand)
-    return candidates, design
+    return candidates + _friction_pairs(candidates), design
+
+
+#: A composite Stribeck peak + softening pairs a peak at ``v_s`` with a
+#: softening at ``v_0 <= v_s / PAIR_SEPARATION`` (apart enough to be told apart).
+PAIR_SEPARATION = 3.0
+
+
+def _friction_pairs(candidates):
+    """Composites of a Stribeck peak and a low-speed softening on the same joint.
+
+    A peak added to friction that softens at lower speed cancels part of the
+    softening: tried one at a time, neither lowers the error much. The
+    composite shares the columns of its two parts (no new columns).
+    """
+    peaks = [c for c in candidates if c.effect.name == "stribeck_friction"]
+    softenings = [c for c in candidates if c.effect.name == "friction_softening"]
+    pairs = []
+    for peak in peaks:
+        vs = peak.settings.get("stribeck_velocity")
+        for soft in softenings:
+            v0 = soft.settings.get("stribeck_velocity")
+            if soft.target != peak.target or vs is None or v0 is None or \
+                    v0 * PAIR_SEPARATION > vs:
+                continue
+            pairs.append(Candidate(peak.effect, peak.target,
+                                   {**peak.settings, "softening_velocity": v0}, peak.joints,
+                                   np.concatenate([peak.columns, soft.columns]), peak.order,
+                                   parts=(peak, soft)))
+    return pairs
+
+
+def expand_composites(steps):
+    """Selected steps with every composite replaced by its parts (same evidence).
+
+    Parameters
+    ----------
+    steps : list of Step or Candidate
+
+    Returns
+    -------
+    steps : list of Step or Candidate
+    """
+    out = []
+    for step in steps:
+        cand = step.candidate if hasattr(step, "candidate") else step
+        if not cand.parts:
+            out.append(step)
+            continue
+        start = 0
+        for part in cand.parts:
+            if hasattr(step, "candidate"):
+                theta = None if step.theta is None else \
+                    step.theta[start:start + part.n_params]
+                out.append(replace(step, candidate=part, theta=theta))
+            else:
+                out.append(part)
+            start += part.n_params
+    return out
 
 
 @dataclass
@@ -185,8 +297,11 @@ class FoldStatistics:
         return self.gram.shape[0]
 
     def totals(self):
-        """Statistics summed over folds: (gram, cross, rss, counts)."""
-        return self.gram.sum(0), self.cross.sum(0), self.rss.sum(0), self.counts.sum(0)
+        """Statistics summed over folds: (gram, cross, rss, counts), computed once."""
+        if "totals" not in self._cache:
+            self._cache["totals"] = (self.gram.sum(0), self.cross.sum(0), self.rss.sum(0),
+                                     self.counts.sum(0))
+        return self._cache["totals"]
 
 
 def fold_index(signals, n_splits):
@@ -286,11 +401,7 @@ def cv_losses(stats, columns, weights):
         Held-out SSE / (rows * variance of the current).
     """
     F, J = stats.rss.shape
-    gram_all = stats._cache.get("gram_all")
-    if gram_all is None:
-        gram_all = stats._cache["gram_all"] = stats.gram.sum(0)
-        stats._cache["cross_all"] = stats.cross.sum(0)
-    cross_all = stats._cache["cross_all"]
+    gram_all, cross_all = stats.totals()[:2]
     c = np.asarray(columns, dtype=int)
     losses = np.empty((F, J))
     sub_gram = stats.gram[:, :, c[:, None], c[None, :]]  # (F, J, k, k)
@@ -304,18 +415,20 @@ def cv_losses(stats, columns, weights):
         sse = (stats.rss[f] - 2.0 * sub_cross[f] @ theta
                + np.einsum("a,jab,b->j", theta, sub_gram[f], theta))
         losses[f] = np.maximum(sse, 0.0) / np.maximum(stats.counts[f] * stats.variance, 1e-300)
-    return losses
+    # a joint that never moves (no rows, NaN variance) has nothing to explain
+    return np.where(np.isfinite(losses), losses, 0.0)
 
 
-def in_sample_mse(stats, columns, weights):
-    """Per-joint training MSE of the model fitted on all folds."""
+def in_sample_mse(stats, columns, weights, return_theta=False):
+    """Per-joint training MSE of the model fitted on all folds (and its coefficients)."""
     gram, cross, rss, counts = stats.totals()
     c = np.asarray(columns, dtype=int)
     A = np.einsum("j,jab->ab", weights, gram[:, c[:, None], c[None, :]])
     theta = _solve(A, weights @ cross[:, c])
     sse = rss - 2.0 * cross[:, c] @ theta + np.einsum(
         "a,jab,b->j", theta, gram[:, c[:, None], c[None, :]], theta)
-    return np.maximum(sse, 0.0) / np.maximum(counts, 1)
+    mse = np.maximum(sse, 0.0) / np.maximum(counts, 1)
+    return (mse, theta) if return_theta else mse
 
 
 @dataclass
@@ -342,6 +455,13 @@ class Step:
         Per-fold loss decrease (sum over joints).
     delta_bic : float
         In-sample BIC change (negative favours the effect), for reference.
+    share : float
+        Share of the nominal residual's sum of squares on the candidate's
+        joints it removes when fitted on all training rows (practical
+        significance); NaN when unknown.
+    theta : ndarray
+        The candidate's coefficients fitted on all training rows (with the
+        effects already chosen).
 
     Examples
     --------
@@ -352,9 +472,14 @@ class Step:
     >>> from sklearn_gpcd.diagnosis import Candidate, Step, effect_library
     >>> c = Candidate(effect_library("viscous_friction")[0], 1, {}, (1,), np.array([0]), 1)
     >>> step = Step(c, gain=0.2, std_error=0.01, t=8.0, relative_gain=0.4,
-    ...             folds_improved=5, n_folds=5)
+    ...             folds_improved=5, n_folds=5, share=0.3)
     >>> step.eligible(min_gain=0.02, min_t=3.0), step.eligible(min_gain=0.5, min_t=3.0)
     (True, False)
+
+    A consistent gain that explains 0.1 % of the nominal residual is not a finding:
+
+    >>> Step(c, 0.2, 0.01, 8.0, 0.4, 5, 5, share=0.001).eligible(0.02, 3.0, min_share=0.01)
+    False
     >>> step.to_dict()["folds_improved"]
     '5/5'
     """
@@ -368,15 +493,23 @@ class Step:
     n_folds: int
     delta_bic: float = np.nan
     fold_gains: np.ndarray = None
+    share: float = np.nan
+    theta: np.ndarray = None
 
-    def eligible(self, min_gain, min_t):
-        """True when the relative gain reaches ``min_gain`` and the gains are consistent.
+    def eligible(self, min_gain, min_t, min_share=0.0):
+        """True when the gain is statistically and practically significant.
 
-        Consistent: t-statistic at least ``min_t``, or an improvement in every
-        fold (a sign test: probability ``2**-n_folds`` under no effect).
+        Statistically: the relative held-out gain reaches ``min_gain`` and
+        the per-fold gains are consistent (t-statistic at least ``min_t``, or
+        an improvement in every fold: a sign test, probability
+        ``2**-n_folds`` under no effect). Practically: the candidate removes
+        at least ``min_share`` of the nominal residual on its joints
+        (``share``; not checked when NaN).
         """
         consistent = self.t >= min_t or self.folds_improved == self.n_folds
-        return self.gain > 0 and self.relative_gain >= min_gain and consistent
+        practical = not (self.share < min_share)
+        return (self.gain > 0 and self.relative_gain >= min_gain and consistent
+                and practical)
 
     def to_dict(self):
         """JSON-ready evidence."""
@@ -387,6 +520,7 @@ class Step:
             "t_statistic": float(self.t) if np.isfinite(self.t) else None,
             "folds_improved": f"{self.folds_improved}/{self.n_folds}",
             "delta_bic": float(self.delta_bic) if np.isfinite(self.delta_bic) else None,
+            "share_of_nominal_residual": float(self.share) if np.isfinite(self.share) else None,
         }
 
 
@@ -406,11 +540,17 @@ def _evaluate(stats, candidate, base_columns, base_losses, weights, with_columns
     t = rel / rel_se if rel_se > 0 else (np.inf if rel > 0 else 0.0)
     # BIC on the weighted in-sample fit, for reference
     n = stats.counts.sum()
-    rss0 = (in_sample_mse(stats, base_columns, weights) * stats.counts.sum(0) * weights).sum()
-    rss1 = (in_sample_mse(stats, with_columns, weights) * stats.counts.sum(0) * weights).sum()
+    counts = stats.counts.sum(0)
+    sse0 = in_sample_mse(stats, base_columns, weights) * counts
+    sse1, theta = in_sample_mse(stats, with_columns, weights, return_theta=True)
+    sse1 = sse1 * counts
+    rss0, rss1 = (sse0 * weights).sum(), (sse1 * weights).sum()
     dbic = float(n * np.log(max(rss1, 1e-300) / max(rss0, 1e-300))
                  + candidate.n_params * np.log(n))
-    return Step(candidate, gain, se, t, rel, int((d > 0).sum()), F, dbic, d)
+    nominal_ss = stats.rss.sum(0)[joints].sum()
+    share = float((sse0 - sse1)[joints].sum() / nominal_ss) if nominal_ss > 0 else np.nan
+    return Step(candidate, gain, se, t, rel, int((d > 0).sum()), F, dbic, d, share,
+                theta[-candidate.n_params:])
 
 
 def _weights(stats, columns):
@@ -423,7 +563,8 @@ def _uses_guard(chosen):
 
 
 def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_effects=None,
-                      guarded_stats=None):
+                      guarded_stats=None, min_share=MIN_SHARE, check=None, rejections=None,
+                      ambiguities=None):
     """Greedy forward selection with the one-standard-error rule, then a backward pass.
 
     Parameters
@@ -440,6 +581,19 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
         Statistics without the rows next to a joint's rest. Effects with
         ``rest_guard = True`` (time delay) are scored on them, and so is
         every candidate once such an effect is selected. None uses ``stats``.
+    min_share : float, default=MIN_SHARE
+        Minimum share of the nominal residual (on the candidate's joints)
+        it must explain (practical significance).
+    check : callable, default=None
+        ``check(candidate, theta) -> reason or None``: why the coefficients
+        ``theta`` fitted on all rows are implausible (see
+        :func:`plausibility_check`). None accepts everything.
+    rejections : list, default=None
+        When given, receives one dict per implausible pick: ``name``,
+        ``effect``, ``joints`` (0-based), ``reason``.
+    ambiguities : list, default=None
+        When given, receives one dict per pick that the data cannot tell from
+        another effect's candidate (see :func:`separating_excitation`).
 
     Returns
     -------
@@ -451,8 +605,9 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
 
     Examples
     --------
-    Joint 1 has 0.3 A of Coulomb friction the nominal model lacks; among the
-    Coulomb and viscous candidates of all joints, only that one is selected:
+    Joint 2 (index 1) has 0.3 A of Coulomb friction the nominal model lacks;
+    among the Coulomb and viscous candidates of all joints, only that one is
+    selected (labels count joints from 1):
 
     >>> import numpy as np
     >>> from sklearn_gpcd.diagnosis import (NominalModel, Signals, effect_library,
@@ -472,13 +627,27 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
     ...                         fold_index(s, 4), 4, s.current)
     >>> selected, history = forward_selection(stats, candidates)
     >>> [step.candidate.label for step in selected]
-    ['coulomb_friction[joint 1]']
+    ['coulomb_friction[joint 2]']
     >>> selected[0].folds_improved, len(history)
     (4, 2)
     """
     guarded_stats = stats if guarded_stats is None else guarded_stats
     selected, history = [], []
-    families = set()
+    families, banned = set(), set()
+    rejections = [] if rejections is None else rejections
+    ambiguities = [] if ambiguities is None else ambiguities
+
+    def acceptable(step):
+        """Plausibility of a pick; implausible ones are recorded and banned."""
+        reason = None if check is None else check(step.candidate, step.theta)
+        if reason is not None:
+            banned.add(id(step.candidate))
+            if all(r["name"] != step.candidate.label for r in rejections):
+                rejections.append({"name": step.candidate.label,
+                                   "effect": step.candidate.effect.name,
+                                   "joints": [int(j) for j in step.candidate.joints],
+                                   "reason": reason})
+        return reason is None
 
     def columns_of(chosen):
         if not chosen:
@@ -488,7 +657,7 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
     while max_effects is None or len(selected) < max_effects:
         base = columns_of(selected)
         guarded_now = _uses_guard(selected)
-        pool = [c for c in candidates if c.family not in families]
+        pool = [c for c in candidates if c.family not in families and id(c) not in banned]
         steps = _score(guarded_stats if guarded_now else stats, pool, base)
         pick = None
         if not guarded_now and any(c.effect.rest_guard for c in pool):
@@ -497,17 +666,27 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
             guard_steps = [s for s in on_guarded if s.candidate.effect.rest_guard]
             other = max((s.gain for s in on_guarded if not s.candidate.effect.rest_guard),
                         default=-np.inf)
-            eligible = [s for s in guard_steps if s.eligible(min_gain, min_t)]
-            if eligible and max(s.gain for s in eligible) > other:
+            eligible = [s for s in guard_steps if s.eligible(min_gain, min_t, min_share)]
+            while eligible and max(s.gain for s in eligible) > other:
                 pick = max(eligible, key=lambda s: s.gain)
+                if acceptable(pick):
+                    break
+                eligible.remove(pick)
+                pick = None
             steps = [s for s in steps if not s.candidate.effect.rest_guard] + guard_steps
         history.append(steps)
         if pick is None:
-            eligible = [s for s in steps if s.eligible(min_gain, min_t)
+            eligible = [s for s in steps if s.eligible(min_gain, min_t, min_share)
                         and (guarded_now or not s.candidate.effect.rest_guard)]
-            if not eligible:
+            while eligible:
+                pick, close = _one_standard_error(eligible)
+                if acceptable(pick):
+                    break
+                eligible.remove(pick)
+                pick = None
+            if pick is None:
                 break
-            pick = _one_standard_error(eligible)
+            _record_ambiguity(stats, base, pick, close, ambiguities, check)
         selected.append(pick.candidate)
         families.add(pick.candidate.family)
 
@@ -516,7 +695,10 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
         evidence = _given_others(guarded_stats if _uses_guard(selected) else stats, selected)
         weakest = min(evidence, key=lambda s: s.relative_gain if s.gain > 0 else -np.inf)
         if weakest.gain > 0 and weakest.relative_gain >= min_gain:
-            return evidence, history
+            thin = [s for s in evidence if s.share < min_share]
+            if not thin:
+                return evidence, history
+            weakest = min(thin, key=lambda s: s.share)
         selected.remove(weakest.candidate)
     return [], history
 
@@ -530,7 +712,10 @@ def _score(stats, candidates, base):
 
 
 def _one_standard_error(eligible):
-    """The simplest eligible step not worse than the best by one paired standard error."""
+    """The simplest eligible step not worse than the best by one paired standard error.
+
+    Returns the pick and every step within that standard error of the best.
+    """
     best = max(eligible, key=lambda s: s.gain)
     close = []
     for step in eligible:
@@ -538,7 +723,120 @@ def _one_standard_error(eligible):
         se = diff.std(ddof=1) / np.sqrt(diff.size) if diff.size > 1 else 0.0
         if diff.mean() <= se:
             close.append(step)
-    return min(close, key=lambda s: (s.candidate.n_params, s.candidate.order, -s.gain))
+    pick = min(close, key=lambda s: (s.candidate.n_params, s.candidate.order, -s.gain))
+    return pick, close
+
+
+def _contribution_correlation(stats, base, a, b):
+    """Correlation (over joints and training rows) of two candidates' fitted terms."""
+    gram = stats.totals()[0]
+    ca, cb = a.candidate.columns, b.candidate.columns
+    ta, tb = a.theta, b.theta
+    ab = np.einsum("a,jab,b->", ta, gram[:, ca[:, None], cb[None, :]], tb)
+    aa = np.einsum("a,jab,b->", ta, gram[:, ca[:, None], ca[None, :]], ta)
+    bb = np.einsum("a,jab,b->", tb, gram[:, cb[:, None], cb[None, :]], tb)
+    return float(ab / np.sqrt(aa * bb)) if aa > 0 and bb > 0 else 0.0
+
+
+def _record_ambiguity(stats, base, pick, close, ambiguities, check):
+    """Record the other effects the data cannot tell from ``pick`` (module docstring)."""
+    rivals = {}
+    for step in close:
+        other = step.candidate
+        names = {c.effect.name for c in (pick.candidate, *pick.candidate.parts)}
+        if names & {c.effect.name for c in (other, *other.parts)}:
+            continue  # the same effect (or a composite holding it)
+        if not set(other.joints) & set(pick.candidate.joints):
+            continue
+        if check is not None and check(other, step.theta) is not None:
+            continue
+        corr = _contribution_correlation(stats, base, pick, step)
+        # both terms fit the same residual: confusable ones are positively correlated
+        if corr >= AMBIGUOUS_CORRELATION and corr > rivals.get(other.effect.name, (0.0,))[0]:
+            rivals[other.effect.name] = (corr, step)
+    for name, (corr, step) in rivals.items():
+        joints = sorted(set(pick.candidate.joints) | set(step.candidate.joints))
+        ambiguities.append({
+            "chosen": pick.candidate.label, "effect": pick.candidate.effect.name,
+            "alternative": step.candidate.label, "alternative_effect": name,
+            "joints": [int(j) for j in joints], "correlation": corr,
+            "excitation": separating_excitation(pick.candidate.effect.name, name, joints),
+        })
+
+
+def separating_excitation(effect, other, joints):
+    """The experiment that would tell ``effect`` from ``other`` on ``joints``.
+
+    Parameters
+    ----------
+    effect, other : str
+        Effect names (keys of :data:`EXCITATION`).
+    joints : sequence of int
+        Joints concerned (0-based).
+
+    Returns
+    -------
+    text : str
+        Plain words, joints counted from 1.
+
+    Examples
+    --------
+    >>> separating_excitation("rotor_inertia", "link_mass", [1, 2])[:63]
+    'on joints 2, 3, record (a) fast small oscillations of the joint'
+    """
+    first = EXCITATION.get(effect, "moves that excite it")
+    second = EXCITATION.get(other, "moves that excite it")
+    return (f"on {_joint_list(joints)}, record (a) {first}, which excites "
+            f"{effect.replace('_', ' ')}, and (b) {second}, which excites "
+            f"{other.replace('_', ' ')}; the two are then fitted on data where their "
+            "terms differ")
+
+
+def plausibility_check(nominal):
+    """``check(candidate, theta)`` for :func:`forward_selection`: physical bounds.
+
+    Converts the candidate's coefficients to physical parameters
+    (:meth:`Effect.physical`) and asks :meth:`Effect.implausible`.
+
+    Parameters
+    ----------
+    nominal : NominalModel
+
+    Returns
+    -------
+    check : callable
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.diagnosis import Candidate, NominalModel, effect_library
+    >>> from sklearn_gpcd.diagnosis.selection import plausibility_check
+    >>> check = plausibility_check(NominalModel("ur10"))
+    >>> c = Candidate(effect_library("torque_constant")[0], 3, {}, (3,), np.array([0]), 4)
+    >>> check(c, np.array([0.1])) is None  # scale 1 / 1.1 = 0.91
+    True
+    >>> check(c, np.array([19.0]))  # scale 0.05
+    'torque constant scale 0.05 outside [0.5, 1.5] (a motor that lost or gained 95 % of its torque)'
+    """
+
+    def check(candidate, theta):
+        if theta is None:
+            return None
+        theta = np.asarray(theta, dtype=float)
+        if candidate.parts:
+            start = 0
+            for part in candidate.parts:
+                reason = check(part, theta[start:start + part.n_params])
+                if reason is not None:
+                    return f"{part.effect.name.replace('_', ' ')}: {reason}"
+                start += part.n_params
+            return None
+        effect = candidate.effect
+        params = effect.physical(theta, np.zeros((theta.size, theta.size)), candidate.target,
+                                 candidate.settings, nominal)
+        return effect.implausible(params, candidate.target, nominal)
+
+    return check
 
 
 def _given_others(stats, selected):
