@@ -47,7 +47,7 @@ import time
 import warnings
 from pathlib import Path
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "parse_args"]
 
 #: The rule ``gpcd train`` follows, safe on any log size (printed by ``--help``).
 TRAIN_RULE = (
@@ -636,6 +636,44 @@ def build_parser():
     return parser
 
 
+#: Subcommand -> its positional list of recordings (arguments left over after
+#: the options, e.g. ``a.csv --test h.csv b.csv``, belong to it).
+_RECORDING_POSITIONALS = {"train": "recordings", "diagnose": "train"}
+
+
+def parse_args(argv=None):
+    """Parse ``gpcd`` arguments; recordings may come before, between or after options.
+
+    argparse takes one contiguous run of positionals, so ``gpcd diagnose a.csv
+    --test h.csv b.csv`` would leave ``b.csv`` unrecognised; here such
+    leftovers join the subcommand's list of recordings. Anything else left
+    over is a usage error.
+
+    Parameters
+    ----------
+    argv : list of str, default=None
+        Arguments without the program name; ``None`` reads ``sys.argv``.
+
+    Returns
+    -------
+    args : argparse.Namespace
+
+    Examples
+    --------
+    >>> args = parse_args(["diagnose", "a.csv", "--test", "h.csv", "b.csv"])
+    >>> args.train, args.test
+    (['a.csv', 'b.csv'], ['h.csv'])
+    """
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    dest = _RECORDING_POSITIONALS.get(args.command)
+    if extra and dest is not None and not any(a.startswith("-") for a in extra):
+        getattr(args, dest).extend(extra)
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    return args
+
+
 def main(argv=None):
     """Entry point of the ``gpcd`` command.
 
@@ -658,7 +696,7 @@ def main(argv=None):
     """
     prefix = "gpcd"
     try:
-        args = build_parser().parse_args(argv)
+        args = parse_args(argv)
         prefix = f"gpcd {args.command}"
         with warnings.catch_warnings():
             warnings.showwarning = _warning_printer(prefix)

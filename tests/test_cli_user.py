@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sklearn_gpcd.cli import build_parser, main
+from sklearn_gpcd.cli import build_parser, main, parse_args
 from sklearn_gpcd.datasets import make_d1, make_joint1_cyclic
 from sklearn_gpcd.io import Recording, load_recording, write_rtde_csv
 
@@ -26,8 +26,10 @@ def _gpcd(*args, **kwargs):
 
 def _mamedov_csv(rec, path, order=("time", "q", "qd", "current", "target_current",
                                    "target_torque")):
-    """Write ``rec`` headerless in the ur10e_mamedov layout (or another column order)."""
-    blocks = [rec.time[:, None] if k == "time" else getattr(rec, k) for k in order]
+    """Write ``rec`` headerless in the ur10e_mamedov layout (or another column order;
+    ``"extra"`` is a column of ones)."""
+    columns = {"time": rec.time[:, None], "extra": np.ones((rec.n_samples, 1))}
+    blocks = [columns[k] if k in columns else getattr(rec, k) for k in order]
     np.savetxt(path, np.hstack(blocks), delimiter=",", fmt="%.9g")
     return path
 
@@ -35,13 +37,15 @@ def _mamedov_csv(rec, path, order=("time", "q", "qd", "current", "target_current
 @pytest.fixture(scope="module")
 def sims(tmp_path_factory):
     """Small simulated recordings: a UR10e D1 (RTDE CSV, robot in its comment line),
-    the same run headerless in the UR10e preset layout, and in a custom layout."""
+    the same run headerless in the UR10e preset layout, and in a custom 26-field
+    layout that no preset knows."""
     folder = tmp_path_factory.mktemp("user")
-    rec = make_d1("ur10e", n_targets=4, random_state=3)
+    rec = make_d1("ur10e", n_targets=8, random_state=3)
+    assert rec.n_samples > 2000  # more rows than n_support="auto" keeps
     rtde = write_rtde_csv(rec, folder / "d1.csv")
     preset = _mamedov_csv(rec, folder / "d1_mamedov.csv")
     custom = _mamedov_csv(rec, folder / "d1_custom.csv",
-                          order=("time", "current", "q", "qd", "target_current"))
+                          order=("time", "current", "q", "qd", "target_current", "extra"))
     anonymous = write_rtde_csv(rec.replace(metadata={}), folder / "anonymous.csv")
     return {"rec": rec, "rtde": rtde, "preset": preset, "custom": custom,
             "anonymous": anonymous, "folder": folder}
@@ -122,11 +126,15 @@ def test_output_paths_are_checked_before_any_work(argv, tmp_path, capsys, monkey
 def test_test_option_does_not_swallow_positionals():
     args = build_parser().parse_args(["diagnose", "--test", "held.csv", "train.csv"])
     assert args.train == ["train.csv"] and args.test == ["held.csv"]
-    args = build_parser().parse_args(
+    args = parse_args(
         ["diagnose", "a.csv", "--test", "h1.csv", "b.csv", "--test", "h2.csv",
          "--simulated", "s.csv"])
     assert args.train == ["a.csv", "b.csv"] and args.test == ["h1.csv", "h2.csv"]
     assert args.simulated == ["s.csv"]
+    args = parse_args(["train", "--robot", "ur10e", "a.csv", "-o", "m.skops", "b.csv"])
+    assert args.recordings == ["a.csv", "b.csv"]
+    with pytest.raises(SystemExit):
+        parse_args(["diagnose", "a.csv", "--test", "h.csv", "b.csv", "--bogus"])
 
 
 def test_diagnose_test_before_training_file_runs(sims, capsys):
@@ -247,7 +255,7 @@ def test_train_sp_s_with_column_map_and_n_support(sims, tmp_path, capsys):
                  "-o", str(out), "-q"]) == 0
     captured = capsys.readouterr()
     assert "GP support 150 rows per joint, optimizer fmin_l_bfgs_b" in captured.out
-    assert captured.err == ""
+    assert "fitting" not in captured.err and "ETA" not in captured.err  # -q: no bars
     assert len(load(out).support_indices_[0]) == 150
 
 
