@@ -301,8 +301,14 @@ def _read_recordings(paths, args, what="recordings", progress=True):
                     enabled=progress and not getattr(args, "quiet", False))
     recordings = []
     for path in sources:
-        recordings.append(load_recording(path, column_map=getattr(args, "column_map", None),
-                                         **kwargs))
+        try:
+            rec = load_recording(path, column_map=getattr(args, "column_map", None), **kwargs)
+        except ValueError as exc:
+            if "column_map" not in str(exc):
+                raise
+            raise ValueError(f"{exc} -- on the command line: --column-map with a JSON object, "
+                             "a JSON file or a preset name") from None
+        recordings.append(rec)
         bar.update()
     return recordings
 
@@ -706,7 +712,8 @@ def main(argv=None):
                 print(f"{prefix}: error: {_one_line(exc)}", file=sys.stderr)
                 return 2
     except KeyboardInterrupt:
-        print(f"{prefix}: interrupted", file=sys.stderr)
+        fresh_line = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
+        print(f"{fresh_line}{prefix}: interrupted", file=sys.stderr)  # after a bar's \r
         return 130
 
 

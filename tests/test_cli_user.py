@@ -68,18 +68,42 @@ def test_keyboard_interrupt_exits_130_with_one_line(monkeypatch, capsys):
     assert captured.err.splitlines() == ["gpcd robots: interrupted"]
 
 
+def _default_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a background runner may ignore SIGINT
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 def test_sigint_during_a_run_exits_130_without_traceback(tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "sklearn_gpcd.cli", "reproduce", "--quick", "-o",
          str(tmp_path / "out")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env=ENV)
+        env=ENV, preexec_fn=_default_sigint)
     first = proc.stdout.readline()  # the run has started (progress line)
     assert first, proc.stderr.read()
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130
     assert err.strip().splitlines() == ["gpcd reproduce: interrupted"]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_ctrl_c_during_a_parallel_fit_interrupts_every_process_quietly(sims, tmp_path):
+    """Ctrl-C signals the whole foreground process group, joblib workers included."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sklearn_gpcd.cli", "train", str(sims["rtde"]), "--n-jobs", "2",
+         "--model", "sp_s", "-o", str(tmp_path / "m.joblib")], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, env=ENV, preexec_fn=_default_sigint,
+        start_new_session=True)
+    seen = []
+    for line in proc.stderr:  # wait until the fit has started
+        seen.append(line)
+        if line.startswith("fitting"):
+            break
+    assert seen and seen[-1].startswith("fitting"), "".join(seen)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == ["gpcd train: interrupted"]
 
 
 # ------------------------------------------------------------------ stderr noise
@@ -192,7 +216,8 @@ def test_column_map_option_on_diagnose(sims, kind, tmp_path, capsys):
 
 def test_custom_layout_without_column_map_fails_with_a_hint(sims, capsys):
     assert main(["diagnose", str(sims["custom"]), "--robot", "ur10e"]) == 2
-    assert "column_map" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "26 fields" in err and "on the command line: --column-map" in err
 
 
 @pytest.mark.parametrize("value, message", [
