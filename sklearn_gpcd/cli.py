@@ -523,8 +523,11 @@ def _add_recording_options(parser, robot_help):
     parser.add_argument(
         "--column-map", type=_column_map_arg, default=None,
         help="column layout of text/NPZ recordings: a preset name (ur10e_mamedov), a JSON "
-        "file, or a JSON object such as '{\"time\": 0, \"q\": [1, 6], \"qd\": [7, 12], "
-        "\"current\": [13, 18]}' (see sklearn_gpcd.io.columns)")
+        "file, or a JSON object mapping fields to column indices or header names, such as "
+        "'{\"time\": 0, \"q\": [1, 2, 3, 4, 5, 6], \"qd\": [7, 8, 9, 10, 11, 12], "
+        "\"current\": [13, 14, 15, 16, 17, 18]}' or, with a header, '{\"time\": \"t\", "
+        "\"q\": \"q\", \"qd\": \"qd\", \"current\": \"i\"}' (prefixes of q_0 .. q_5; "
+        "see sklearn_gpcd.io.columns)")
 
 
 def build_parser():
