@@ -162,3 +162,14 @@ def test_interaction_figure_names_the_pushes_and_marks_the_alarms(monkeypatch, t
     assert "labelled contact" in [x.get_text() for x in top.get_legend().get_texts()]
     onsets = [ln.get_xdata()[0] for ln in bottom.get_lines() if ln.get_linestyle() == ":"]
     assert onsets == [pytest.approx(t[alarm][0])]
+    fig = closed[0]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in (top, bottom):  # the legends sit beside the panels, off the signals
+        assert not ax.get_legend().get_window_extent(renderer).overlaps(
+            ax.get_window_extent(renderer))
+    closed.clear()
+    plot_interaction(rec, y * 0.9, SimpleNamespace(thresholds_=np.full(6, 0.1)),
+                     None, y, tmp_path / "quiet.png", alarm=np.zeros(n, dtype=bool))
+    texts = [x.get_text() for x in closed[0].axes[2].get_legend().get_texts()]
+    assert "alarm (none)" in texts

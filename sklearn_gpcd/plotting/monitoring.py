@@ -56,7 +56,7 @@ def plot_monitoring(
     prediction ``i_hat_l``, the joint velocity ``qd_l``, and the monitoring
     signal ``s_l`` inside its threshold band ``+/- sigma_CD,l``, with the
     labelled contact intervals shaded grey on every panel and, when given,
-    the alarms marked (an orange strip along the top of the signal panel and
+    the alarms marked (a purple strip along the top of the signal panel and
     a dotted line at each alarm onset). The legends name the shading and
     the alarm marks.
 
@@ -153,10 +153,13 @@ def plot_monitoring(
         starts, stops = contact_events(alarms.astype(int))
         for k, (start, stop) in enumerate(zip(starts, stops)):
             end = time[stop] if stop < n else time[-1]
-            bottom.axvspan(time[start], end, ymin=0.94, ymax=1.0, color="tab:orange",
+            bottom.axvspan(time[start], end, ymin=0.94, ymax=1.0, color="tab:purple",
                            lw=0, label="alarm" if k == 0 else None)
             for a in axes:
-                a.axvline(time[start], color="tab:orange", ls=":", lw=1.0)
-    top.legend(loc="upper right", fontsize="small")
-    bottom.legend(loc="upper right", fontsize="small")
+                a.axvline(time[start], color="tab:purple", ls=":", lw=1.0)
+        if not starts.size:  # say so rather than leave the reader guessing
+            bottom.plot([], [], color="tab:purple", lw=4, label="alarm (none)")
+    for a in (top, bottom):  # outside the panels: a legend never hides the signals
+        a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+                 borderaxespad=0.0)
     return axes
