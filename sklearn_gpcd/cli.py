@@ -371,7 +371,7 @@ def _cmd_simulate(args):
     }
     start = time.perf_counter()
     recording = makers[args.scenario](robot=args.robot, random_state=args.seed)
-    write_rtde_csv(recording, args.output)
+    write_rtde_csv(recording, args.output, robot_comment=True)  # later commands need no --robot
     print(
         f"wrote {recording.n_samples} samples ({recording.duration:.1f} s simulated) "
         f"to {args.output} in {time.perf_counter() - start:.1f} s"

@@ -48,6 +48,7 @@ def test_simulate_writes_an_rtde_csv_the_loader_reads(tmp_path, capsys):
     assert rec.n_joints == 6
     assert rec.target_current is not None
     assert np.all(np.diff(rec.time) > 0)
+    assert rec.metadata["robot"] == "ur10"  # kept, so later commands need no --robot
 
 
 def test_simulate_with_a_urdf_robot(tmp_path, ur10_urdf):

@@ -36,13 +36,14 @@ def _mamedov_csv(rec, path, order=("time", "q", "qd", "current", "target_current
 
 @pytest.fixture(scope="module")
 def sims(tmp_path_factory):
-    """Small simulated recordings: a UR10e D1 (RTDE CSV, robot in its comment line),
+    """Small simulated recordings: a UR10e D1 (RTDE CSV, robot in its comment line as
+    ``gpcd simulate`` writes it),
     the same run headerless in the UR10e preset layout, and in a custom 26-field
     layout that no preset knows."""
     folder = tmp_path_factory.mktemp("user")
     rec = make_d1("ur10e", n_targets=8, random_state=3)
     assert rec.n_samples > 2000  # more rows than n_support="auto" keeps
-    rtde = write_rtde_csv(rec, folder / "d1.csv")
+    rtde = write_rtde_csv(rec, folder / "d1.csv", robot_comment=True)
     preset = _mamedov_csv(rec, folder / "d1_mamedov.csv")
     custom = _mamedov_csv(rec, folder / "d1_custom.csv",
                           order=("time", "current", "q", "qd", "target_current", "extra"))
@@ -333,7 +334,8 @@ def test_train_without_robot_anywhere_is_an_error(sims, tmp_path, capsys):
 def test_rtde_csv_keeps_the_robot_name(tmp_path):
     rec = Recording(time=[0.0, 0.002], q=[[0.1], [0.2]], qd=[[0.0], [0.0]],
                     current=[[1.0], [1.0]], metadata={"robot": "ur5e"})
-    path = write_rtde_csv(rec, tmp_path / "a.csv")
+    assert write_rtde_csv(rec, tmp_path / "plain.csv").read_text().startswith("timestamp,")
+    path = write_rtde_csv(rec, tmp_path / "a.csv", robot_comment=True)
     assert path.read_text().splitlines()[0] == "# robot: ur5e"
     back = load_recording(path)
     assert back.metadata["robot"] == "ur5e" and back.equals(rec)

@@ -31,10 +31,11 @@ labels          ``collision_label`` (extension: 0 free, k > 0 contact k)
 
 :func:`write_rtde_csv` writes the same layout (the two extension columns
 only when the recording has them) with ``repr`` precision, so a written
-file reads back to an equal recording. When ``metadata["robot"]`` names the
-robot (the simulator sets it), a first comment line ``# robot: NAME`` keeps it,
-and :func:`read_rtde_csv` reads it back into ``metadata["robot"]``, so that
-``gpcd`` commands need no ``--robot`` for such files.
+file reads back to an equal recording. With ``robot_comment=True`` (as
+``gpcd simulate`` writes) a first comment line ``# robot: NAME`` keeps
+``metadata["robot"]``, and :func:`read_rtde_csv` reads it back, so that
+``gpcd`` commands need no ``--robot`` for such files; by default the file
+starts with the header line, as ur_rtde's do.
 """
 
 from pathlib import Path
@@ -229,7 +230,7 @@ def rtde_columns(recording):
     return names, blocks
 
 
-def write_rtde_csv(recording, path, *, delimiter=","):
+def write_rtde_csv(recording, path, *, delimiter=",", robot_comment=False):
     """Write a recording as a UR RTDE CSV file.
 
     The header follows ur_rtde's names and order (see the module
@@ -245,6 +246,10 @@ def write_rtde_csv(recording, path, *, delimiter=","):
         Output file (overwritten).
     delimiter : {",", " ", ";", "\\t"}, default=","
         Field separator.
+    robot_comment : bool, default=False
+        Start the file with ``# robot: NAME`` when ``metadata["robot"]``
+        names the robot (:func:`read_rtde_csv` reads it back; tools that
+        expect the header on the first line may not skip it).
 
     Returns
     -------
@@ -287,7 +292,7 @@ def write_rtde_csv(recording, path, *, delimiter=","):
     path = Path(path)
     robot = recording.metadata.get("robot")
     with open(path, "w", newline="\n") as handle:
-        if isinstance(robot, str) and robot.strip():
+        if robot_comment and isinstance(robot, str) and robot.strip():
             handle.write(f"# robot: {robot.strip()}\n")
         handle.write(delimiter.join(names) + "\n")
         handle.write("\n".join(rows))
