@@ -8,41 +8,357 @@ Subcommands
     Write a simulated recording as a UR RTDE CSV.
 ``gpcd robots``
     List the built-in robot models.
-``gpcd diagnose TRAIN... [--test TEST...] --robot ROBOT``
+``gpcd train RECORDINGS... [--robot ROBOT] --model sp_p|sp_s|p_f -o MODEL.skops``
+    Fit the paper's estimator on a user's own recordings (rule: ``TRAIN_RULE``).
+``gpcd diagnose TRAIN... [--test TEST]... [--robot ROBOT]``
     Name the physics the robot model misses in real recordings.
 
 Every option that names a robot (``--robot``) takes a built-in name (``ur10``,
-``ur10e``, ...) or the path of a URDF file. Recordings are read with
-:func:`sklearn_gpcd.io.load_recording` and must have the robot's number of
-joints.
+``ur10e``, ...) or the path of a URDF file. Commands that read recordings take
+the robot from the recordings' metadata when they name it (the
+``ur10e_mamedov`` column preset, files written by ``gpcd simulate``), else
+``--robot`` is required; ``--robot`` always wins. Recordings are read with
+:func:`sklearn_gpcd.io.load_recording` (``--column-map``: a JSON object, a
+JSON file or a preset name) and must have the robot's number of joints.
+Options that take several recordings are repeated (``--test a.csv --test
+b.csv``), so they never swallow positional arguments. Output paths
+(``-o``, ``--json``, ``--plot``) are checked before any work starts.
 
 Exit status: 0 on success; 2 for bad input -- a usage error (argparse), or a
 recording or option the command cannot use (``ValueError``, ``OSError``, a
-missing optional package). Bad input prints ONE line
-``gpcd COMMAND: error: MESSAGE`` on stderr (the message names the file, and
-the column and line where relevant), never a traceback. Warnings, such as a
+missing optional package); 130 when interrupted (Ctrl-C). Bad input prints ONE
+line ``gpcd COMMAND: error: MESSAGE`` on stderr (the message names the file,
+and the column and line where relevant), never a traceback; Ctrl-C prints one
+line ``gpcd COMMAND: interrupted``. Warnings, such as a
 :class:`~sklearn_gpcd.io.RecordingWarning` for dropped rows, print one line
-each, ``gpcd COMMAND: warning: MESSAGE``, and the command goes on.
+each, ``gpcd COMMAND: warning: MESSAGE``, and the command goes on. Progress
+bars (with an ETA) go to stderr.
 """
 
 import argparse
+import contextlib
+import json
+import math
+import os
 import sys
+import tempfile
+import threading
 import time
 import warnings
+from pathlib import Path
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "parse_args"]
+
+#: The rule ``gpcd train`` follows, safe on any log size (printed by ``--help``).
+TRAIN_RULE = (
+    "Rows: at most 200,000 rows enter the fit; a longer log is thinned to every k-th row "
+    "(k = ceil(rows / 200,000); at 500 Hz neighbouring rows are 2 ms apart and nearly "
+    "identical). GP support: --n-support rows per joint (default 'auto': min(rows, 2000), "
+    "drawn at random). Optimizer: the regressor's 'auto' rule -- L-BFGS-B on the exact "
+    "likelihood of the support while support rows <= 3,000 and support rows x hyperparameters "
+    "<= 60,000 (P_f: 1 hyperparameter), else minibatch Adam (512-row minibatches from all "
+    "rows, early stopping), so SP_P (57 hyperparameters on 6 joints) uses Adam from 1,053 "
+    "support rows on. "
+    "The parametric mean is fitted by least squares on every row that enters the fit."
+)
+#: Rows that enter ``gpcd train``'s fit at most (see :data:`TRAIN_RULE`).
+MAX_TRAIN_ROWS = 200_000
 
 
+# ---------------------------------------------------------------- arguments
 def _robot_arg(value):
     """Resolve ``--robot`` at parse time so a bad name fails with usage help."""
     from .robots import load_robot
 
     try:
-        return load_robot(value)
+        with _quiet_c_stderr():  # urdfdom prints parse errors on fd 2 itself
+            return load_robot(value)
     except (ValueError, OSError) as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+@contextlib.contextmanager
+def _quiet_c_stderr():
+    """Send what C/C++ libraries write on file descriptor 2 to /dev/null.
+
+    Python's own ``sys.stderr`` is flushed first and restored after, so
+    only third-party noise (e.g. urdfdom's parser messages) is dropped; the
+    command reports errors itself.
+    """
+    try:
+        fd = sys.__stderr__.fileno() if sys.__stderr__ is not None else 2
+        saved = os.dup(fd)
+    except (OSError, ValueError, AttributeError):
+        yield  # no real stderr (embedded interpreter): nothing to silence
+        return
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, fd)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+        os.close(devnull)
+
+
+def _column_map_arg(value):
+    """``--column-map``: a preset name, a JSON file or a JSON object."""
+    from .io import COLUMN_PRESETS
+
+    text = value.strip()
+    if text in COLUMN_PRESETS:
+        return text
+    source = "--column-map"
+    if not text.startswith("{"):
+        path = Path(text)
+        if not path.is_file():
+            raise argparse.ArgumentTypeError(
+                f"{value!r} is neither a preset ({', '.join(COLUMN_PRESETS)}), a JSON file nor "
+                "a JSON object such as '{\"time\": 0, \"q\": [1, 6], ...}'")
+        source = str(path)
+        try:
+            text = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise argparse.ArgumentTypeError(f"cannot read {path}: {exc}") from None
+    try:
+        mapping = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f"{source}: not valid JSON ({exc})") from None
+    if not isinstance(mapping, dict):
+        raise argparse.ArgumentTypeError(
+            f"{source}: a column map is a JSON object (field -> columns), got "
+            f"{type(mapping).__name__}")
+    return mapping
+
+
+def _output_file_arg(value):
+    """An output file path whose folder exists and is writable (checked at parse time)."""
+    path = Path(value)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{value}: is a folder, expected a file name")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"{value}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise argparse.ArgumentTypeError(f"{value}: not writable")
+    return value
+
+
+#: Figure formats a ``--plot FILE`` accepts (by file suffix).
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+
+
+def _figure_file_arg(value):
+    """An output figure path: writable as :func:`_output_file_arg`, known format."""
+    value = _output_file_arg(value)
+    if Path(value).suffix.lower() not in PLOT_SUFFIXES:
+        raise argparse.ArgumentTypeError(
+            f"{value}: unknown figure format {Path(value).suffix!r}; use one of "
+            f"{', '.join(PLOT_SUFFIXES)}")
+    return value
+
+
+def _output_dir_arg(value):
+    """An output folder that exists or can be created (checked at parse time)."""
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{value}: is a file, expected a folder")
+    existing = path
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir() or not os.access(existing, os.W_OK):
+        raise argparse.ArgumentTypeError(f"{value}: cannot write in {existing}")
+    return value
+
+
+def _model_file_arg(value):
+    """``-o`` of ``gpcd train``: a writable ``.skops``, ``.joblib`` or ``.pkl`` file."""
+    from .persistence import PICKLE_EXTENSIONS, SKOPS_EXTENSION
+
+    suffixes = (SKOPS_EXTENSION,) + tuple(PICKLE_EXTENSIONS)
+    if Path(value).suffix.lower() not in suffixes:
+        raise argparse.ArgumentTypeError(
+            f"{value}: the extension chooses the format; use one of {', '.join(suffixes)}")
+    return _output_file_arg(value)
+
+
+def _positive_int(value):
+    try:
+        number = int(value)
+    except ValueError:
+        number = 0
+    if number < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value!r}")
+    return number
+
+
+def _positive_float(value):
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not number > 0 or not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {value!r}")
+    return number
+
+
+def _n_support_arg(value):
+    return "auto" if value.strip().lower() == "auto" else _positive_int(value)
+
+
+# ---------------------------------------------------------------- progress
+class _Progress:
+    """A progress bar with an ETA on stderr.
+
+    On a terminal the bar is redrawn in place; otherwise (a log, a pipe) one
+    line is printed at most every ``interval`` seconds and at the end.
+    """
+
+    def __init__(self, label, total, *, stream=None, interval=5.0, enabled=True):
+        self.label, self.total, self.done = label, max(int(total), 1), 0
+        self.stream = sys.stderr if stream is None else stream
+        self.interval, self.enabled = interval, enabled
+        self.start = self._last = time.perf_counter()
+        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._draw(force=True)
+
+    def update(self, n=1):
+        self.done = min(self.done + n, self.total)
+        self._draw(force=self.done == self.total)
+
+    def _draw(self, force=False):
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if not (force or self._tty or now - self._last >= self.interval):
+            return
+        self._last = now
+        elapsed = now - self.start
+        width = 24
+        filled = int(width * self.done / self.total)
+        if self.done == self.total:
+            tail = f"done in {_seconds(elapsed)}"
+        elif self.done:
+            tail = f"{_seconds(elapsed)} elapsed, ETA {_seconds(elapsed * (self.total / self.done - 1))}"
+        else:
+            tail = "ETA after the first step"
+        line = f"{self.label} [{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} {tail}"
+        end = "\n" if (not self._tty or self.done == self.total) else ""
+        print(("\r" if self._tty else "") + line, end=end, file=self.stream, flush=True)
+
+
+def _seconds(value):
+    value = int(round(value))
+    return f"{value // 60}m{value % 60:02d}s" if value >= 60 else f"{value}s"
+
+
+@contextlib.contextmanager
+def _count_fitted_outputs(progress):
+    """Advance ``progress`` once per output a :class:`SemiParametricGPRegressor` fits.
+
+    Outputs may be fitted in other processes (``n_jobs``): each finished
+    output appends one byte to a temporary file, which a thread of this
+    process polls.
+    """
+    from .gp import regressor
+
+    fit_output = regressor._fit_output
+    handle, ticks = tempfile.mkstemp(prefix="gpcd-progress-")
+    os.close(handle)
+
+    def counted(*args, **kwargs):
+        result = fit_output(*args, **kwargs)
+        with open(ticks, "a") as log:
+            log.write(".")
+        return result
+
+    stop = threading.Event()
+
+    def poll():
+        seen = 0
+        while True:
+            stopped = stop.wait(0.5)
+            now = os.path.getsize(ticks)
+            if now > seen:
+                progress.update(now - seen)
+                seen = now
+            if stopped:
+                return
+
+    watcher = threading.Thread(target=poll, daemon=True)
+    regressor._fit_output = counted
+    watcher.start()
+    try:
+        yield
+    finally:
+        regressor._fit_output = fit_output
+        stop.set()
+        watcher.join()
+        os.unlink(ticks)
+
+
+# ---------------------------------------------------------------- recordings
+def _read_recordings(paths, args, what="recordings", progress=True):
+    """Load ``paths`` with ``--column-map`` (and ``n_joints`` of ``--robot`` when given)."""
+    from .io import load_recording
+    from .io.load import recording_paths
+
+    sources = recording_paths(paths)
+    if not sources:
+        raise ValueError(f"no {what} found in {' '.join(map(str, paths))}")
+    kwargs = {}
+    if getattr(args, "robot", None) is not None:
+        kwargs["n_joints"] = args.robot.n_joints
+    bar = _Progress(f"reading {what}", len(sources),
+                    enabled=progress and not getattr(args, "quiet", False))
+    recordings = []
+    for path in sources:
+        try:
+            rec = load_recording(path, column_map=getattr(args, "column_map", None), **kwargs)
+        except ValueError as exc:
+            if "column_map" not in str(exc):
+                raise
+            raise ValueError(f"{exc} -- on the command line: --column-map with a JSON object, "
+                             "a JSON file or a preset name") from None
+        recordings.append(rec)
+        bar.update()
+    return recordings
+
+
+def _robot_for(args, recordings):
+    """``--robot`` when given, else the robot named in the recordings' metadata."""
+    from .robots import load_robot
+
+    names = sorted({str(rec.metadata.get("robot") or "") for rec in recordings})
+    if args.robot is not None:
+        named = [n for n in names if n]
+        if named and named != [args.robot.name]:
+            warnings.warn(f"the recordings name robot {', '.join(named)}; using --robot "
+                          f"{args.robot.name} as asked", UserWarning, stacklevel=2)
+        robot = args.robot
+    elif "" in names or len(names) != 1:
+        unnamed = [rec.name for rec in recordings if not rec.metadata.get("robot")]
+        reason = (f"{unnamed[0]} does not name its robot" if unnamed else
+                  f"the recordings name different robots ({', '.join(names)})")
+        raise ValueError(f"--robot is required: {reason} (give a built-in name such as "
+                         "ur10e, or a URDF path)")
+    else:
+        try:
+            with _quiet_c_stderr():
+                robot = load_robot(names[0])
+        except ValueError as exc:
+            raise ValueError(f"the recordings name robot {names[0]!r}, which gpcd cannot "
+                             f"load ({exc}); pass --robot") from None
+    for rec in recordings:
+        if rec.n_joints != robot.n_joints:
+            raise ValueError(f"{rec.name}: {rec.n_joints} joints but robot {robot.name} has "
+                             f"{robot.n_joints}")
+    return robot
+
+
+# ---------------------------------------------------------------- commands
 def _cmd_reproduce(args):
     from .experiments import reproduce
 
@@ -69,7 +385,7 @@ def _cmd_simulate(args):
     }
     start = time.perf_counter()
     recording = makers[args.scenario](robot=args.robot, random_state=args.seed)
-    write_rtde_csv(recording, args.output)
+    write_rtde_csv(recording, args.output, robot_comment=True)  # later commands need no --robot
     print(
         f"wrote {recording.n_samples} samples ({recording.duration:.1f} s simulated) "
         f"to {args.output} in {time.perf_counter() - start:.1f} s"
@@ -86,10 +402,92 @@ def _cmd_robots(args):
     return 0
 
 
+def _training_rows(n_rows, max_rows=MAX_TRAIN_ROWS):
+    """Rows of ``TRAIN_RULE``: every k-th row, k = ceil(n_rows / max_rows).
+
+    Examples
+    --------
+    >>> _training_rows(41707).stop, _training_rows(1_800_000).step
+    (41707, 9)
+    """
+    return slice(0, n_rows, max(1, math.ceil(n_rows / max_rows)))
+
+
+def _cmd_train(args):
+    """``gpcd train``: fit P_f, SP_S or SP_P on recordings and save it."""
+    import numpy as np
+
+    from .dynamics import RigidBodyRegressor
+    from .features import make_inputs
+    from .gp import make_p_f, make_sp_p, make_sp_s
+    from .gp._support import resolve_n_support
+    from .persistence import save
+
+    start = time.perf_counter()
+    quiet = args.quiet
+    recordings = _read_recordings(args.recordings, args, "training recordings")
+    robot = _robot_for(args, recordings)
+    n_recordings = len(recordings)
+    n_rows = sum(rec.n_samples for rec in recordings)
+    step = _training_rows(n_rows).step
+    bar = _Progress("computing GP inputs", n_recordings, enabled=not quiet)
+    X, y, offset = [], [], 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        while recordings:  # thin each block to the global every-step-th row, free as we go
+            rec = recordings.pop(0)
+            Xr, yr = make_inputs([rec], augmented=True)
+            keep = slice((-offset) % step, None, step)
+            X.append(Xr[keep].copy())
+            y.append(yr[keep].copy())
+            offset += rec.n_samples
+            del rec, Xr, yr
+            bar.update()
+    _warn_once_per_kind(caught, n_recordings)
+    X, y = np.vstack(X), np.vstack(y)
+    n_support = resolve_n_support(args.n_support, len(y))
+    n = robot.n_joints
+    features = [RigidBodyRegressor(robot, joint=j) for j in range(n)]
+    factory = {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[args.model]
+    n_jobs = args.n_jobs if args.n_jobs is not None else min(n, os.cpu_count() or 1)
+    params = dict(n_support=n_support, optimizer="auto", batch_size=min(512, n_support),
+                  random_state=args.seed, n_jobs=n_jobs)
+    if args.sigma_v is not None or args.model == "sp_p":
+        params["sigma_v"] = 1e-2 if args.sigma_v is None else args.sigma_v
+    model = factory(features, n, **params)
+    bar = _Progress(f"fitting {args.model.upper()} ({n} joints)", n, enabled=not quiet)
+    fit_start = time.perf_counter()
+    with _count_fitted_outputs(bar):
+        model.fit(X, y)
+    fit_seconds = time.perf_counter() - fit_start
+    save(model, args.output)
+    print(f"trained {args.model.upper()} for robot {robot.name} ({n} joints) on "
+          f"{n_recordings} recording(s), {n_rows} rows"
+          + (f" (1 row in {step} used: {len(y)})" if step > 1 else ""))
+    print(f"  GP support {n_support} rows per joint, optimizer {model.optimizer_}, "
+          f"iterations per joint {np.atleast_1d(model.n_iter_).tolist()}, "
+          f"sigma_v {params.get('sigma_v', '-')}")
+    lml = np.atleast_1d(model.log_marginal_likelihood_value_)
+    print("  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml))
+    print(f"  fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "
+          f"wrote {args.output}")
+    return 0
+
+
+def _warn_once_per_kind(caught, n_recordings):
+    """Re-issue recorded warnings, one per category (with how many recordings had it)."""
+    by_kind = {}
+    for w in caught:
+        by_kind.setdefault(w.category, []).append(str(w.message))
+    for category, messages in by_kind.items():
+        more = (f" (and alike for {len(messages) - 1} more of the {n_recordings} recordings)"
+                if len(messages) > 1 else "")
+        warnings.warn(messages[0] + more, category, stacklevel=2)
+
+
 def _cmd_diagnose(args):
     """``gpcd diagnose``: name the physics the robot model misses (see sklearn_gpcd.diagnosis)."""
     from .diagnosis import DynamicsDiagnosis
-    from .io import load_recording
 
     def split(text, what):
         if text is None:
@@ -99,27 +497,30 @@ def _cmd_diagnose(args):
         except ValueError:
             raise ValueError(f"{what} must be comma-separated numbers, got {text!r}") from None
 
-    def load(paths):
+    def load(paths, what):
         if not paths:
             return None
-        return [load_recording(path, n_joints=args.robot.n_joints) for path in paths]
+        return _read_recordings(paths, args, what, progress=False)
 
-    for option, path in (("--json", args.json), ("--plot", args.plot)):
-        _check_output_path(option, path)
+    start = time.perf_counter()
+    train, test = load(args.train, "training recordings"), load(args.test, "test recordings")
+    simulated, test_simulated = (load(args.simulated, "simulated recordings"),
+                                 load(args.test_simulated, "simulated test recordings"))
+    robot = _robot_for(args, [r for group in (train, test, simulated, test_simulated)
+                              for r in (group or [])])
     torque_constants = split(args.torque_constants, "--torque-constants")
     friction = None
     if args.coulomb is not None or args.viscous is not None:
-        n = args.robot.n_joints
+        n = robot.n_joints
         friction = {"coulomb": split(args.coulomb, "--coulomb") or [0.0] * n,
                     "viscous": split(args.viscous, "--viscous") or [0.0] * n}
     effects = "all" if args.effects is None else [e.strip() for e in args.effects.split(",")]
-    start = time.perf_counter()
-    train, test = load(args.train), load(args.test)
-    diagnosis = DynamicsDiagnosis(args.robot, torque_constants=torque_constants,
+    diagnosis = DynamicsDiagnosis(robot, torque_constants=torque_constants,
                                   friction=friction, effects=effects,
                                   check_units=not args.units_confirmed)
-    diagnosis.fit(train, simulated=load(args.simulated))
-    report = diagnosis.report(test, load(args.test_simulated))
+    diagnosis.fit(train, simulated=simulated)
+    report = diagnosis.report(test, test_simulated)
+    print(f"robot: {robot.name}")
     print(report.text())
     if args.json:
         report.to_json(args.json)
@@ -131,28 +532,17 @@ def _cmd_diagnose(args):
     return 0
 
 
-#: Figure formats ``--plot`` accepts (by file suffix).
-PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
-
-
-def _check_output_path(option, path):
-    """Fail before any work when ``path`` cannot be written (missing folder, bad suffix)."""
-    import os
-    from pathlib import Path
-
-    if path is None:
-        return
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise ValueError(f"{option} {path}: is a folder, give a file name")
-    if not folder.is_dir():
-        raise ValueError(f"{option} {path}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise ValueError(f"{option} {path}: folder {folder} is not writable")
-    if option == "--plot" and path.suffix.lower() not in PLOT_SUFFIXES:
-        raise ValueError(f"{option} {path}: unknown figure format {path.suffix!r}; use one "
-                         f"of {', '.join(PLOT_SUFFIXES)}")
+# ---------------------------------------------------------------- parser
+def _add_recording_options(parser, robot_help):
+    parser.add_argument("--robot", type=_robot_arg, default=None, help=robot_help)
+    parser.add_argument(
+        "--column-map", type=_column_map_arg, default=None,
+        help="column layout of text/NPZ recordings: a preset name (ur10e_mamedov), a JSON "
+        "file, or a JSON object mapping fields to column indices or header names, such as "
+        "'{\"time\": 0, \"q\": [1, 2, 3, 4, 5, 6], \"qd\": [7, 8, 9, 10, 11, 12], "
+        "\"current\": [13, 14, 15, 16, 17, 18]}' or, with a header, '{\"time\": \"t\", "
+        "\"q\": \"q\", \"qd\": \"qd\", \"current\": \"i\"}' (prefixes of q_0 .. q_5; "
+        "see sklearn_gpcd.io.columns)")
 
 
 def build_parser():
@@ -168,6 +558,9 @@ def build_parser():
     >>> args = build_parser().parse_args(["reproduce", "--quick", "-o", "out"])
     >>> args.quick, args.output
     (True, 'out')
+    >>> args = build_parser().parse_args(["diagnose", "--test", "held.csv", "train.csv"])
+    >>> args.train, args.test
+    (['train.csv'], ['held.csv'])
     """
     parser = argparse.ArgumentParser(
         prog="gpcd",
@@ -181,7 +574,8 @@ def build_parser():
         description="Simulate D1, D2, the joint-1 cyclic and the interaction tests, train "
         "P_f, SP_S and SP_P, and write DIR/report.md, figures and DIR/results.json.",
     )
-    rep.add_argument("-o", "--output", default="gpcd-results", help="output folder")
+    rep.add_argument("-o", "--output", type=_output_dir_arg, default="gpcd-results",
+                     help="output folder")
     rep.add_argument("--quick", action="store_true", help="small data sets (minutes)")
     rep.add_argument("--robot", type=_robot_arg, default="ur10",
                      help="built-in name or URDF path")
@@ -199,22 +593,51 @@ def build_parser():
         default="interaction",
     )
     sim.add_argument("--seed", type=int, default=0)
-    sim.add_argument("-o", "--output", required=True, help="CSV file to write")
+    sim.add_argument("-o", "--output", type=_output_file_arg, required=True,
+                     help="CSV file to write")
     sim.set_defaults(func=_cmd_simulate)
 
     rob = sub.add_parser("robots", help="list the built-in robots")
     rob.set_defaults(func=_cmd_robots)
+
+    tra = sub.add_parser(
+        "train",
+        help="fit P_f, SP_S or SP_P on your own recordings",
+        description="Fit the paper's estimator (one GP per joint on the residual of the "
+        "rigid-body + friction model) on collision-free recordings and save it. "
+        + TRAIN_RULE,
+    )
+    tra.add_argument("recordings", nargs="+",
+                     help="recordings (files, folders or glob patterns)")
+    _add_recording_options(tra, "built-in name or URDF path (default: the robot named in "
+                           "the recordings' metadata; required when they name none)")
+    tra.add_argument("--model", choices=["sp_p", "sp_s", "p_f"], default="sp_p",
+                     help="estimator: sp_p (proposed, default), sp_s or p_f")
+    tra.add_argument("--sigma-v", type=_positive_float, default=None,
+                     help="quasi-static velocity threshold [rad/s] (default 0.01 for sp_p; "
+                     "p_f and sp_s use the paper's unmasked friction unless given)")
+    tra.add_argument("--n-support", type=_n_support_arg, default="auto",
+                     help="GP support rows per joint (default auto: at most 2000)")
+    tra.add_argument("--seed", type=int, default=0, help="random seed (support rows, Adam)")
+    tra.add_argument("--n-jobs", type=int, default=None,
+                     help="joints fitted in parallel (default: one per core, at most one "
+                     "per joint; 1 uses the least memory)")
+    tra.add_argument("-o", "--output", type=_model_file_arg, required=True,
+                     help="model file to write (.skops, or .joblib / .pkl)")
+    tra.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    tra.set_defaults(func=_cmd_train)
 
     dia = sub.add_parser(
         "diagnose",
         help="find the physics the robot model misses in real recordings",
         description="Compare recordings (UR RTDE CSV, other CSV, NPZ, ROS bags) with the "
         "nominal model of --robot, name the missing effects (payload, friction terms, torque "
-        "constants, ...) with their parameters, and show the nMSE before/after on --test.",
+        "constants, ...) with their parameters, and show the nMSE before/after on --test. "
+        "Options naming recordings take one file each and may be repeated.",
     )
     dia.add_argument("train", nargs="+", help="training recordings")
-    dia.add_argument("--robot", type=_robot_arg, default="ur10",
-                     help="built-in name or URDF path")
+    _add_recording_options(dia, "built-in name or URDF path (default: the robot named in "
+                           "the recordings' metadata; required when they name none)")
     dia.add_argument("--torque-constants", default=None,
                      help="comma-separated Nm/A per joint (default: the robot's)")
     dia.add_argument("--coulomb", default=None,
@@ -223,18 +646,59 @@ def build_parser():
                      help="known nominal viscous friction, comma-separated Nm s/rad per joint")
     dia.add_argument("--effects", default=None,
                      help="comma-separated effect names to test (default: all)")
-    dia.add_argument("--test", nargs="+", default=None, help="held-out recordings")
-    dia.add_argument("--simulated", nargs="+", default=None,
-                     help="simulated runs of the training trajectories (pair mode)")
-    dia.add_argument("--test-simulated", nargs="+", default=None,
-                     help="simulated runs of the test trajectories (pair mode)")
-    dia.add_argument("--json", default=None, help="write the report as JSON here")
-    dia.add_argument("--plot", default=None, help="write the figure here (PNG, PDF, ...)")
+    dia.add_argument("--test", action="append", default=None, metavar="FILE",
+                     help="held-out recording (repeat for several)")
+    dia.add_argument("--simulated", action="append", default=None, metavar="FILE",
+                     help="simulated run of a training trajectory (pair mode; repeat)")
+    dia.add_argument("--test-simulated", action="append", default=None, metavar="FILE",
+                     help="simulated run of a test trajectory (pair mode; repeat)")
+    dia.add_argument("--json", type=_output_file_arg, default=None,
+                     help="write the report as JSON here")
+    dia.add_argument("--plot", type=_figure_file_arg, default=None,
+                     help="write the figure here (PNG, PDF, ...)")
     dia.add_argument("--units-confirmed", action="store_true",
                      help="diagnose even when positions look like degrees or time like "
                      "milliseconds (refused by default)")
     dia.set_defaults(func=_cmd_diagnose)
     return parser
+
+
+#: Subcommand -> its positional list of recordings (arguments left over after
+#: the options, e.g. ``a.csv --test h.csv b.csv``, belong to it).
+_RECORDING_POSITIONALS = {"train": "recordings", "diagnose": "train"}
+
+
+def parse_args(argv=None):
+    """Parse ``gpcd`` arguments; recordings may come before, between or after options.
+
+    argparse takes one contiguous run of positionals, so ``gpcd diagnose a.csv
+    --test h.csv b.csv`` would leave ``b.csv`` unrecognised; here such
+    leftovers join the subcommand's list of recordings. Anything else left
+    over is a usage error.
+
+    Parameters
+    ----------
+    argv : list of str, default=None
+        Arguments without the program name; ``None`` reads ``sys.argv``.
+
+    Returns
+    -------
+    args : argparse.Namespace
+
+    Examples
+    --------
+    >>> args = parse_args(["diagnose", "a.csv", "--test", "h.csv", "b.csv"])
+    >>> args.train, args.test
+    (['a.csv', 'b.csv'], ['h.csv'])
+    """
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    dest = _RECORDING_POSITIONALS.get(args.command)
+    if extra and dest is not None and not any(a.startswith("-") for a in extra):
+        getattr(args, dest).extend(extra)
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    return args
 
 
 def main(argv=None):
@@ -248,7 +712,7 @@ def main(argv=None):
     Returns
     -------
     status : int
-        Process exit status.
+        Process exit status (130 after Ctrl-C).
 
     Examples
     --------
@@ -257,15 +721,24 @@ def main(argv=None):
     ur3 ...
     0
     """
-    args = build_parser().parse_args(argv)
-    prefix = f"gpcd {args.command}"
-    with warnings.catch_warnings():
-        warnings.showwarning = _warning_printer(prefix)
+    prefix = "gpcd"
+    try:
         try:
-            return args.func(args)
-        except (ValueError, OSError, ImportError) as exc:
-            print(f"{prefix}: error: {_one_line(exc)}", file=sys.stderr)
-            return 2
+            args = parse_args(argv)
+        except SystemExit as exc:  # usage error or --help: argparse printed why
+            return exc.code if isinstance(exc.code, int) else 2
+        prefix = f"gpcd {args.command}"
+        with warnings.catch_warnings():
+            warnings.showwarning = _warning_printer(prefix)
+            try:
+                return args.func(args)
+            except (ValueError, OSError, ImportError) as exc:
+                print(f"{prefix}: error: {_one_line(exc)}", file=sys.stderr)
+                return 2
+    except KeyboardInterrupt:
+        fresh_line = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
+        print(f"{fresh_line}{prefix}: interrupted", file=sys.stderr)  # after a bar's \r
+        return 130
 
 
 def _one_line(message):

@@ -48,6 +48,7 @@ def test_simulate_writes_an_rtde_csv_the_loader_reads(tmp_path, capsys):
     assert rec.n_joints == 6
     assert rec.target_current is not None
     assert np.all(np.diff(rec.time) > 0)
+    assert rec.metadata["robot"] == "ur10"  # kept, so later commands need no --robot
 
 
 def test_simulate_with_a_urdf_robot(tmp_path, ur10_urdf):
@@ -70,3 +71,36 @@ def test_ci_runs_the_readme_test_command_verbatim():
     assert len(commands) == 2, "the quick start must have exactly two commands"
     assert "gpcd reproduce" in commands[0]
     assert commands[1] in (REPO / ".ci" / "run").read_text().splitlines()
+
+
+def test_tests_extra_lists_every_optional_package_the_tests_use():
+    """A fresh ``pip install -e ".[tests]"`` must run the whole default suite."""
+    import re
+
+    pyproject = (REPO / "pyproject.toml").read_text()
+    extras = dict(re.findall(r'^([a-z-]+) = \[(.*)\]$', pyproject, flags=re.M))
+    tests_extra = {re.split(r"[\[<>=]", dep.strip().strip('"'))[0]
+                   for dep in extras["tests"].split('", ')}
+    docs_extra = {re.split(r"[\[<>=]", dep.strip().strip('"'))[0]
+                  for dep in extras["docs"].split('", ')}
+    used = set()
+    for path in (REPO / "tests").glob("*.py"):
+        used |= set(re.findall(r'importorskip\("([A-Za-z_]+)', path.read_text()))
+    used |= {"example_robot_data"}  # tests/conftest.py: the reference UR10 URDF
+    used -= {"sklearn_gpcd"}
+    dists = {name.replace("_", "-") for name in used}
+    docs_only = {"sphinx", "numpydoc", "sphinx-gallery", "pydata-sphinx-theme"}
+    # opt-in extras feed only slow tests (`pytest -m slow`), never the default run
+    opt_in = {re.split(r"[\[<>=]", dep.strip().strip('"'))[0]
+              for dep in extras["second-engine"].split('", ')}
+    assert dists - docs_only - opt_in <= tests_extra, dists - docs_only - opt_in - tests_extra
+    assert docs_only <= docs_extra
+
+
+def test_ci_runs_the_tests_in_a_fresh_virtual_environment():
+    script = (REPO / ".ci" / "run").read_text()
+    venv = script.index("python -m venv")
+    activate = script.index("/bin/activate")
+    install = script.index('python -m pip install -e ".[tests]"')
+    assert venv < activate < install
+    assert '"$status" -eq 5' in script  # pytest collecting nothing fails CI

@@ -41,8 +41,8 @@ def test_diagnose_plot(csv_files, tmp_path):
     pytest.importorskip("matplotlib")
     train, test = csv_files
     png = tmp_path / "fig.png"
-    assert main(["diagnose", str(train), "--test", str(test), "--plot", str(png),
-                 "--effects", "payload"]) == 0
+    assert main(["diagnose", "--robot", "ur10", str(train), "--test", str(test),
+                 "--plot", str(png), "--effects", "payload"]) == 0
     assert png.stat().st_size > 1000
 
 
@@ -53,13 +53,13 @@ def test_diagnose_robot_accepts_urdf_path(ur10_urdf):
 
 def test_diagnose_bad_torque_constants(csv_files, capsys):
     train, _ = csv_files
-    assert main(["diagnose", str(train), "--torque-constants", "1,2,x"]) == 2
+    assert main(["diagnose", "--robot", "ur10", str(train), "--torque-constants", "1,2,x"]) == 2
     assert "--torque-constants must be comma-separated numbers" in capsys.readouterr().err
 
 
 def test_diagnose_wrong_number_of_torque_constants(csv_files, capsys):
     train, _ = csv_files
-    assert main(["diagnose", str(train), "--torque-constants", "1,2"]) == 2
+    assert main(["diagnose", "--robot", "ur10", str(train), "--torque-constants", "1,2"]) == 2
     assert "torque_constants needs 6" in capsys.readouterr().err
 
 

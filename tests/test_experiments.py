@@ -85,3 +85,91 @@ def test_gpcd_reproduce_quick_end_to_end(tmp_path):
     assert results["checks"]["sp_p_quasi_static_best_majority"]
     assert results["checks"]["all_pushes_detected"]
     assert results["checks"]["no_false_alarm_at_rest"]
+
+
+def _full_nmse(d2_dynamic_sp_p, d2_dynamic_p_f):
+    """nMSE tables of every (data set, regime) with SP_P best except where given."""
+    tables = {name: {} for name in ("P_f", "SP_S", "SP_P")}
+    for dataset in ("D1_test", "D2"):
+        for regime in ("dynamic", "quasi_static"):
+            tables["P_f"].setdefault(dataset, {})[regime] = [0.2] * 6
+            tables["SP_S"].setdefault(dataset, {})[regime] = [0.3] * 6
+            tables["SP_P"].setdefault(dataset, {})[regime] = [0.1] * 6
+    tables["SP_P"]["D2"]["dynamic"] = d2_dynamic_sp_p
+    tables["P_f"]["D2"]["dynamic"] = d2_dynamic_p_f
+    return tables
+
+
+def test_report_verdict_covers_every_table_with_its_losses():
+    from sklearn_gpcd.experiments.report import _verdicts
+
+    nmse = _full_nmse([0.1, 0.065, 0.07, 0.1, 0.1, 0.1], [0.2, 0.036, 0.04, 0.2, 0.2, 0.2])
+    results = {"nmse": nmse,
+               "interaction": {"pushes": [{"detected": True}], "all_pushes_detected": True,
+                               "false_alarms_rest": 0, "false_alarms_moving": 0}}
+    text = _verdicts({**results, "checks": acceptance_checks(results)})
+    for dataset in ("D1_test", "D2"):
+        for regime in ("dynamic", "quasi-static"):
+            assert f"- {dataset}, {regime}: SP_P lowest on joint(s)" in text
+    line = next(ln for ln in text.splitlines() if ln.startswith("- D2, dynamic"))
+    assert "SP_P lowest on joint(s) 1, 4, 5, 6 of 6" in line
+    assert "worse than P_f on joint(s) 2 (0.065 vs 0.036), 3 (0.07 vs 0.04)" in line
+    assert "SP_S" not in line  # SP_P beats SP_S everywhere: no loss to report
+    assert "worse than" not in text.replace(line, "")
+
+
+def test_nmse_legend_does_not_cover_any_bar():
+    plt = pytest.importorskip("matplotlib.pyplot")
+    from sklearn_gpcd.experiments.report import _nmse_figure
+
+    nmse = _full_nmse([0.1] * 6, [0.2] * 6)
+    for regime in ("dynamic", "quasi_static"):
+        for name in nmse:  # tall joint-6 bars, where the old legend sat
+            for dataset in ("D1_test", "D2"):
+                nmse[name][dataset][regime] = [0.01, 0.02, 0.03, 0.05, 0.5, 1.0]
+        fig = _nmse_figure(plt, nmse, regime)
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        legend = fig.legends[0].get_window_extent(renderer)
+        bars = [p.get_window_extent(renderer) for ax in fig.axes for p in ax.patches]
+        assert len(bars) == 2 * 3 * 6
+        assert not any(legend.overlaps(b) for b in bars)
+        assert not any(legend.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)
+        plt.close(fig)
+
+
+def test_interaction_figure_names_the_pushes_and_marks_the_alarms(monkeypatch, tmp_path):
+    plt = pytest.importorskip("matplotlib.pyplot")
+    from types import SimpleNamespace
+
+    from sklearn_gpcd.experiments.report import plot_interaction
+    from sklearn_gpcd.io import Recording
+
+    n = 200
+    t = np.arange(n) * 0.01
+    labels = np.where((t > 0.5) & (t < 0.8), 1, 0)
+    alarm = (t > 0.55) & (t < 0.9)
+    y = np.sin(t)[:, None] * np.ones((1, 6))
+    rec = Recording(time=t, q=np.zeros((n, 6)), qd=np.zeros((n, 6)), current=y, labels=labels)
+    closed = []
+    monkeypatch.setattr(plt, "close", closed.append)
+    path = plot_interaction(rec, y * 0.9, SimpleNamespace(thresholds_=np.full(6, 0.1)),
+                            None, y, tmp_path / "interaction.png", alarm=alarm)
+    assert path.stat().st_size > 1000
+    top, _, bottom = closed[0].axes
+    texts = [x.get_text() for x in bottom.get_legend().get_texts()]
+    assert "labelled contact" in texts and "alarm" in texts
+    assert "labelled contact" in [x.get_text() for x in top.get_legend().get_texts()]
+    onsets = [ln.get_xdata()[0] for ln in bottom.get_lines() if ln.get_linestyle() == ":"]
+    assert onsets == [pytest.approx(t[alarm][0])]
+    fig = closed[0]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in (top, bottom):  # the legends sit beside the panels, off the signals
+        assert not ax.get_legend().get_window_extent(renderer).overlaps(
+            ax.get_window_extent(renderer))
+    closed.clear()
+    plot_interaction(rec, y * 0.9, SimpleNamespace(thresholds_=np.full(6, 0.1)),
+                     None, y, tmp_path / "quiet.png", alarm=np.zeros(n, dtype=bool))
+    texts = [x.get_text() for x in closed[0].axes[2].get_legend().get_texts()]
+    assert "alarm (none)" in texts

@@ -39,7 +39,15 @@ def plot_nmse_bars(nmse, regime, path):
     plt = _pyplot()
     if plt is None:
         return None
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), sharey=True)
+    fig = _nmse_figure(plt, nmse, regime)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _nmse_figure(plt, nmse, regime):
+    """The figure of :func:`plot_nmse_bars`; its legend sits above the axes, off the bars."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
     for ax, dataset in zip(axes, ("D1_test", "D2")):
         n = len(nmse["P_f"][dataset][regime])
         x = np.arange(n)
@@ -52,11 +60,11 @@ def plot_nmse_bars(nmse, regime, path):
         ax.set_title(f"{dataset}, {regime.replace('_', '-')}")
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_ylabel("nMSE (Eq. 18)")
-    axes[1].legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=len(labels), frameon=False,
+               bbox_to_anchor=(0.5, 1.0))
+    fig.tight_layout(rect=(0, 0, 1, 0.9))
+    return fig
 
 
 def plot_cyclic(recording, signals, path, joint=0):
@@ -85,8 +93,12 @@ def plot_cyclic(recording, signals, path, joint=0):
     return Path(path)
 
 
-def plot_interaction(recording, predicted, detector, X, y, path, joint=0):
-    """i1, predicted i1, qd1 and s with the contacts shaded (paper Fig. 3)."""
+def plot_interaction(recording, predicted, detector, X, y, path, joint=0, alarm=None):
+    """i1, predicted i1, qd1 and s with the contacts shaded (paper Fig. 3).
+
+    ``alarm`` (one bool per sample, the detector's decision on any joint)
+    marks the alarms; the legends name the shaded pushes and the alarms.
+    """
     plt = _pyplot()
     if plt is None:
         return None
@@ -95,6 +107,7 @@ def plot_interaction(recording, predicted, detector, X, y, path, joint=0):
     axes = plot_monitoring(
         recording.time - recording.time[0], y, predicted, recording.qd,
         y - predicted, detector.thresholds_, labels=recording.labels, joint=joint,
+        alarms=alarm,
     )
     fig = axes[0].figure
     fig.set_size_inches(10, 7)
@@ -133,6 +146,7 @@ def _verdicts(results):
         lines.append(f"- **Not delivered:** SP_P has the lowest quasi-static nMSE on D2 for "
                      f"only {len(best)} of {n} joints; the paper's claim does not hold in "
                      "this run.")
+    lines += _table_verdicts(results["nmse"])
     detected = sum(p["detected"] for p in inter["pushes"])
     word = "Delivered" if checks["all_pushes_detected"] else "Not delivered"
     lines.append(f"- **{word}:** {detected} of {len(inter['pushes'])} pushes detected.")
@@ -142,6 +156,48 @@ def _verdicts(results):
                  f"alarm sample(s) there ({inter['false_alarms_moving']} false alarm(s) while "
                  "moving).")
     return "\n".join(lines)
+
+
+def _joints(indices):
+    return ", ".join(str(j + 1) for j in indices)
+
+
+def _table_verdicts(nmse):
+    """One line per nMSE table of the report: where SP_P wins and where it loses.
+
+    Every (data set, regime) table present in ``nmse`` gets a line naming the
+    joints where SP_P has the lowest nMSE and, for each other estimator, the
+    joints where SP_P is worse, with both values.
+
+    Examples
+    --------
+    >>> nmse = {"P_f": {"D2": {"dynamic": [0.1, 0.036]}},
+    ...         "SP_S": {"D2": {"dynamic": [0.2, 0.2]}},
+    ...         "SP_P": {"D2": {"dynamic": [0.05, 0.065]}}}
+    >>> print(_table_verdicts(nmse)[0])
+    - D2, dynamic: SP_P lowest on joint(s) 1 of 2; worse than P_f on joint(s) 2 (0.065 vs 0.036).
+    """
+    lines = []
+    for dataset in ("D1_test", "D2"):
+        for regime in ("dynamic", "quasi_static"):
+            try:
+                values = {name: np.asarray(nmse[name][dataset][regime], dtype=float)
+                          for name in ESTIMATORS}
+            except KeyError:
+                continue
+            sp_p = values["SP_P"]
+            others = [name for name in ESTIMATORS if name != "SP_P"]
+            valid = np.isfinite(sp_p)
+            best = np.flatnonzero(valid & np.all([sp_p < values[o] for o in others], axis=0))
+            parts = [f"SP_P lowest on joint(s) {_joints(best) or 'none'} of {valid.sum()}"]
+            for other in others:
+                worse = np.flatnonzero(valid & (sp_p > values[other]))
+                if worse.size:
+                    pairs = ", ".join(f"{j + 1} ({_fmt(sp_p[j])} vs {_fmt(values[other][j])})"
+                                      for j in worse)
+                    parts.append(f"worse than {other} on joint(s) {pairs}")
+            lines.append(f"- {dataset}, {regime.replace('_', '-')}: " + "; ".join(parts) + ".")
+    return lines
 
 
 def write_report(out, results, recs, data, models, detector, s_cyclic, outcome):
@@ -163,7 +219,7 @@ def write_report(out, results, recs, data, models, detector, s_cyclic, outcome):
         figures["cyclic"] = path.name
     Xi, yi = data["interaction"]
     path = plot_interaction(recs["interaction"], models["SP_P"].predict(Xi), detector, Xi, yi,
-                            out / "interaction.png")
+                            out / "interaction.png", alarm=outcome.get("alarm"))
     if path:
         figures["interaction"] = path.name
 

@@ -7,6 +7,41 @@ subset of 5,000 of them; this module chooses that subset.
 import numpy as np
 
 SUPPORT_SELECTIONS = ("random", "greedy")
+#: Support rows of ``n_support="auto"``: the GP is conditioned on at most this
+#: many rows, so the posterior factor stays ~32 MB per output (2,000^2 floats)
+#: and the hyperparameters go to minibatch Adam for the paper's SP_P
+#: (``resolve_optimizer``), whatever the number of training rows.
+AUTO_SUPPORT = 2000
+
+
+def resolve_n_support(n_support, n_samples):
+    """The number of support rows ``n_support`` stands for.
+
+    Parameters
+    ----------
+    n_support : int, "auto" or None
+        None keeps every row (an exact GP); "auto" keeps
+        ``min(n_samples, AUTO_SUPPORT)`` rows; an int keeps
+        ``min(n_samples, n_support)``.
+    n_samples : int
+        Number of training rows.
+
+    Returns
+    -------
+    n_support : int
+
+    Examples
+    --------
+    >>> resolve_n_support("auto", 500), resolve_n_support("auto", 41707)
+    (500, 2000)
+    >>> resolve_n_support(None, 41707), resolve_n_support(5000, 3000)
+    (41707, 3000)
+    """
+    if n_support is None:
+        return n_samples
+    if isinstance(n_support, str) and n_support == "auto":
+        return min(n_samples, AUTO_SUPPORT)
+    return min(n_samples, n_support)
 
 
 def select_support(kernel, X, n_support, method, rng):

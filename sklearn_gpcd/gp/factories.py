@@ -7,6 +7,11 @@ per joint. P_f and SP_S only read the state columns ``[q, qd, qdd]``, so they
 also accept the 3 n-column layout. Velocities must stay in their physical
 units (rad/s) because ``sigma_v`` thresholds them: do not rescale the
 ``qd`` columns in front of SP_P.
+
+Safe on any number of rows: the factories default to ``n_support="auto"``
+(the GP is conditioned on at most ``AUTO_SUPPORT = 2000`` rows, see
+:class:`SemiParametricGPRegressor`), so a fit never builds an exact GP on
+tens of thousands of rows; pass ``n_support=None`` for the exact GP.
 """
 
 import numpy as np
@@ -48,7 +53,8 @@ def make_p_f(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp_
     **gp_params
         Other :class:`SemiParametricGPRegressor` parameters. ``normalize_y``
         defaults to False here, so that the prediction is exactly
-        :math:`\phi_\ell(x) w_\ell` (with True it would add the mean residual).
+        :math:`\phi_\ell(x) w_\ell` (with True it would add the mean residual);
+        ``n_support`` defaults to "auto".
 
     Returns
     -------
@@ -97,7 +103,8 @@ def make_sp_s(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp
         Friction columns of :math:`\phi_\ell`.
     **gp_params
         Other :class:`SemiParametricGPRegressor` parameters
-        (``normalize_y`` defaults to True).
+        (``normalize_y`` defaults to True, ``n_support`` to "auto": at most
+        2,000 support rows).
 
     Returns
     -------
@@ -149,7 +156,8 @@ def make_sp_p(features, n_joints, *, sigma_v=1e-2, friction_columns="auto", **gp
         Friction columns of :math:`\phi_\ell`.
     **gp_params
         Other :class:`SemiParametricGPRegressor` parameters
-        (``normalize_y`` defaults to True).
+        (``normalize_y`` defaults to True, ``n_support`` to "auto": at most
+        2,000 support rows).
 
     Returns
     -------
@@ -263,4 +271,5 @@ def _means(features, n_joints, sigma_v, friction_columns):
 
 def _estimator(kernels, means, gp_params):
     gp_params.setdefault("normalize_y", True)
+    gp_params.setdefault("n_support", "auto")  # never an exact GP on all rows by default
     return SemiParametricGPRegressor(kernel=kernels, mean=means, **gp_params)

@@ -29,7 +29,7 @@ from ._optimize import (
 )
 from .mean import ParametricMean
 from ._posterior import _Posterior, target_scaling
-from ._support import SUPPORT_SELECTIONS, select_support
+from ._support import SUPPORT_SELECTIONS, resolve_n_support, select_support
 
 
 def _default_kernel():
@@ -112,9 +112,12 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         hyperparameters with the best held-out LML are kept.
     normalize_y : bool, default=False
         Standardise the residual ``y - m(x)`` before fitting the GP.
-    n_support : int or None, default=None
+    n_support : int, "auto" or None, default=None
         Number of training rows the GP is fitted and conditioned on (all
-        rows when None). The parametric mean always uses all rows.
+        rows when None: an exact GP, O(n^2) memory). "auto" takes at most
+        ``AUTO_SUPPORT = 2000`` rows, safe on any number of rows (the
+        default of :func:`make_p_f`, :func:`make_sp_s` and
+        :func:`make_sp_p`). The parametric mean always uses all rows.
     support_selection : {"random", "greedy"}, default="random"
         How the support rows are chosen: uniformly at random, or by
         farthest-point traversal in the metric of the initial kernel
@@ -240,10 +243,10 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         alpha = self._check_alpha(len(y))
         kernels, means = self._prepare_models()
         X_mean = X_raw if hasattr(X_raw, "columns") else X  # keep names for the mean
-        n_exact = len(y) if self.n_support is None else min(self.n_support, len(y))
+        n_exact = resolve_n_support(self.n_support, len(y))
         n_theta = max(kernel.n_dims for kernel in kernels)
         self.optimizer_ = resolve_optimizer(self.optimizer, n_exact, n_theta)
-        params = self._gp_params()
+        params = self._gp_params(n_exact)
         fits = Parallel(n_jobs=self.n_jobs)(
             delayed(_fit_output)(
                 kernel, mean, X, X_mean, Y[:, j], alpha, seed, params,
@@ -367,9 +370,9 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         """Stack per-output results on a last axis; squeeze a single output."""
         return arrays[0] if self.n_outputs_ == 1 else np.stack(arrays, axis=-1)
 
-    def _gp_params(self):
+    def _gp_params(self, n_support):
         return {
-            "n_support": self.n_support,
+            "n_support": n_support,
             "support_selection": self.support_selection,
             "normalize_y": self.normalize_y,
             "optimizer": self.optimizer_,
@@ -408,9 +411,12 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
                 f"n_restarts_optimizer must be an int >= 0, got {self.n_restarts_optimizer!r}."
             )
         if self.n_support is not None and not (
-            isinstance(self.n_support, numbers.Integral) and self.n_support >= 1
+            (isinstance(self.n_support, numbers.Integral) and self.n_support >= 1)
+            or (isinstance(self.n_support, str) and self.n_support == "auto")
         ):
-            raise ValueError(f"n_support must be an int >= 1 or None, got {self.n_support!r}.")
+            raise ValueError(
+                f"n_support must be an int >= 1, 'auto' or None, got {self.n_support!r}."
+            )
         if self.support_selection not in SUPPORT_SELECTIONS:
             raise ValueError(
                 f"support_selection must be one of {SUPPORT_SELECTIONS}, "

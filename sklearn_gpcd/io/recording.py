@@ -116,6 +116,33 @@ class Recording:
                 )
             object.__setattr__(self, "labels", labels)
 
+    def __repr__(self):
+        """A one-line summary; the arrays themselves are never printed.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn_gpcd.io import Recording
+        >>> t = np.arange(1000) * 0.002
+        >>> Recording(time=t, q=np.zeros((1000, 6)), qd=np.zeros((1000, 6)),
+        ...           current=np.ones((1000, 6)), name="run.csv",
+        ...           metadata={"robot": "ur10e"})
+        Recording('run.csv', 1000 samples x 6 joints, 2.00 s at 500 Hz, signals q, qd, current, current in A, robot ur10e)
+        """
+        parts = [f"{self.n_samples} samples x {self.n_joints} joints"]
+        if self.n_samples > 1:
+            rate = (self.n_samples - 1) / self.duration if self.duration > 0 else float("nan")
+            parts.append(f"{self.duration:.2f} s at {rate:.4g} Hz")
+        parts.append(f"signals {', '.join(self.available())}")
+        parts.append(f"current in {self.units}")
+        if self.labels is not None:
+            parts.append(f"{len(np.unique(self.labels[self.labels > 0]))} labelled events")
+        if self.metadata.get("robot"):
+            parts.append(f"robot {self.metadata['robot']}")
+        return f"Recording({self.name!r}, {', '.join(parts)})"
+
+    __str__ = __repr__
+
     @property
     def n_samples(self):
         """Number of samples."""

@@ -31,7 +31,11 @@ labels          ``collision_label`` (extension: 0 free, k > 0 contact k)
 
 :func:`write_rtde_csv` writes the same layout (the two extension columns
 only when the recording has them) with ``repr`` precision, so a written
-file reads back to an equal recording.
+file reads back to an equal recording. With ``robot_comment=True`` (as
+``gpcd simulate`` writes) a first comment line ``# robot: NAME`` keeps
+``metadata["robot"]``, and :func:`read_rtde_csv` reads it back, so that
+``gpcd`` commands need no ``--robot`` for such files; by default the file
+starts with the header line, as ur_rtde's do.
 """
 
 from pathlib import Path
@@ -161,11 +165,29 @@ def read_rtde_csv(
     if LABEL_COLUMN in present:
         column_map["labels"] = LABEL_COLUMN
     metadata = {"format": "rtde_csv", "delimiter": table.delimiter or " ", "header": True}
+    robot = _robot_comment(path)
+    if robot:
+        metadata["robot"] = robot
     return recording_from_table(
         table, column_map, n_joints=n_joints,
         units="Nm" if current == TORQUE_OUTPUT else "A",
         name=Path(path).name if name is None else name, metadata=metadata,
         max_dropped=max_dropped, max_joint_speed=max_joint_speed, min_samples=min_samples)
+
+
+def _robot_comment(path, max_lines=20):
+    """The robot named by a leading ``# robot: NAME`` comment line, or None."""
+    with open(path, "rb") as handle:
+        for _, raw in zip(range(max_lines), handle):
+            line = raw.decode("utf-8", "replace").strip()
+            if not line:
+                continue
+            if not line.startswith("#"):
+                return None
+            key, _, value = line.lstrip("#").partition(":")
+            if key.strip().lower() == "robot" and value.strip():
+                return value.strip()
+    return None
 
 
 def rtde_columns(recording):
@@ -208,7 +230,7 @@ def rtde_columns(recording):
     return names, blocks
 
 
-def write_rtde_csv(recording, path, *, delimiter=","):
+def write_rtde_csv(recording, path, *, delimiter=",", robot_comment=False):
     """Write a recording as a UR RTDE CSV file.
 
     The header follows ur_rtde's names and order (see the module
@@ -224,6 +246,10 @@ def write_rtde_csv(recording, path, *, delimiter=","):
         Output file (overwritten).
     delimiter : {",", " ", ";", "\\t"}, default=","
         Field separator.
+    robot_comment : bool, default=False
+        Start the file with ``# robot: NAME`` when ``metadata["robot"]``
+        names the robot (:func:`read_rtde_csv` reads it back; tools that
+        expect the header on the first line may not skip it).
 
     Returns
     -------
@@ -264,7 +290,10 @@ def write_rtde_csv(recording, path, *, delimiter=","):
                 else labels.astype(float).tolist())
         rows = [f"{row}{delimiter}{label!r}" for row, label in zip(rows, text)]
     path = Path(path)
+    robot = recording.metadata.get("robot")
     with open(path, "w", newline="\n") as handle:
+        if robot_comment and isinstance(robot, str) and robot.strip():
+            handle.write(f"# robot: {robot.strip()}\n")
         handle.write(delimiter.join(names) + "\n")
         handle.write("\n".join(rows))
         handle.write("\n")

@@ -48,14 +48,17 @@ def _band(thresholds, joint, n_samples):
 
 
 def plot_monitoring(
-    time, current, predicted, qd, s, thresholds, labels=None, joint=0, ax=None
+    time, current, predicted, qd, s, thresholds, labels=None, joint=0, ax=None, alarms=None
 ):
     """Plot one joint's current, prediction, velocity and monitoring signal.
 
     The layout of the paper's Fig. 3: measured current ``i_l`` against the
     prediction ``i_hat_l``, the joint velocity ``qd_l``, and the monitoring
     signal ``s_l`` inside its threshold band ``+/- sigma_CD,l``, with the
-    labelled contact intervals shaded grey on every panel.
+    labelled contact intervals shaded grey on every panel and, when given,
+    the alarms marked (a purple strip along the top of the signal panel and
+    a dotted line at each alarm onset). The legends name the shading and
+    the alarm marks.
 
     Parameters
     ----------
@@ -77,6 +80,9 @@ def plot_monitoring(
         paper does, so ``joint=0`` is labelled ``i_1``).
     ax : sequence of 3 matplotlib Axes, default=None
         Axes to draw on; None creates a figure with three stacked panels.
+    alarms : array-like of bool of shape (n_samples,), default=None
+        Detector decision per sample (True: alarm), e.g.
+        ``detector.predict(...) == -1``; None marks nothing.
 
     Returns
     -------
@@ -94,6 +100,10 @@ def plot_monitoring(
     ...                        labels=labels)
     >>> [a.get_ylabel() for a in axes]
     ['current [A]', 'velocity [rad/s]', 'monitoring signal']
+    >>> axes = plot_monitoring(t, i, i_hat, np.cos(t), i - i_hat, 0.05,
+    ...                        labels=labels, alarms=(t > 0.32) & (t < 0.45))
+    >>> [x.get_text() for x in axes[2].get_legend().get_texts()][-2:]
+    ['labelled contact', 'alarm']
     """
     time = np.asarray(time, dtype=float)
     if time.ndim != 1:
@@ -114,10 +124,17 @@ def plot_monitoring(
     axes = np.asarray(axes, dtype=object)
     top, middle, bottom = axes
     number = joint + 1  # the paper numbers joints from 1 (i_1, s_1)
+    if labels is not None:
+        labels = np.asarray(labels)
+        if labels.shape != (n,):
+            raise ValueError(f"labels must have shape ({n},), got {labels.shape}")
+    if alarms is not None:
+        alarms = np.asarray(alarms, dtype=bool)
+        if alarms.shape != (n,):
+            raise ValueError(f"alarms must have shape ({n},), got {alarms.shape}")
     top.plot(time, current, label=f"$i_{{{number}}}$ measured")
     top.plot(time, predicted, "--", label=f"$\\hat{{i}}_{{{number}}}$ predicted")
     top.set_ylabel("current [A]")
-    top.legend(loc="upper right")
     middle.plot(time, qd, color="tab:green")
     middle.set_ylabel("velocity [rad/s]")
     bottom.plot(time, s, color="tab:red", label=f"$s_{{{number}}}$")
@@ -125,14 +142,24 @@ def plot_monitoring(
                         label=r"$\pm\sigma_{CD}$")
     bottom.set_ylabel("monitoring signal")
     bottom.set_xlabel("time [s]")
-    bottom.legend(loc="upper right")
     if labels is not None:
-        labels = np.asarray(labels)
-        if labels.shape != (n,):
-            raise ValueError(f"labels must have shape ({n},), got {labels.shape}")
         starts, stops = contact_events(labels)
-        for start, stop in zip(starts, stops):
+        for k, (start, stop) in enumerate(zip(starts, stops)):
             end = time[stop] if stop < n else time[-1]
             for a in axes:
-                a.axvspan(time[start], end, color="grey", alpha=0.3, lw=0)
+                a.axvspan(time[start], end, color="grey", alpha=0.3, lw=0,
+                          label="labelled contact" if k == 0 else None)
+    if alarms is not None:
+        starts, stops = contact_events(alarms.astype(int))
+        for k, (start, stop) in enumerate(zip(starts, stops)):
+            end = time[stop] if stop < n else time[-1]
+            bottom.axvspan(time[start], end, ymin=0.94, ymax=1.0, color="tab:purple",
+                           lw=0, label="alarm" if k == 0 else None)
+            for a in axes:
+                a.axvline(time[start], color="tab:purple", ls=":", lw=1.0)
+        if not starts.size:  # say so rather than leave the reader guessing
+            bottom.plot([], [], color="tab:purple", lw=4, label="alarm (none)")
+    for a in (top, bottom):  # outside the panels: a legend never hides the signals
+        a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+                 borderaxespad=0.0)
     return axes
