@@ -105,3 +105,6 @@ def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
         assert result["n_events"] == 10
         assert len(result["folds"]) == len(saved["unseen_collision_free"])
     assert (out / bench.TABLES).read_text().count("SP_C +R") >= 5
+    family = saved["collision_detection_data_2020"]
+    assert set(family) == {"P_f", "SP_S"}
+    assert all(res["n_events"] == 25 for res in family.values())
