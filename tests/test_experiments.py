@@ -31,6 +31,12 @@ def test_reproduce_writes_report_json_and_figures(tiny_run):
     assert "## Verdict" in report
 
 
+def test_reproduce_reports_the_causal_detection_path(tiny_run):
+    out, results = tiny_run
+    assert results["detector"]["path"].startswith("causal path")
+    assert f"Detection path: {results['detector']['path']}." in (out / "report.md").read_text()
+
+
 def test_results_json_holds_every_number_of_the_report(tiny_run):
     out, _ = tiny_run
     results = json.loads((out / "results.json").read_text())
