@@ -21,3 +21,19 @@ def augmented_run(n_samples, n_joints, rng, period=0.008):
     X = np.hstack([q, qd, qdd, e_q, de_q, i_c])
     current = clean + 0.02 * rng.normal(size=clean.shape)
     return X, current
+
+
+def assert_raw_stream_equals_batch(detector, features, recording):
+    """Raw samples through StreamingMonitor.update_raw == the batch detector.
+
+    Returns the streaming result (a Bunch, see ``replay_recording``).
+    """
+    from sklearn_gpcd.detection import StreamingMonitor, stack_currents
+
+    out = StreamingMonitor(detector, features=features).replay_recording(recording)
+    Z = stack_currents(features.transform(recording), recording.current)
+    batch = detector.monitoring_signal(Z)
+    assert np.array_equal(out.prediction, detector.predict(Z))
+    np.testing.assert_allclose(out.signal, batch.signal, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(out.regime, batch.regime)
+    return out

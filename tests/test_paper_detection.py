@@ -13,6 +13,7 @@ one that can run on the robot; the model is trained on the zero-phase inputs.
 
 import numpy as np
 import pytest
+from _synthetic import assert_raw_stream_equals_batch
 
 from sklearn_gpcd import datasets
 from sklearn_gpcd.detection import StreamingMonitor, stack_currents
@@ -75,9 +76,6 @@ def test_streaming_monitor_agrees_with_batch(interaction):
 
 def test_raw_samples_through_the_monitor_agree_with_batch(interaction):
     """From raw robot samples (t, q, qd, i, targets) to decisions == batch, sample for sample."""
-    detector, Z, test, causal = interaction
-    out = StreamingMonitor(detector, features=causal).replay_recording(test)
-    batch = detector.monitoring_signal(Z)
-    assert np.array_equal(out.prediction, detector.predict(Z))
-    np.testing.assert_allclose(out.signal, batch.signal, rtol=1e-9, atol=1e-12)
+    detector, _, test, causal = interaction
+    out = assert_raw_stream_equals_batch(detector, causal, test)
     assert (out.prediction == -1).any()

@@ -9,10 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor, stack_currents
+from sklearn_gpcd.detection import CollisionDetector, stack_currents
 from sklearn_gpcd.dynamics import ControllerCurrent
 from sklearn_gpcd.features import CausalFeatures
 from sklearn_gpcd.io import load_recording
+
+from _synthetic import assert_raw_stream_equals_batch
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "real_ur10e.py"
 LABELS = Path(__file__).resolve().parents[1] / "benchmarks" / "labels" / "ur10e_events.json"
@@ -81,12 +83,7 @@ def test_batch_equals_streaming_on_a_real_push_recording(ur10e_dir):
                             min_duration=5, sample_time="auto", regimes=True,
                             rest_reference=5.0)
     det.fit(stack_currents(features.transform(free), free.current), time=free.time)
-    out = StreamingMonitor(det, features=features).replay_recording(push)
-    Z = stack_currents(features.transform(push), push.current)
-    batch = det.monitoring_signal(Z)
-    assert np.array_equal(out.prediction, det.predict(Z))
-    np.testing.assert_allclose(out.signal, batch.signal, rtol=1e-9, atol=1e-12)
-    np.testing.assert_array_equal(out.regime, batch.regime)
+    out = assert_raw_stream_equals_batch(det, features, push)
     assert (out.prediction == -1).any() and (out.prediction == 1).any()
 
 
