@@ -151,8 +151,6 @@ def _check_model_inputs(model, features, path):
 
 def _cmd_calibrate(args):
     """``gpcd calibrate``: LORO thresholds on collision-free recordings, saved detector."""
-    import warnings
-
     import numpy as np
     from sklearn.frozen import FrozenEstimator
 
@@ -161,12 +159,14 @@ def _cmd_calibrate(args):
     from .features import CausalFeatures
     from .persistence import load, save
 
+    from .io.load import recording_paths
+
     start = time.perf_counter()
+    if (found := len(recording_paths(args.recordings))) < 2:  # before any work
+        raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
+                         f"give at least 2 collision-free recordings, got {found}")
     model = load(args.model)
     recordings = _read_recordings(args.recordings, args, "calibration recordings")
-    if len(recordings) < 2:
-        raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
-                         f"give at least 2 collision-free recordings, got {len(recordings)}")
     robot = _optional_robot(args, recordings)
     features = CausalFeatures().fit(recordings)
     _check_model_inputs(model, features, args.model)
@@ -181,9 +181,7 @@ def _cmd_calibrate(args):
     tau = args.rest_reference if (regimes and args.rest_reference > 0) else None
     template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
                                  regimes=regimes, rest_reference=tau, **DETECTOR_RULE)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # FrozenEstimator: fit is a no-op
-        result = calibrate_across_recordings(template, blocks, times)
+    result = calibrate_across_recordings(template, blocks, times)
     det = result.detector
     thresholds = np.atleast_2d(det.thresholds_)
     summary = {
