@@ -26,6 +26,8 @@ import sys
 import time
 from pathlib import Path
 
+__all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "add_commands", "load_detector"]
+
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
 DETECTOR_KIND = "gpcd-detector"
 #: The detection rule ``gpcd calibrate`` applies (that of benchmarks/real_ur10e.py).
@@ -55,7 +57,26 @@ def _existing_file(value):
 
 
 def add_commands(sub):
-    """Register ``calibrate`` and ``monitor`` on the ``gpcd`` subparsers ``sub``."""
+    """Register ``calibrate`` and ``monitor`` on the ``gpcd`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``parser.add_subparsers()`` returned (see
+        :func:`sklearn_gpcd.cli.build_parser`).
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> import argparse
+    >>> parser = argparse.ArgumentParser(prog="gpcd")
+    >>> add_commands(parser.add_subparsers(dest="command"))
+    >>> sorted(parser._subparsers._group_actions[0].choices)
+    ['calibrate', 'monitor']
+    """
     from . import cli
 
     cal = sub.add_parser(
@@ -232,7 +253,40 @@ def _print_calibration(summary, n_recordings):
 
 # ---------------------------------------------------------------- monitor
 def load_detector(path):
-    """``(detector, features, calibration)`` from a file written by ``gpcd calibrate``."""
+    """Load a detector file written by ``gpcd calibrate``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.skops`` (or ``.joblib`` / ``.pkl``) file.
+
+    Returns
+    -------
+    detector : CollisionDetector
+        Fitted, thresholds chosen across recordings.
+    features : CausalFeatures
+        Fitted on the calibration recordings (for
+        :meth:`StreamingMonitor.update_raw
+        <sklearn_gpcd.detection.StreamingMonitor.update_raw>`).
+    calibration : dict
+        What ``gpcd calibrate`` printed (margin, thresholds, false alarms).
+
+    Raises
+    ------
+    ValueError
+        If the file is not a detector file (e.g. a model from ``gpcd train``).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from sklearn_gpcd.persistence import save
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "not_a_detector.joblib"
+    >>> _ = save({"kind": "something else"}, path)
+    >>> load_detector(path)
+    Traceback (most recent call last):
+    ...
+    ValueError: ...not_a_detector.joblib: not a detector file written by gpcd calibrate...
+    """
     from .persistence import load
 
     bundle = load(path)
