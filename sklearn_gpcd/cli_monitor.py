@@ -183,9 +183,13 @@ def _cmd_calibrate(args):
     from .io.load import recording_paths
 
     start = time.perf_counter()
-    if (found := len(recording_paths(args.recordings))) < 2:  # before any work
+    paths = [Path(p).resolve() for p in recording_paths(args.recordings)]
+    if (twice := sorted({str(p) for p in paths if paths.count(p) > 1})):
+        raise ValueError(f"{twice[0]} is given twice; a left-out recording must not stay in "
+                         "the others (check overlapping patterns)")
+    if len(paths) < 2:  # before any work
         raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
-                         f"give at least 2 collision-free recordings, got {found}")
+                         f"give at least 2 collision-free recordings, got {len(paths)}")
     model = load(args.model)
     recordings = _read_recordings(args.recordings, args, "calibration recordings")
     robot = _optional_robot(args, recordings)

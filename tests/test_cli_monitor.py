@@ -89,6 +89,14 @@ def test_calibrate_needs_two_recordings(work, capsys):
     assert len(err) == 1 and "at least 2" in err[0]
 
 
+def test_calibrate_refuses_a_recording_given_twice(work, capsys):
+    free = [str(p) for p in work["free"]]
+    assert main(["calibrate", str(work["model"]), *free, free[0], "-q",
+                 "-o", str(work["folder"] / "twice.skops")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "given twice" in err[0]
+
+
 def test_calibrate_checks_the_output_path_before_work(work, capsys):
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]),
                  "-o", str(work["folder"] / "missing" / "d.skops")]) == 2
