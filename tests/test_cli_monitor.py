@@ -181,3 +181,26 @@ def test_monitor_rtde_without_server_is_one_error_line(work, capsys):
                  "--port", str(port)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot start an RTDE stream" in err[0]
+
+
+def test_monitor_hook_runs_at_each_alarm_onset(work, capsys):
+    import sys
+    import time
+
+    folder = work["folder"] / "hook"
+    folder.mkdir()
+    script = folder / "hook.py"
+    script.write_text("import os, pathlib\n"
+                      f"pathlib.Path({str(folder)!r}, os.environ['GPCD_ALARM_TIME'] + '.txt')"
+                      ".write_text(os.environ['GPCD_ALARM_JOINTS'])\n")
+    report = folder / "events.json"
+    assert main(["monitor", str(work["detector"]), "--replay", str(work["push"]), "--speed",
+                 "0", "--hook", f"{sys.executable} {script}", "--json", str(report)]) == 0
+    events = json.loads(report.read_text())["events"]
+    for _ in range(200):  # the hook is not waited for: give the processes time to finish
+        if len(list(folder.glob("*.txt"))) == len(events):
+            break
+        time.sleep(0.1)
+    written = sorted((float(p.stem), p.read_text()) for p in folder.glob("*.txt"))
+    assert [t for t, _ in written] == pytest.approx([e["start_s"] for e in events], abs=1e-6)
+    assert "ALARM" in capsys.readouterr().out
