@@ -124,8 +124,10 @@ def add_commands(sub):
     mon.add_argument("--rtde", default=None, metavar="HOST",
                      help="monitor a live UR controller over RTDE")
     mon.add_argument("--port", type=cli._positive_int, default=30004, help="RTDE port")
-    mon.add_argument("--frequency", type=cli._positive_float, default=500.0,
-                     help="RTDE output frequency [Hz] (500 e-Series, 125 CB3)")
+    mon.add_argument("--frequency", type=cli._positive_float, default=None,
+                     help="RTDE output frequency [Hz] (default: the detector's calibration "
+                     "rate, 1 / sample time, so that its filters fit; at most 500 on "
+                     "e-Series, 125 on CB3)")
     mon.add_argument("--duration", type=cli._positive_float, default=None,
                      help="stop a live or replayed stream after this many seconds")
     mon.add_argument("--hook", default=None, metavar="CMD",
@@ -465,13 +467,14 @@ def _cmd_monitor(args):
 
         if detector.n_joints != 6:
             raise ValueError(f"RTDE streams 6 joints; the detector has {detector.n_joints}")
-        client = RTDEClient(args.rtde, args.port, args.frequency)
+        frequency = args.frequency or round(1.0 / float(detector.sample_time_), 6)
+        client = RTDEClient(args.rtde, args.port, frequency)
         try:
             client.connect()
         except (OSError, ConnectionError) as exc:
             raise OSError(f"cannot start an RTDE stream from {args.rtde}:{args.port}: "
                           f"{exc}") from None
-        print(f"monitoring {args.rtde}:{args.port} at {args.frequency:g} Hz (Ctrl-C stops)",
+        print(f"monitoring {args.rtde}:{args.port} at {frequency:g} Hz (Ctrl-C stops)",
               flush=True)
         session.start(f"rtde://{args.rtde}:{args.port}")
         try:
