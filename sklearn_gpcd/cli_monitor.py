@@ -129,7 +129,8 @@ def add_commands(sub):
                      "rate, 1 / sample time, so that its filters fit; at most 500 on "
                      "e-Series, 125 on CB3)")
     mon.add_argument("--duration", type=cli._positive_float, default=None,
-                     help="stop a live or replayed stream after this many seconds")
+                     help="stop a live or replayed stream after this many seconds of "
+                     "stream time")
     mon.add_argument("--hook", default=None, metavar="CMD",
                      help="command run (not waited for) at each alarm onset; it gets "
                      "GPCD_ALARM_TIME and GPCD_ALARM_JOINTS in its environment")
@@ -430,7 +431,7 @@ def _paced(samples, speed, duration=None):
     for t, fields in samples:
         if t0 is None:
             t0 = t
-        if duration is not None and t - t0 > duration * max(speed, 1e-12):
+        if duration is not None and t - t0 > duration:  # stream time
             return
         if speed > 0 and (wait := start + (t - t0) / speed - time.perf_counter()) > 0:
             time.sleep(wait)
