@@ -8,7 +8,9 @@ separate process, at its own time stamps (real time). ``gpcd monitor
 DETECTOR --rtde 127.0.0.1 --port P`` receives it through the CLI's RTDE
 client (protocol 2) and decides every tick with ``StreamingMonitor.update_raw``.
 Printed: tick latency from receiving a data package to the decision (p50,
-p99, max), dropped samples (gaps in the controller time stamps) and whether
+p99, max), how far the decisions fall behind the stream's clock (packages
+waiting in the socket buffer included), dropped samples (gaps in the
+controller time stamps) and whether
 the alarm events equal ``gpcd monitor DETECTOR FILE`` on the same recording.
 The detector is made by the CLI too: ``gpcd train --model sp_c`` (the model
 whose single-sample prediction is compiled; ``--model sp_p`` shows the
@@ -108,6 +110,8 @@ def main(argv=None):
     print(f"  tick latency receive -> decision: p50 {stats['latency_ms_p50']:.3f} ms, "
           f"p99 {stats['latency_ms_p99']:.3f} ms, max {stats['latency_ms_max']:.3f} ms")
     print(f"  ticks received {stats['n_ticks']}, dropped samples {stats['dropped_samples']}")
+    print(f"  decisions at most {stats['behind_stream_ms_max']:.1f} ms behind the stream's "
+          "clock (time stamps; queued packages included)")
     print(f"  alarm events: live {len(events['live'])}, offline {len(events['offline'])}, "
           f"identical: {same}")
     summary = {"model": args.model, "n_samples": rec.n_samples, "seconds": rec.duration,

@@ -323,7 +323,7 @@ class _Session:
         self.regime_names = tuple(detector.regime_names_)
         self.hook, self.keep_series, self.echo = hook, keep_series, echo
         self.events, self.recordings = [], []
-        self.latency, self.stamps = [], []
+        self.latency, self.stamps, self.decided = [], [], []
 
     def start(self, name):
         self.monitor.reset()
@@ -339,7 +339,9 @@ class _Session:
         status = mon.update_raw(t, fields["q"], fields["qd"], fields["current"],
                                 **{s: fields.get(s) for s in self.signals})
         if received is not None:
-            self.latency.append(time.perf_counter() - received)
+            decided = time.perf_counter()
+            self.latency.append(decided - received)
+            self.decided.append(decided)
             self.stamps.append(t)
         self.n_samples += 1
         if self.t0 is None:
@@ -412,7 +414,12 @@ class _Session:
         if steps.size:
             dt = float(np.median(steps))
             dropped = int(np.sum(np.maximum(np.round(steps / dt) - 1, 0))) if dt > 0 else 0
+        # how far decisions fall behind the stream's own clock (packages queued
+        # in the socket buffer included), relative to the first tick
+        stamps = np.asarray(self.stamps)
+        behind = (np.asarray(self.decided) - self.decided[0]) - (stamps - stamps[0])
         return {"n_ticks": int(lat.size), "latency_ms_p50": float(np.percentile(lat, 50)),
+                "behind_stream_ms_max": float(behind.max() * 1e3),
                 "latency_ms_p99": float(np.percentile(lat, 99)),
                 "latency_ms_max": float(lat.max()), "dropped_samples": dropped}
 
@@ -510,7 +517,9 @@ def _cmd_monitor(args):
     if stats is not None:
         print(f"  {stats['n_ticks']} ticks; latency receive -> decision p50 "
               f"{stats['latency_ms_p50']:.3f} ms, p99 {stats['latency_ms_p99']:.3f} ms, max "
-              f"{stats['latency_ms_max']:.3f} ms; dropped samples {stats['dropped_samples']}")
+              f"{stats['latency_ms_max']:.3f} ms; dropped samples {stats['dropped_samples']}; "
+              f"decisions at most {stats['behind_stream_ms_max']:.1f} ms behind the stream's "
+              "clock")
     if args.json is not None:
         report = {"detector": str(args.detector), "calibration": calibration,
                   "recordings": session.recordings, "events": session.events,
