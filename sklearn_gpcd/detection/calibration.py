@@ -263,7 +263,8 @@ def calibrate_across_recordings(detector, blocks, times, rule="global"):
     peaks = {k: v[2] for k, v in series.items()}
     margin = loro_margin(peaks, keys, rule)
     folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
-    fitted = clone(detector).set_params(margin=margin.reshape(np.shape(base.scale_))).fit(Z, groups=groups, time=time)
+    shaped = margin.reshape(np.shape(base.scale_))  # (n_joints,) without regimes
+    fitted = clone(detector).set_params(margin=shaped).fit(Z, groups=groups, time=time)
     hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
     n_false = sum(len(f["onsets"]) for f in folds.values())
     return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
