@@ -74,7 +74,16 @@ from _common import real_data_path, require_data, rst_table, write_json  # noqa:
 from sklearn.frozen import FrozenEstimator  # noqa: E402
 
 from sklearn_gpcd._layout import block_columns  # noqa: E402
-from sklearn_gpcd.detection import REGIME_NAMES, CollisionDetector, stack_currents  # noqa: E402
+from sklearn_gpcd.detection import (  # noqa: E402
+    MARGIN_RULES,
+    REGIME_NAMES,
+    CollisionDetector,
+    regime_excursions,
+    regime_levels,
+    stack_currents,
+)
+from sklearn_gpcd.detection import loro_margin as _loro_margin  # noqa: E402
+from sklearn_gpcd.detection import nested_false_alarms as _nested_false_alarms  # noqa: E402
 from sklearn_gpcd.dynamics import ControllerCurrent, RigidBodyRegressor  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress, split_nmse  # noqa: E402
 from sklearn_gpcd.features import CausalFeatures, contiguous_segments  # noqa: E402
@@ -177,66 +186,25 @@ def alarm_onsets(alarm, t):
 
 def excursions(det, blocks):
     """Per recording: debounced |m| (n, 6), regimes (n,), and the peak per (regime, joint)."""
-    scale = np.atleast_2d(det.scale_)
-    out = {}
-    for key, block in blocks.items():
-        mon = det.monitoring_signal(block)
-        debounced = mon.ratio * scale[mon.regime]
-        peaks = np.zeros((len(REGIME_NAMES), 6))
-        for g in range(len(REGIME_NAMES)):
-            rows = mon.regime == g
-            if rows.any():
-                peaks[g] = debounced[rows].max(axis=0)
-        out[key] = (debounced, mon.regime, peaks)
-    return out
+    return regime_excursions(det, blocks)
 
 
 def levels(peaks, keys):
-    """Per (regime, joint) level of ``threshold="per_joint"`` on the recordings ``keys``.
-
-    The largest excursion; a regime absent from them takes the largest level
-    of the others, as ``CollisionDetector`` does.
-    """
-    table = np.max([peaks[k] for k in keys], axis=0)
-    present = np.array([any(peaks[k][g].any() for k in keys) for g in range(len(table))])
-    table[~present] = table[present].max(axis=0)
-    return np.maximum(table, np.finfo(float).tiny)
+    """Per (regime, joint) level of ``threshold="per_joint"`` on the recordings ``keys``."""
+    return regime_levels(peaks, keys)
 
 
-#: How far the leave-one-recording-out margin is shared: one per (regime,
-#: joint) cell, one per regime (largest over the joints), or one for all.
-MARGIN_RULES = ("cell", "regime", "global")
 MARGIN_RULE = "global"
 
 
 def loro_margin(peaks, keys, rule=MARGIN_RULE):
-    """The largest factor by which a left-out recording exceeds the others' level.
-
-    Per cell, then shared per ``rule``; at least 1.
-    """
-    factors = [peaks[r] / levels(peaks, [k for k in keys if k != r]) for r in keys]
-    margin = np.maximum(np.max(factors, axis=0), 1.0)
-    if rule == "regime":
-        return np.repeat(margin.max(axis=1, keepdims=True), margin.shape[1], axis=1)
-    if rule == "global":
-        return np.full_like(margin, margin.max())
-    return margin
+    """The largest factor by which a left-out recording exceeds the others' level."""
+    return _loro_margin(peaks, keys, rule)
 
 
 def nested_false_alarms(series, recordings, rule=MARGIN_RULE):
     """Alarm onsets on each recording with margins and levels chosen without it."""
-    peaks = {k: v[2] for k, v in series.items()}
-    keys = list(series)
-    out = {}
-    for r in keys:
-        rest = [k for k in keys if k != r]
-        thr = loro_margin(peaks, rest, rule) * levels(peaks, rest)
-        debounced, regimes, _ = series[r]
-        alarm = (debounced > thr[regimes]).any(axis=1)
-        t = recordings[r].time - recordings[r].time[0]
-        out[r] = {"onsets": alarm_onsets(alarm, t), "hours": float(t[-1] / 3600.0),
-                  "first_second_alarm_samples": int(alarm[t < 1.0].sum())}
-    return out
+    return _nested_false_alarms(series, {k: r.time for k, r in recordings.items()}, rule)
 
 
 def score_events(det, block, rec, events, tail=0.5):

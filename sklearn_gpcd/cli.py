@@ -12,6 +12,10 @@ Subcommands
     Fit the paper's estimator on a user's own recordings (rule: ``TRAIN_RULE``).
 ``gpcd diagnose TRAIN... [--test TEST]... [--robot ROBOT]``
     Name the physics the robot model misses in real recordings.
+``gpcd calibrate MODEL COLLISION_FREE... -o DETECTOR.skops``
+    Detection thresholds chosen across recordings (:mod:`sklearn_gpcd.cli_monitor`).
+``gpcd monitor DETECTOR RECORDINGS... | --replay FILE | --rtde HOST``
+    Alarm events through the causal streaming path, offline or live.
 
 Every option that names a robot (``--robot``) takes a built-in name (``ur10``,
 ``ur10e``, ...) or the path of a URDF file. Commands that read recordings take
@@ -46,6 +50,8 @@ import threading
 import time
 import warnings
 from pathlib import Path
+
+from .cli_monitor import add_commands as add_monitor_commands
 
 __all__ = ["main", "build_parser", "parse_args"]
 
@@ -419,7 +425,7 @@ def _cmd_train(args):
 
     from .dynamics import RigidBodyRegressor
     from .features import make_inputs
-    from .gp import make_p_f, make_sp_p, make_sp_s
+    from .gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
     from .gp._support import resolve_n_support
     from .persistence import save
 
@@ -427,6 +433,9 @@ def _cmd_train(args):
     quiet = args.quiet
     recordings = _read_recordings(args.recordings, args, "training recordings")
     robot = _robot_for(args, recordings)
+    if args.model == "sp_c" and (lacking := [r.name for r in recordings
+                                             if r.target_current is None]):
+        raise ValueError(f"--model sp_c needs the target current; {lacking[0]} does not log it")
     n_recordings = len(recordings)
     n_rows = sum(rec.n_samples for rec in recordings)
     step = _training_rows(n_rows).step
@@ -448,7 +457,8 @@ def _cmd_train(args):
     n_support = resolve_n_support(args.n_support, len(y))
     n = robot.n_joints
     features = [RigidBodyRegressor(robot, joint=j) for j in range(n)]
-    factory = {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[args.model]
+    factory = {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f,
+               "sp_c": lambda _phi, n, **gp: make_sp_c(n, **gp)}[args.model]
     n_jobs = args.n_jobs if args.n_jobs is not None else min(n, os.cpu_count() or 1)
     params = dict(n_support=n_support, optimizer="auto", batch_size=min(512, n_support),
                   random_state=args.seed, n_jobs=n_jobs)
@@ -611,8 +621,9 @@ def build_parser():
                      help="recordings (files, folders or glob patterns)")
     _add_recording_options(tra, "built-in name or URDF path (default: the robot named in "
                            "the recordings' metadata; required when they name none)")
-    tra.add_argument("--model", choices=["sp_p", "sp_s", "p_f"], default="sp_p",
-                     help="estimator: sp_p (proposed, default), sp_s or p_f")
+    tra.add_argument("--model", choices=["sp_p", "sp_s", "p_f", "sp_c"], default="sp_p",
+                     help="estimator: sp_p (proposed, default), sp_s, p_f, or sp_c (the "
+                     "controller's target current as mean; recordings must log it)")
     tra.add_argument("--sigma-v", type=_positive_float, default=None,
                      help="quasi-static velocity threshold [rad/s] (default 0.01 for sp_p; "
                      "p_f and sp_s use the paper's unmasked friction unless given)")
@@ -660,6 +671,7 @@ def build_parser():
                      help="diagnose even when positions look like degrees or time like "
                      "milliseconds (refused by default)")
     dia.set_defaults(func=_cmd_diagnose)
+    add_monitor_commands(sub)  # calibrate, monitor (sklearn_gpcd.cli_monitor)
     return parser
 
 

@@ -39,6 +39,7 @@ PUBLIC_MODULES = {
     "experiments": "The paper's experiments",
     "persistence": "Saving and loading models",
     "cli": "The gpcd command",
+    "cli_monitor": "gpcd calibrate and gpcd monitor",
 }
 
 GENERATED = "generated"

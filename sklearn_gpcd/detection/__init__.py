@@ -9,10 +9,20 @@
 * regimes (``moving``, ``settling``, ``rest``) with per-regime thresholds and
   the rest re-reference (:mod:`~sklearn_gpcd.detection._regimes`, our
   extension for the history-dependent current at rest);
+* :func:`calibrate_across_recordings` -- thresholds chosen across recordings
+  (leave-one-recording-out margin, nested false alarms);
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
 """
 
 from ._regimes import REGIME_NAMES
+from .calibration import (
+    MARGIN_RULES,
+    calibrate_across_recordings,
+    loro_margin,
+    nested_false_alarms,
+    regime_excursions,
+    regime_levels,
+)
 from .detector import CollisionDetector, SampleTimeWarning, default_regressor, stack_currents
 from .model_selection import CollisionThresholdCV, DetectionRefit, select_candidate
 from .streaming import MonitorStatus, StreamingMonitor
@@ -21,11 +31,17 @@ __all__ = [
     "CollisionDetector",
     "CollisionThresholdCV",
     "DetectionRefit",
+    "MARGIN_RULES",
     "MonitorStatus",
     "REGIME_NAMES",
     "SampleTimeWarning",
     "StreamingMonitor",
+    "calibrate_across_recordings",
     "default_regressor",
+    "loro_margin",
+    "nested_false_alarms",
+    "regime_excursions",
+    "regime_levels",
     "select_candidate",
     "stack_currents",
 ]

@@ -1,0 +1,595 @@
+"""``gpcd calibrate`` and ``gpcd monitor``: thresholds across recordings, then detection.
+
+``gpcd calibrate MODEL COLLISION_FREE... -o DETECTOR``
+    Wraps a model saved by ``gpcd train`` in a
+    :class:`~sklearn_gpcd.detection.CollisionDetector` (causal inputs,
+    2 Hz causal low-pass, 5-sample debounce, one threshold per joint and per
+    regime of the arm) whose thresholds are chosen across recordings by
+    :func:`~sklearn_gpcd.detection.calibrate_across_recordings` (the
+    leave-one-recording-out margin of ``benchmarks/real_ur10e.py``), and
+    saves it with its :class:`~sklearn_gpcd.features.CausalFeatures`.
+``gpcd monitor DETECTOR RECORDINGS... | --replay FILE | --rtde HOST``
+    Feeds raw samples through :meth:`StreamingMonitor.update_raw
+    <sklearn_gpcd.detection.StreamingMonitor.update_raw>` (the causal path
+    that runs on the robot) and reports the alarm events. Recordings are
+    processed as fast as possible, ``--replay`` paces one recording to its
+    time stamps (``--speed``), ``--rtde`` receives a live UR controller's
+    stream (RTDE protocol 2, :mod:`sklearn_gpcd.io._rtde_live`). All three
+    go through the same per-sample loop (:class:`_Session`).
+"""
+
+import json
+import math
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "add_commands", "load_detector"]
+
+#: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
+DETECTOR_KIND = "gpcd-detector"
+#: The detection rule ``gpcd calibrate`` applies (that of benchmarks/real_ur10e.py).
+DETECTOR_RULE = dict(threshold="per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
+                     min_duration=5, sample_time="auto", sigma_v=None, settle_time=0.5)
+
+
+# ---------------------------------------------------------------- arguments
+def _non_negative_float(value):
+    import argparse
+
+    try:
+        number = float(value)
+    except ValueError:
+        number = float("nan")
+    if not (number >= 0 and math.isfinite(number)):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value!r}")
+    return number
+
+
+def _existing_file(value):
+    import argparse
+
+    if not Path(value).is_file():
+        raise argparse.ArgumentTypeError(f"{value}: no such file")
+    return value
+
+
+def add_commands(sub):
+    """Register ``calibrate`` and ``monitor`` on the ``gpcd`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        What ``parser.add_subparsers()`` returned (see
+        :func:`sklearn_gpcd.cli.build_parser`).
+
+    Returns
+    -------
+    None
+
+    Examples
+    --------
+    >>> import argparse
+    >>> parser = argparse.ArgumentParser(prog="gpcd")
+    >>> add_commands(parser.add_subparsers(dest="command"))
+    >>> sorted(parser._subparsers._group_actions[0].choices)
+    ['calibrate', 'monitor']
+    """
+    from . import cli
+
+    cal = sub.add_parser(
+        "calibrate",
+        help="choose detection thresholds on collision-free recordings",
+        description="Wrap a model saved by 'gpcd train' in a collision detector on causal "
+        "inputs (2 Hz causal low-pass, 5-sample debounce, a threshold per joint and per "
+        "regime of the arm: moving, settling, rest). Each level is the largest excursion of "
+        "the calibration recordings, times a margin chosen by leave-one-recording-out: the "
+        "largest factor by which a left-out recording exceeds the levels of the others. The "
+        "expected false alarms per hour come from the nested version (margin and levels "
+        "chosen without the recording they are counted on).",
+    )
+    cal.add_argument("model", type=_existing_file, help="model file written by gpcd train")
+    cal.add_argument("recordings", nargs="+",
+                     help="collision-free recordings (files, folders or glob patterns; at "
+                     "least 2, 3 for the false-alarm figure)")
+    cli._add_recording_options(cal, "built-in name or URDF path, for thresholds in Nm "
+                               "(default: the robot named in the recordings' metadata)")
+    cal.add_argument("--rest-reference", type=_non_negative_float, default=5.0,
+                     help="time constant [s] of the rest re-reference (0: none; default 5)")
+    cal.add_argument("--no-regimes", action="store_true",
+                     help="one threshold per joint for every regime (no rest reference)")
+    cal.add_argument("-o", "--output", type=cli._model_file_arg, required=True,
+                     help="detector file to write (.skops, or .joblib / .pkl)")
+    cal.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    cal.set_defaults(func=_cmd_calibrate)
+
+    mon = sub.add_parser(
+        "monitor",
+        help="detect collisions in recordings, a real-time replay or a live UR (RTDE)",
+        description="Run a detector from 'gpcd calibrate' sample by sample through the "
+        "causal streaming path and report alarm events: start, end, joints (1-based), peak "
+        "|m| and the delay from the first threshold crossing to the alarm.",
+    )
+    mon.add_argument("detector", type=_existing_file,
+                     help="detector file written by gpcd calibrate")
+    mon.add_argument("recordings", nargs="*", help="recordings to monitor (offline)")
+    mon.add_argument("--column-map", type=cli._column_map_arg, default=None,
+                     help="column layout of the recordings (as for gpcd train)")
+    mon.add_argument("--replay", default=None, metavar="FILE",
+                     help="replay one recording paced to its time stamps")
+    mon.add_argument("--speed", type=_non_negative_float, default=1.0,
+                     help="replay speed factor (1: real time, 0: as fast as possible)")
+    mon.add_argument("--rtde", default=None, metavar="HOST",
+                     help="monitor a live UR controller over RTDE")
+    mon.add_argument("--port", type=cli._positive_int, default=30004, help="RTDE port")
+    mon.add_argument("--frequency", type=cli._positive_float, default=None,
+                     help="RTDE output frequency [Hz] (default: the detector's calibration "
+                     "rate, 1 / sample time, so that its filters fit; at most 500 on "
+                     "e-Series, 125 on CB3)")
+    mon.add_argument("--duration", type=cli._positive_float, default=None,
+                     help="stop a live or replayed stream after this many seconds of "
+                     "stream time")
+    mon.add_argument("--hook", default=None, metavar="CMD",
+                     help="command run (not waited for) at each alarm onset; it gets "
+                     "GPCD_ALARM_TIME and GPCD_ALARM_JOINTS in its environment")
+    mon.add_argument("--json", type=cli._output_file_arg, default=None,
+                     help="write the events (and live statistics) as JSON here")
+    mon.add_argument("--plot", type=cli._output_dir_arg, default=None, metavar="DIR",
+                     help="write one figure per recording here (offline and replay)")
+    mon.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    mon.set_defaults(func=_cmd_monitor)
+    cli._RECORDING_POSITIONALS.update(calibrate="recordings", monitor="recordings")
+
+
+# ---------------------------------------------------------------- calibrate
+def _recording_keys(recordings):
+    """Unique names of the recordings (their file names, numbered on a clash)."""
+    keys = []
+    for i, rec in enumerate(recordings):
+        name = Path(str(rec.name or f"#{i}")).name
+        keys.append(name if name not in keys else f"{name} ({i + 1})")
+    return keys
+
+
+def _optional_robot(args, recordings):
+    """The robot for Nm figures: --robot, else the recordings' metadata, else None."""
+    from .cli import _robot_for
+
+    try:
+        return _robot_for(args, recordings)
+    except ValueError:
+        if args.robot is not None:
+            raise
+        return None
+
+
+def _check_model_inputs(model, features, path):
+    n_in = getattr(model, "n_features_in_", None)
+    n_rows = (6 if features.augmented else 3) * features.n_joints_
+    if n_in is not None and n_in != n_rows:
+        raise ValueError(f"{path}: the model takes {n_in} input columns but the recordings "
+                         f"give {n_rows} ({features.n_joints_} joints)")
+
+
+def _cmd_calibrate(args):
+    """``gpcd calibrate``: LORO thresholds on collision-free recordings, saved detector."""
+    import numpy as np
+    from sklearn.frozen import FrozenEstimator
+
+    from .cli import _Progress, _read_recordings
+    from .detection import CollisionDetector, calibrate_across_recordings, stack_currents
+    from .features import CausalFeatures
+    from .persistence import load, save
+
+    from .io.load import recording_paths
+
+    start = time.perf_counter()
+    paths = [Path(p).resolve() for p in recording_paths(args.recordings)]
+    if (twice := sorted({str(p) for p in paths if paths.count(p) > 1})):
+        raise ValueError(f"{twice[0]} is given twice; a left-out recording must not stay in "
+                         "the others (check overlapping patterns)")
+    if len(paths) < 2:  # before any work
+        raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
+                         f"give at least 2 collision-free recordings, got {len(paths)}")
+    model = load(args.model)
+    recordings = _read_recordings(args.recordings, args, "calibration recordings")
+    robot = _optional_robot(args, recordings)
+    features = CausalFeatures().fit(recordings)
+    _check_model_inputs(model, features, args.model)
+    keys = _recording_keys(recordings)
+    bar = _Progress("causal inputs", len(recordings), enabled=not args.quiet)
+    blocks, times = {}, {}
+    for key, rec in zip(keys, recordings):
+        blocks[key] = stack_currents(features.transform(rec), rec.current)
+        times[key] = rec.time
+        bar.update()
+    regimes = not args.no_regimes
+    tau = args.rest_reference if (regimes and args.rest_reference > 0) else None
+    template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
+                                 regimes=regimes, rest_reference=tau, **DETECTOR_RULE)
+    result = calibrate_across_recordings(template, blocks, times)
+    det = result.detector
+    thresholds = np.atleast_2d(det.thresholds_)
+    summary = {
+        "recordings": keys, "hours": result.hours, "margin": float(result.margin.max()),
+        "margin_rule": "global", "regimes": list(result.regime_names),
+        "rest_reference_s": tau, "thresholds_A": thresholds.tolist(),
+        "n_false_alarms_nested": result.n_false_alarms,
+        "false_alarms_per_hour": result.false_alarms_per_hour,
+        "signals": list(features.signals_), "sample_time_s": float(det.sample_time_),
+        "robot": None if robot is None else robot.name,
+    }
+    kt = None if robot is None else getattr(robot, "torque_constants", None)
+    if kt is not None:
+        summary["thresholds_Nm"] = (thresholds * np.asarray(kt)).tolist()
+    save({"kind": DETECTOR_KIND, "detector": det, "features": features,
+          "calibration": summary}, args.output)
+    _print_calibration(summary, len(recordings))
+    print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}")
+    return 0
+
+
+def _print_calibration(summary, n_recordings):
+    n = len(summary["thresholds_A"][0])
+    tau = summary["rest_reference_s"]
+    print(f"calibrated on {n_recordings} collision-free recording(s), "
+          f"{summary['hours'] * 60:.1f} min, sample time {summary['sample_time_s']:g} s, "
+          f"controller signals used: {', '.join(summary['signals']) or 'none'}; rest "
+          f"reference {'none' if tau is None else f'{tau:g} s'}")
+    print(f"  margin (leave-one-recording-out, one for all joints and regimes): "
+          f"{summary['margin']:.3f}")
+    if summary["false_alarms_per_hour"] is None:
+        print("  expected false alarms per hour: n/a (the nested figure needs >= 3 "
+              "recordings)")
+    else:
+        print(f"  expected false alarms: {summary['n_false_alarms_nested']} alarm onset(s) "
+              f"on left-out recordings in {summary['hours'] * 60:.1f} min = "
+              f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
+              "out: each recording scored with margin and levels chosen without it)")
+    units = [("A", summary["thresholds_A"])]
+    if "thresholds_Nm" in summary:
+        units.append((f"Nm, torque constants of {summary['robot']}", summary["thresholds_Nm"]))
+    for unit, table in units:
+        print(f"  thresholds [{unit}]:")
+        print("    " + f"{'regime':<10}" + "".join(f"{f'joint {j + 1}':>10}" for j in range(n)))
+        for name, row in zip(summary["regimes"], table):
+            print("    " + f"{name:<10}" + "".join(f"{v:>10.3f}" for v in row))
+
+
+# ---------------------------------------------------------------- monitor
+def load_detector(path):
+    """Load a detector file written by ``gpcd calibrate``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.skops`` (or ``.joblib`` / ``.pkl``) file.
+
+    Returns
+    -------
+    detector : CollisionDetector
+        Fitted, thresholds chosen across recordings.
+    features : CausalFeatures
+        Fitted on the calibration recordings (for
+        :meth:`StreamingMonitor.update_raw
+        <sklearn_gpcd.detection.StreamingMonitor.update_raw>`).
+    calibration : dict
+        What ``gpcd calibrate`` printed (margin, thresholds, false alarms).
+
+    Raises
+    ------
+    ValueError
+        If the file is not a detector file (e.g. a model from ``gpcd train``).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from sklearn_gpcd.persistence import save
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "not_a_detector.joblib"
+    >>> _ = save({"kind": "something else"}, path)
+    >>> load_detector(path)
+    Traceback (most recent call last):
+    ...
+    ValueError: ...not_a_detector.joblib: not a detector file written by gpcd calibrate...
+    """
+    from .persistence import load
+
+    bundle = load(path)
+    if not (isinstance(bundle, dict) and bundle.get("kind") == DETECTOR_KIND):
+        raise ValueError(f"{path}: not a detector file written by gpcd calibrate (a model "
+                         "from gpcd train goes through gpcd calibrate first)")
+    return bundle["detector"], bundle["features"], bundle.get("calibration", {})
+
+
+class _Session:
+    """The per-sample loop every ``gpcd monitor`` source goes through.
+
+    :meth:`tick` feeds one raw sample to :meth:`StreamingMonitor.update_raw`,
+    then tracks threshold crossings and alarm events; :meth:`start` begins a
+    new recording (monitor reset).
+    """
+
+    def __init__(self, detector, features, hook=None, keep_series=False, echo=False):
+        import numpy as np
+
+        from .detection import StreamingMonitor
+
+        self.np = np
+        self.monitor = StreamingMonitor(detector, features=features)
+        self.signals = tuple(features.signals_)
+        self.thresholds = np.atleast_2d(detector.thresholds_)
+        self.regime_names = tuple(detector.regime_names_)
+        self.hook, self.keep_series, self.echo = hook, keep_series, echo
+        self.events, self.recordings = [], []
+        self.latency, self.stamps, self.decided = [], [], []
+
+    def start(self, name):
+        self.monitor.reset()
+        self.name, self.t0, self.cross_start, self.open = name, None, None, None
+        self.n_samples = self.n_faults = 0
+        self.series = {"t": [], "signal": [], "regime": [], "alarms": []}
+        self.recordings.append({"name": name})
+
+    def tick(self, t, fields, received=None):
+        """One raw sample (``fields``: q, qd, current and the controller signals)."""
+        np = self.np
+        mon = self.monitor
+        status = mon.update_raw(t, fields["q"], fields["qd"], fields["current"],
+                                **{s: fields.get(s) for s in self.signals})
+        if received is not None:
+            decided = time.perf_counter()
+            self.latency.append(decided - received)
+            self.decided.append(decided)
+            self.stamps.append(t)
+        self.n_samples += 1
+        if self.t0 is None:
+            self.t0 = t
+        if status == "sensor_fault":
+            self.n_faults += 1
+            return status
+        rel = t - self.t0
+        above = np.abs(mon.signal) > self.thresholds[mon.regime]
+        if above.any():
+            if self.cross_start is None:
+                self.cross_start = rel
+        elif self.open is None:
+            self.cross_start = None
+        if mon.alarms.any():
+            peak = float(np.abs(mon.signal[mon.alarms]).max())
+            if self.open is None:
+                self.open = {"recording": self.name, "start_s": rel, "end_s": rel,
+                             "joints": set(), "peak_A": peak,
+                             "delay_s": rel - (rel if self.cross_start is None
+                                               else self.cross_start)}
+                self._onset(self.open, mon.alarms)
+            self.open["end_s"] = rel
+            self.open["joints"].update(int(j) + 1 for j in np.flatnonzero(mon.alarms))
+            self.open["peak_A"] = max(self.open["peak_A"], peak)
+        elif self.open is not None:
+            self._close()
+        if self.keep_series:
+            s = self.series
+            s["t"].append(rel)
+            s["signal"].append(mon.signal.copy())
+            s["regime"].append(mon.regime)
+            s["alarms"].append(mon.alarms.copy())
+        return status
+
+    def _onset(self, event, alarms):
+        joints = ",".join(str(int(j) + 1) for j in self.np.flatnonzero(alarms))
+        if self.echo:
+            print(f"ALARM {self.name} t={event['start_s']:.3f} s joints {joints}", flush=True)
+        if self.hook:
+            import os
+
+            env = {**os.environ, "GPCD_ALARM_TIME": f"{event['start_s']:.6f}",
+                   "GPCD_ALARM_JOINTS": joints}
+            subprocess.Popen(shlex.split(self.hook), env=env)  # not waited for
+
+    def _close(self):
+        event = self.open
+        event["joints"] = sorted(event["joints"])
+        self.events.append(event)
+        self.open, self.cross_start = None, None
+
+    def finish(self):
+        """Close the open event; the recording's summary."""
+        if self.open is not None:
+            self._close()
+        summary = self.recordings[-1]
+        summary.update(n_samples=self.n_samples, n_sensor_faults=self.n_faults,
+                       n_events=sum(e["recording"] == self.name for e in self.events))
+        return summary
+
+    def live_statistics(self):
+        """Tick latency (receive -> decision) percentiles and dropped samples."""
+        np = self.np
+        if not self.latency:
+            return None
+        lat = np.asarray(self.latency) * 1e3
+        steps = np.diff(np.asarray(self.stamps))
+        dropped = 0
+        if steps.size:
+            dt = float(np.median(steps))
+            dropped = int(np.sum(np.maximum(np.round(steps / dt) - 1, 0))) if dt > 0 else 0
+        # how far decisions fall behind the stream's own clock (packages queued
+        # in the socket buffer included), relative to the first tick
+        stamps = np.asarray(self.stamps)
+        behind = (np.asarray(self.decided) - self.decided[0]) - (stamps - stamps[0])
+        return {"n_ticks": int(lat.size), "latency_ms_p50": float(np.percentile(lat, 50)),
+                "behind_stream_ms_max": float(behind.max() * 1e3),
+                "latency_ms_p99": float(np.percentile(lat, 99)),
+                "latency_ms_max": float(lat.max()), "dropped_samples": dropped}
+
+
+def _recording_fields(rec):
+    """Raw samples of a recording as ``(time, fields)``."""
+    names = ("q", "qd", "current", "target_current", "target_q", "target_qd")
+    columns = {n: getattr(rec, n) for n in names if getattr(rec, n) is not None}
+    for k in range(rec.n_samples):
+        yield float(rec.time[k]), {n: v[k] for n, v in columns.items()}
+
+
+def _paced(samples, speed, duration=None):
+    """Yield ``(received, time, fields)`` at the samples' time stamps / ``speed``."""
+    start, t0 = time.perf_counter(), None
+    for t, fields in samples:
+        if t0 is None:
+            t0 = t
+        if duration is not None and t - t0 > duration:  # stream time
+            return
+        if speed > 0 and (wait := start + (t - t0) / speed - time.perf_counter()) > 0:
+            time.sleep(wait)
+        yield time.perf_counter(), t, fields
+
+
+def _rtde_samples(client, duration=None):
+    start = time.perf_counter()
+    for received, fields in client.samples():
+        yield received, fields.pop("time"), fields
+        if duration is not None and received - start > duration:
+            return
+
+
+def _cmd_monitor(args):
+    """``gpcd monitor``: alarm events through the causal streaming path."""
+    from .cli import _read_recordings
+
+    sources = sum([bool(args.recordings), args.replay is not None, args.rtde is not None])
+    if sources != 1:
+        raise ValueError("give recordings, --replay FILE or --rtde HOST (exactly one)")
+    if args.plot is not None and args.rtde is not None:
+        raise ValueError("--plot is for recordings and --replay, not --rtde")
+    start = time.perf_counter()
+    detector, features, calibration = load_detector(args.detector)
+    if args.plot is not None:
+        Path(args.plot).mkdir(parents=True, exist_ok=True)
+    live = args.rtde is not None or args.replay is not None
+    session = _Session(detector, features, hook=args.hook, keep_series=args.plot is not None,
+                       echo=live)
+    plots = []
+    if args.rtde is not None:
+        from .io._rtde_live import RTDEClient
+
+        if detector.n_joints != 6:
+            raise ValueError(f"RTDE streams 6 joints; the detector has {detector.n_joints}")
+        frequency = args.frequency or round(1.0 / float(detector.sample_time_), 6)
+        client = RTDEClient(args.rtde, args.port, frequency)
+        try:
+            client.connect()
+        except (OSError, ConnectionError) as exc:
+            raise OSError(f"cannot start an RTDE stream from {args.rtde}:{args.port}: "
+                          f"{exc}") from None
+        print(f"monitoring {args.rtde}:{args.port} at {frequency:g} Hz (Ctrl-C stops)",
+              flush=True)
+        session.start(f"rtde://{args.rtde}:{args.port}")
+        try:
+            for received, t, fields in _rtde_samples(client, args.duration):
+                session.tick(t, fields, received)
+        finally:
+            client.close()
+        session.finish()
+    else:
+        paths = [args.replay] if args.replay is not None else args.recordings
+        args.robot = None
+        recordings = _read_recordings(paths, args, "recordings",
+                                      progress=not (args.quiet or live))
+        keys = _recording_keys(recordings)
+        for key, rec in zip(keys, recordings):
+            if rec.n_joints != detector.n_joints:
+                raise ValueError(f"{rec.name}: {rec.n_joints} joints but the detector has "
+                                 f"{detector.n_joints}")
+            session.start(key)
+            if args.replay is not None:
+                for received, t, fields in _paced(_recording_fields(rec), args.speed,
+                                                  args.duration):
+                    session.tick(t, fields, received)
+            else:
+                for t, fields in _recording_fields(rec):
+                    session.tick(t, fields)
+            session.finish()
+            if args.plot is not None:
+                plots.append(_plot(session, Path(args.plot), key))
+    _print_events(session)
+    stats = session.live_statistics() if live else None
+    if stats is not None:
+        print(f"  {stats['n_ticks']} ticks; latency receive -> decision p50 "
+              f"{stats['latency_ms_p50']:.3f} ms, p99 {stats['latency_ms_p99']:.3f} ms, max "
+              f"{stats['latency_ms_max']:.3f} ms; dropped samples {stats['dropped_samples']}; "
+              f"decisions at most {stats['behind_stream_ms_max']:.1f} ms behind the stream's "
+              "clock")
+    if args.json is not None:
+        report = {"detector": str(args.detector), "calibration": calibration,
+                  "recordings": session.recordings, "events": session.events,
+                  "live": stats, "figures": [str(p) for p in plots if p is not None]}
+        Path(args.json).write_text(json.dumps(report, indent=2))
+        print(f"wrote {args.json}")
+    for path in plots:
+        if path is not None:
+            print(f"wrote {path}")
+    print(f"done in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
+def _print_events(session):
+    n_samples = sum(r["n_samples"] for r in session.recordings)
+    n_faults = sum(r["n_sensor_faults"] for r in session.recordings)
+    print(f"{len(session.events)} alarm event(s) in {len(session.recordings)} recording(s), "
+          f"{n_samples} samples ({n_faults} sensor faults)")
+    if not session.events:
+        return
+    width = max(9, *(len(e["recording"]) for e in session.events))
+    print(f"{'recording':<{width}}  {'start [s]':>9}  {'end [s]':>9}  {'joints':<12}  "
+          f"{'peak |m| [A]':>12}  {'delay [s]':>9}")
+    for e in session.events:
+        print(f"{e['recording']:<{width}}  {e['start_s']:>9.3f}  {e['end_s']:>9.3f}  "
+              f"{','.join(map(str, e['joints'])):<12}  {e['peak_A']:>12.3f}  "
+              f"{e['delay_s']:>9.3f}")
+
+
+def _plot(session, folder, key):
+    """Monitoring signal, per-regime thresholds and alarms of one recording."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("gpcd monitor: warning: matplotlib is not installed; no figure",
+              file=sys.stderr)
+        return None
+    np = session.np
+    s = session.series
+    t = np.asarray(s["t"])
+    signal, regime = np.asarray(s["signal"]), np.asarray(s["regime"], dtype=int)
+    alarms = np.asarray(s["alarms"], dtype=bool)
+    n = signal.shape[1] if signal.ndim == 2 else 0
+    fig, axes = plt.subplots(max(n, 1), 1, figsize=(9, 1.6 * max(n, 1) + 0.8), sharex=True,
+                             squeeze=False)
+    events = [e for e in session.events if e["recording"] == key]
+    for j in range(n):
+        ax = axes[j, 0]
+        for k, e in enumerate(events):
+            ax.axvspan(e["start_s"], e["end_s"], color="C3", alpha=0.15,
+                       label="alarm event" if k == 0 else None)
+        ax.plot(t, signal[:, j], lw=0.7, color="C0", label="monitoring signal m")
+        band = session.thresholds[regime, j]
+        ax.plot(t, band, lw=0.7, color="C1",
+                label="threshold (" + "/".join(session.regime_names) + ")")
+        ax.plot(t, -band, lw=0.7, color="C1")
+        if alarms[:, j].any():
+            ax.plot(t[alarms[:, j]], np.zeros(alarms[:, j].sum()), "|", color="k", ms=8,
+                    label="alarm")
+        ax.set_ylabel(f"joint {j + 1} [A]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=6, loc="upper right")
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.suptitle(f"{key}: causal monitoring signal, per-regime thresholds, alarms",
+                 fontsize=9)
+    fig.tight_layout()
+    path = folder / f"{Path(key).stem}.png"
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
