@@ -174,7 +174,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         The missing effects found (empty when nothing is missing).
     rejected_effects_ : list of dict
         Estimates rejected as physically implausible or insignificant:
-        ``name``, ``effect``, ``joints`` (0-based), ``reason``.
+        ``name``, ``effect``, ``joints`` (0-based), ``reason``, ``implausible``
+        (False when rejected as insignificant).
     ambiguities_ : list of dict
         Effects the recordings cannot tell apart: ``chosen``,
         ``alternative``, their effect names, ``joints`` (0-based),
@@ -344,9 +345,9 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             return plausible(candidate, theta)
 
         for _ in range(MAX_RESELECTIONS + 1):
-            # an effect dropped after the joint fit is banned and the selection rerun, so
-            # that the next candidate (e.g. the payload after an implausible link mass) is
-            # considered
+            # an effect found implausible after the joint fit is banned and the selection
+            # rerun, so that the next candidate (e.g. the payload after an implausible link
+            # mass) is considered
             self.ambiguities_ = []
             selected, self.history_ = forward_selection(
                 stats, candidates, self.min_gain, self.min_t, self.max_effects, guarded,
@@ -354,7 +355,10 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                 ambiguities=self.ambiguities_)
             n_rejected = len(self.rejected_effects_)
             self.model_ = self._final_fit(signals, selected, mask, guarded_mask)
-            dropped = self.rejected_effects_[n_rejected:]
+            # (a friction peak or softening flipping sign in the refit is left dropped: the
+            # other friction terms of the joint cover it)
+            dropped = [r for r in self.rejected_effects_[n_rejected:] if r["implausible"]
+                       and r["effect"] not in ("stribeck_friction", "friction_softening")]
             if not dropped:
                 break
             banned.update({r["name"]: r["reason"] for r in dropped})
@@ -399,6 +403,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                               guarded_mask if guard else mask)
             problems = [(k, reason) for k, f in enumerate(model.effects)
                         if (reason := self._problem(f))] or _inseparable_friction(model.effects)
+            implausible = {k for k, f in enumerate(model.effects)
+                           if f.effect.implausible(f.parameters, f.target, self.nominal_)}
             if not problems:
                 return model
             k, reason = min(problems, key=lambda p: model.effects[p[0]].explained_variance)
@@ -407,7 +413,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                 fitted.name
             self.rejected_effects_.append({"name": label, "effect": fitted.name,
                                            "joints": [int(j) for j in fitted.joints],
-                                           "reason": reason})
+                                           "reason": reason, "implausible": k in implausible})
             del selected[k]
 
     def _problem(self, fitted):
