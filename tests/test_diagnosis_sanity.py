@@ -136,7 +136,7 @@ def test_report_text_counts_joints_from_one_json_from_zero(payload_run):
     fit_lines = [line for line in text.split("3. Fit")[1].splitlines() if "   joint" in line]
     assert len(fit_lines) == 6
     for line in fit_lines:
-        assert re.fullmatch(r"   joint \d: nMSE \S+ -> \S+, (\d+(\.\d)? % (lower|higher)|unchanged)",
+        assert re.fullmatch(r"   joint \d: nMSE \S+ -> \S+, (\d+(\.\d+)? % (lower|higher)|unchanged)",
                             line), line
     data = json.loads(report.to_json())
     assert "0-based" in data["schema"]["joints"]
