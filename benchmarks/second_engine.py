@@ -16,7 +16,7 @@ corrections) may be named in every run: anything else named is an *extra*
 and is listed. An "ambiguous" verdict between the injected effect and
 another counts as named when the injected one is reported.
 
-Run ``python benchmarks/second_engine.py [--cases a,b] [--json OUT]``
+Run ``python benchmarks/second_engine.py [--cases a,b] [--seed S] [--json OUT]``
 (needs ``pip install mujoco``).
 """
 
@@ -148,6 +148,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default=None, help="comma-separated case names")
     parser.add_argument("--json", default=None, help="write the results here")
+    parser.add_argument("--seed", type=int, default=1,
+                        help="seed of the references and noise (held-out run: seed + 100)")
     args = parser.parse_args(argv)
     try:
         import mujoco  # noqa: F401
@@ -159,7 +161,7 @@ def main(argv=None):
     results, start = {}, time.perf_counter()
     for name in names:
         t0 = time.perf_counter()
-        r = run_case(name, setup)
+        r = run_case(name, setup, seed=args.seed)
         r.pop("diagnosis")
         results[name] = r
         verdict = "named within 20 %" if r["named_within_20_percent"] else "NOT named within 20 %"

@@ -20,6 +20,8 @@ from .nominal import NominalModel, Signals, check_recordings
 from .selection import MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, build_candidates, \
     expand_composites, fold_index, fold_statistics, forward_selection, plausibility_check
 
+#: Times the selection is rerun after effects were dropped by the joint fit.
+MAX_RESELECTIONS = 2
 #: Significance level of the Wald test on a named effect's parameters
 #: (autocorrelation-corrected covariance): the parameters must differ from
 #: zero at this level.
@@ -172,7 +174,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         The missing effects found (empty when nothing is missing).
     rejected_effects_ : list of dict
         Estimates rejected as physically implausible or insignificant:
-        ``name``, ``effect``, ``joints`` (0-based), ``reason``.
+        ``name``, ``effect``, ``joints`` (0-based), ``reason``, ``implausible``
+        (False when rejected as insignificant).
     ambiguities_ : list of dict
         Effects the recordings cannot tell apart: ``chosen``,
         ``alternative``, their effect names, ``joints`` (0-based),
@@ -332,13 +335,34 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             guarded_mask = self._mask(signals, guard=True)
             guarded = fold_statistics(candidates, design, residual, guarded_mask, folds,
                                       self.n_splits, signals.current)
-        self.rejected_effects_, self.ambiguities_ = [], []
-        selected, self.history_ = forward_selection(
-            stats, candidates, self.min_gain, self.min_t, self.max_effects, guarded,
-            min_share=self.min_share, check=plausibility_check(self.nominal_),
-            rejections=self.rejected_effects_, ambiguities=self.ambiguities_)
+        self.rejected_effects_ = []
+        plausible, banned = plausibility_check(self.nominal_), {}
+
+        def check(candidate, theta):
+            for name in (candidate.label, *(part.label for part in candidate.parts)):
+                if name in banned:
+                    return f"dropped after the joint fit: {banned[name]}"
+            return plausible(candidate, theta)
+
+        for _ in range(MAX_RESELECTIONS + 1):
+            # an effect found implausible after the joint fit is banned and the selection
+            # rerun, so that the next candidate (e.g. the payload after an implausible link
+            # mass) is considered
+            self.ambiguities_ = []
+            selected, self.history_ = forward_selection(
+                stats, candidates, self.min_gain, self.min_t, self.max_effects, guarded,
+                min_share=self.min_share, check=check, rejections=self.rejected_effects_,
+                ambiguities=self.ambiguities_)
+            n_rejected = len(self.rejected_effects_)
+            self.model_ = self._final_fit(signals, selected, mask, guarded_mask)
+            # (a friction peak or softening flipping sign in the refit is left dropped: the
+            # other friction terms of the joint cover it)
+            dropped = [r for r in self.rejected_effects_[n_rejected:] if r["implausible"]
+                       and r["effect"] not in ("stribeck_friction", "friction_softening")]
+            if not dropped:
+                break
+            banned.update({r["name"]: r["reason"] for r in dropped})
         selection_done = _time.perf_counter()
-        self.model_ = self._final_fit(signals, selected, mask, guarded_mask)
         self.effects_ = self.model_.effects
         kept = {f.effect.name for f in self.effects_}
         self.ambiguities_ = [a for a in self.ambiguities_ if a["effect"] in kept]
@@ -379,6 +403,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                               guarded_mask if guard else mask)
             problems = [(k, reason) for k, f in enumerate(model.effects)
                         if (reason := self._problem(f))] or _inseparable_friction(model.effects)
+            implausible = {k for k, f in enumerate(model.effects)
+                           if f.effect.implausible(f.parameters, f.target, self.nominal_)}
             if not problems:
                 return model
             k, reason = min(problems, key=lambda p: model.effects[p[0]].explained_variance)
@@ -387,7 +413,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                 fitted.name
             self.rejected_effects_.append({"name": label, "effect": fitted.name,
                                            "joints": [int(j) for j in fitted.joints],
-                                           "reason": reason})
+                                           "reason": reason, "implausible": k in implausible})
             del selected[k]
 
     def _problem(self, fitted):

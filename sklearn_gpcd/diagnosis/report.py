@@ -49,6 +49,10 @@ def relative_change(before, after):
     '0.1 -> 0.1, unchanged'
     >>> relative_change(7.2, 0.0099)
     '7.2 -> 0.0099, 99.9 % lower'
+    >>> relative_change(0.2174, 9.866e-05)
+    '0.2174 -> 9.866e-05, 99.95 % lower'
+    >>> relative_change(0.5, 0.0)
+    '0.5 -> 0, 100 % lower'
     """
     head = f"{before:.4g} -> {after:.4g}"
     if not before > 0:
@@ -56,8 +60,10 @@ def relative_change(before, after):
     change = 100.0 * (after - before) / before
     if abs(change) < 0.5:
         return f"{head}, unchanged"
-    size = abs(change)
-    size = f"{size:.1f}" if 99.5 <= size < 100 else f"{size:.0f}"  # never "100 % lower" of > 0
+    size, decimals = abs(change), 0
+    while size < 100 and round(size, decimals) >= 100 and decimals < 4:
+        decimals += 1  # never "100 % lower" when something is left
+    size = f"{size:.{decimals}f}"
     return f"{head}, {size} % {'lower' if change < 0 else 'higher'}"
 
 

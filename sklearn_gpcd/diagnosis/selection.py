@@ -590,7 +590,7 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
         :func:`plausibility_check`). None accepts everything.
     rejections : list, default=None
         When given, receives one dict per implausible pick: ``name``,
-        ``effect``, ``joints`` (0-based), ``reason``.
+        ``effect``, ``joints`` (0-based), ``reason``, ``implausible`` (True).
     ambiguities : list, default=None
         When given, receives one dict per pick that the data cannot tell from
         another effect's candidate (see :func:`separating_excitation`).
@@ -646,7 +646,7 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
                 rejections.append({"name": step.candidate.label,
                                    "effect": step.candidate.effect.name,
                                    "joints": [int(j) for j in step.candidate.joints],
-                                   "reason": reason})
+                                   "reason": reason, "implausible": True})
         return reason is None
 
     def columns_of(chosen):
