@@ -568,7 +568,7 @@ def report_tables(results, nmse, unseen, family=None):
     rows = [[n] + list(nmse[n][test]) for test in sets for n in nmse]
     names = [f"{n}, {test}" for test in sets for n in nmse]
     rows = [[label] + row[1:] for label, row in zip(names, rows)]
-    text += ["Quasi-static nMSE (Eq. 18), unseen recordings: |qd_l| < sigma_v per joint (the "
+    text += ["Quasi-static nMSE (Eq. 18), unseen recordings: abs(qd_l) < sigma_v per joint (the "
              "paper's split), and rows with the whole arm at rest", "",
              rst_table(["monitor, test set"] + jh, rows), ""]
     header = ["monitor", "file", "push [s]", "labelled joints", "detected", "delay [s]",
