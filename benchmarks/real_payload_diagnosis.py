@@ -13,7 +13,10 @@ A. *direct*: each loaded run against the published model and torque
 B. *calibrated*: the unloaded runs are diagnosed first (friction, rotor
    inertia, ... of the real robot) and each loaded run is diagnosed
    against that refined model; the unloaded runs themselves serve as
-   controls (leave-one-out calibration).
+   controls (leave-one-out calibration);
+C. *every unloaded run*: each unloaded identification run (15 files, the
+   two early 19-column ones included) diagnosed as in A; none should carry
+   a payload.
 
 Run ``python benchmarks/real_payload_diagnosis.py [--data DIR] [--json OUT]``.
 Exits 0 with a message when the data is absent.
@@ -133,16 +136,33 @@ def main(argv=None):
                                   "no payload") + f"; effects: {', '.join(summary(diag)) or '-'}"
               + (f"; rejected payload estimate: {rejected[0]}" if rejected else ""))
     results["seconds"]["controls"] = time.perf_counter() - t0
+
+    print("C. every unloaded identification run, direct (as A): no payload expected")
+    t0 = time.perf_counter()
+    every = sorted(f.name for f in folder.glob("*.csv")
+                   if "load" not in f.name.lower().replace("unload", ""))
+    results["every_unloaded_direct"] = {}
+    for name in every:
+        diag = DynamicsDiagnosis(robot).fit(load_recording(folder / name))
+        pay = payload_of(diag)
+        results["every_unloaded_direct"][name] = {"payload": pay, "effects": summary(diag)}
+        print(f"   {name:36s} " + (f"payload {pay['mass']:.2f} kg (!)" if pay else "no payload")
+              + f"; effects: {', '.join(summary(diag)) or '-'}")
+    results["seconds"]["every_unloaded"] = time.perf_counter() - t0
     loaded_direct = sum(results["direct"][n]["payload"] is not None for n in LOADED)
     loaded_calibrated = sum(results["calibrated"][n]["payload"] is not None for n in LOADED)
     unloaded_clean = sum(results["controls"][n]["payload"] is None for n in UNLOADED)
+    every_clean = sum(v["payload"] is None for v in results["every_unloaded_direct"].values())
     results["summary"] = {"loaded_with_payload_direct": loaded_direct,
                           "loaded_with_payload_calibrated": loaded_calibrated,
                           "unloaded_without_payload": unloaded_clean,
-                          "n_loaded": len(LOADED), "n_unloaded": len(UNLOADED)}
+                          "n_loaded": len(LOADED), "n_unloaded": len(UNLOADED),
+                          "every_unloaded_without_payload_direct": every_clean,
+                          "n_every_unloaded": len(every)}
     print(f"loaded runs diagnosed with a payload: {loaded_direct}/{len(LOADED)} (direct), "
           f"{loaded_calibrated}/{len(LOADED)} (calibrated); unloaded runs diagnosed without "
-          f"a payload: {unloaded_clean}/{len(UNLOADED)}")
+          f"a payload: {unloaded_clean}/{len(UNLOADED)} (controls), {every_clean}/{len(every)} "
+          "(every unloaded identification run, direct)")
     results["seconds"]["total"] = time.perf_counter() - start
     print(f"total {results['seconds']['total']:.1f} s")
     if args.json:
