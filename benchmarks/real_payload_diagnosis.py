@@ -14,7 +14,7 @@ B. *calibrated*: the unloaded runs are diagnosed first (friction, rotor
    inertia, ... of the real robot) and each loaded run is diagnosed
    against that refined model; the unloaded runs themselves serve as
    controls (leave-one-out calibration);
-C. *every unloaded run*: each unloaded identification run (15 files, the
+C. *every unloaded run*: each unloaded identification run (18 files, the
    two early 19-column ones included) diagnosed as in A; none should carry
    a payload.
 
