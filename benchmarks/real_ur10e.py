@@ -78,6 +78,7 @@ from sklearn_gpcd.detection import (  # noqa: E402
     MARGIN_RULES,
     REGIME_NAMES,
     CollisionDetector,
+    calibrate_across_recordings,
     regime_excursions,
     regime_levels,
     stack_currents,
@@ -169,14 +170,9 @@ def detector(regressor, rest_reference=None, margin=1.0):
     )
 
 
-class Stack:
-    """Detector inputs of several recordings, stacked, with groups and time."""
-
-    def __init__(self, blocks, recordings):
-        self.Z = np.concatenate(blocks)
-        sizes = [r.n_samples for r in recordings]
-        self.groups = np.repeat(np.arange(len(recordings)), sizes)
-        self.time = np.concatenate([r.time for r in recordings])
+def times_of(recordings):
+    """Time stamps of each recording, for ``calibrate_across_recordings``."""
+    return {k: r.time for k, r in recordings.items()}
 
 
 def alarm_onsets(alarm, t):
@@ -274,11 +270,9 @@ def collision_family(root, train, labels, build, progress):
                 for i, (a, b) in enumerate(segments[other]):
                     blocks[f"{other}#{i}"] = inputs[other][a:b]
                     pieces[f"{other}#{i}"] = recs[other].slice(a, b)
-            cal = Stack(list(blocks.values()), list(pieces.values()))
-            base = detector(model).fit(cal.Z, groups=cal.groups, time=cal.time)
-            series = excursions(base, blocks)
-            margin = loro_margin({k: v[2] for k, v in series.items()}, list(series))
-            det = detector(model, None, margin).fit(cal.Z, groups=cal.groups, time=cal.time)
+            calibration = calibrate_across_recordings(
+                detector(model), blocks, times_of(pieces), rule=MARGIN_RULE)
+            det, margin = calibration.detector, calibration.margin
             events, _, mon = score_events(det, inputs[key], rec, labels[key]["events"])
             t = rec.time - rec.time[0]
             alarm = mon.alarms.any(axis=1)
@@ -440,17 +434,14 @@ def main(argv=None):
     monitors["SP_C +R"] = (models["SP_C"], REST_TAU)
 
     # -- margins by leave-one-recording-out, nested false alarms, events -------
-    cal = Stack(list(blocks.values()), list(unseen.values()))
     results = {}
     for name, (model, tau) in monitors.items():
         tic = time.perf_counter()
-        base = detector(model, tau).fit(cal.Z, groups=cal.groups, time=cal.time)
-        series = excursions(base, blocks)
-        folds = nested_false_alarms(series, unseen)
+        calibration = calibrate_across_recordings(
+            detector(model, tau), blocks, times_of(unseen), rule=MARGIN_RULE)
+        det, margin, folds = calibration.detector, calibration.margin, calibration.folds
         by_rule = {rule: sum(len(f["onsets"]) for f in nested_false_alarms(
-            series, unseen, rule).values()) for rule in MARGIN_RULES}
-        margin = loro_margin({k: v[2] for k, v in series.items()}, list(series))
-        det = detector(model, tau, margin).fit(cal.Z, groups=cal.groups, time=cal.time)
+            calibration.series, unseen, rule).values()) for rule in MARGIN_RULES}
         events, outside, mons = {}, {}, {}
         for key, rec in pushes.items():
             events[key], outside[key], mons[key] = score_events(

@@ -50,14 +50,14 @@ def test_cli_workflow_matches_the_benchmark_rule_on_real_logs(bench, ur10e_dir, 
     reference = CausalFeatures().fit([bench.load(f) for f in train])
     assert features.signals_ == reference.signals_  # same inputs as the benchmark builds
     blocks = {k: stack_currents(reference.transform(r), r.current) for k, r in unseen.items()}
-    cal = bench.Stack(list(blocks.values()), list(unseen.values()))
+    Z = np.concatenate(list(blocks.values()))
+    groups = np.repeat(np.arange(len(unseen)), [r.n_samples for r in unseen.values()])
+    time = np.concatenate([r.time for r in unseen.values()])
     regressor = load(model)
-    base = bench.detector(regressor, bench.REST_TAU).fit(cal.Z, groups=cal.groups,
-                                                          time=cal.time)
+    base = bench.detector(regressor, bench.REST_TAU).fit(Z, groups=groups, time=time)
     series = bench.excursions(base, blocks)
     margin = bench.loro_margin({k: v[2] for k, v in series.items()}, list(series))
-    det = bench.detector(regressor, bench.REST_TAU, margin).fit(cal.Z, groups=cal.groups,
-                                                                 time=cal.time)
+    det = bench.detector(regressor, bench.REST_TAU, margin).fit(Z, groups=groups, time=time)
     folds = bench.nested_false_alarms(series, unseen)
     np.testing.assert_allclose(detector.thresholds_, det.thresholds_)
     assert calibration["margin"] == pytest.approx(np.max(margin))

@@ -232,7 +232,9 @@ def calibrate_across_recordings(detector, blocks, times, rule="global"):
         ``margin`` and ``levels`` (n_regime_rows, n_joints), ``folds`` (from
         :func:`nested_false_alarms`, empty with 2 recordings), ``n_false_alarms``
         (their total), ``hours`` and ``false_alarms_per_hour`` (None with
-        fewer than 3 recordings).
+        fewer than 3 recordings), and ``series`` (from
+        :func:`regime_excursions` at a unit margin, e.g. to compare rules
+        with :func:`nested_false_alarms`).
 
     Examples
     --------
@@ -270,5 +272,5 @@ def calibrate_across_recordings(detector, blocks, times, rule="global"):
     return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
                  folds=folds, n_false_alarms=n_false, hours=hours,
                  false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
-                 regime_names=tuple(fitted.regime_names_))
+                 regime_names=tuple(fitted.regime_names_), series=series)
 
