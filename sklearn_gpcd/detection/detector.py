@@ -672,7 +672,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         if not self.regimes:
             return levels(np.ones(signal.shape[0], dtype=bool))
-        return self._regime_rows(lambda rows: levels(rows), regimes)
+        return self._regime_rows(levels, regimes)
 
     # ------------------------------------------------------------- predict
     def monitoring_signal(self, X, groups=None):
