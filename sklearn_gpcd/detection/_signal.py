@@ -62,6 +62,35 @@ def lowpass_coefficients(cutoff, sample_time, order=1):
     raise ValueError(f"filter_order must be 1 or 2, got {order!r}")
 
 
+def recording_index(groups, labels=None):
+    """Recording index ``0 .. n - 1`` of each collision-free row.
+
+    Parameters
+    ----------
+    groups : array-like of shape (n_samples,) or None
+        Recording id of each row.
+    labels : array-like of shape (n_samples,), default=None
+        Contact labels; rows with a non-zero label are dropped, as the
+        detector drops them before calibrating.
+
+    Returns
+    -------
+    index : ndarray of int or None
+        None without ``groups``.
+
+    Examples
+    --------
+    >>> recording_index(["b", "b", "a", "a"], labels=[0, 1, 0, 0]).tolist()
+    [1, 0, 0]
+    """
+    if groups is None:
+        return None
+    groups = np.asarray(groups)
+    if labels is not None:
+        groups = groups[np.asarray(labels) == 0]
+    return np.unique(groups, return_inverse=True)[1].reshape(-1)
+
+
 def segment_starts(n_samples, groups=None, keep=None):
     """Row indices where the signal state restarts.
 

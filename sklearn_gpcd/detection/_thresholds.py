@@ -116,3 +116,121 @@ def false_alarm_level(peak, starts, sample_time, rate):
     # a relative 1e-9 so that the same ratio recomputed a few ulps higher
     # (e.g. tick by tick in StreamingMonitor) is not an alarm either
     return float(level) * (1.0 + _LEVEL_MARGIN)
+
+
+# --------------------------------------------------- levels across recordings
+#: How far the leave-one-recording-out margin is shared: one per (regime,
+#: joint) cell, one per regime (largest over the joints), or one for all.
+MARGIN_RULES = ("cell", "regime", "global")
+
+
+def fill_absent_regimes(table, present):
+    """Rows of regimes absent from the data take the largest present value.
+
+    The rule of every per-regime table of the detector: no data, no tighter
+    band. With no regime present at all the table becomes 1.
+
+    Parameters
+    ----------
+    table : ndarray of shape (n_regime_rows, n_joints)
+        Values per regime (anything in the absent rows).
+    present : ndarray of bool, shape (n_regime_rows,)
+        Regimes that occur in the data.
+
+    Returns
+    -------
+    filled : ndarray of shape (n_regime_rows, n_joints)
+        A copy.
+
+    Examples
+    --------
+    >>> fill_absent_regimes(np.array([[1.0, 4.0], [9.0, 9.0], [2.0, 3.0]]),
+    ...                     np.array([True, False, True])).tolist()
+    [[1.0, 4.0], [2.0, 4.0], [2.0, 3.0]]
+    """
+    table = np.array(table, dtype=float, copy=True)
+    present = np.asarray(present, dtype=bool)
+    table[~present] = table[present].max(axis=0) if present.any() else 1.0
+    return table
+
+
+def recording_peaks(debounced, regimes, recordings, n_regime_rows):
+    """Peak debounced ``|m|`` per recording, regime and joint.
+
+    Parameters
+    ----------
+    debounced : ndarray of shape (n_samples, n_joints)
+        Debounced ``|m|`` of the collision-free data.
+    regimes : ndarray of int, shape (n_samples,)
+        Regime code of each sample.
+    recordings : ndarray of int, shape (n_samples,)
+        Recording index ``0 .. n_recordings - 1`` of each sample.
+    n_regime_rows : int
+        Number of regime rows of the tables.
+
+    Returns
+    -------
+    peaks : ndarray of shape (n_recordings, n_regime_rows, n_joints)
+        Zero where a recording lacks the regime.
+
+    Examples
+    --------
+    >>> d = np.array([[1.0], [3.0], [2.0]])
+    >>> recording_peaks(d, np.array([0, 0, 1]), np.array([0, 1, 1]), 2)[:, :, 0].tolist()
+    [[1.0, 0.0], [3.0, 2.0]]
+    """
+    n_recordings = int(recordings.max()) + 1 if recordings.size else 0
+    peaks = np.zeros((n_recordings, n_regime_rows, debounced.shape[1]))
+    for r in range(n_recordings):
+        mine = recordings == r
+        for g in range(n_regime_rows):
+            rows = mine & (regimes == g)
+            if rows.any():
+                peaks[r, g] = debounced[rows].max(axis=0)
+    return peaks
+
+
+def peak_levels(peaks):
+    """Level per (regime, joint) of ``false_alarm_rate=0``: the largest peak.
+
+    A regime absent from every recording takes the largest level of the
+    others (:func:`fill_absent_regimes`).
+
+    Parameters
+    ----------
+    peaks : ndarray of shape (n_recordings, n_regime_rows, n_joints)
+
+    Returns
+    -------
+    levels : ndarray of shape (n_regime_rows, n_joints)
+        Positive.
+
+    Examples
+    --------
+    >>> peaks = np.array([[[1.0, 2.0], [0.0, 0.0], [0.5, 0.2]]])
+    >>> peak_levels(peaks)[1].tolist()
+    [1.0, 2.0]
+    """
+    present = peaks.any(axis=(0, 2))
+    table = fill_absent_regimes(peaks.max(axis=0), present)
+    return np.maximum(table, np.finfo(float).tiny)
+
+
+def loro_factors(peaks, rule="global"):
+    """:func:`~sklearn_gpcd.detection.loro_margin` on peaks stacked per recording.
+
+    ``peaks`` has shape (n_recordings, n_regime_rows, n_joints), at least 2
+    recordings; see that function for the rule.
+    """
+    if rule not in MARGIN_RULES:
+        raise ValueError(f"rule must be one of {MARGIN_RULES}, got {rule!r}")
+    n = peaks.shape[0]
+    if n < 2:
+        raise ValueError(f"leave-one-recording-out needs at least 2 recordings, got {n}")
+    factors = [peaks[r] / peak_levels(np.delete(peaks, r, axis=0)) for r in range(n)]
+    margin = np.maximum(np.max(factors, axis=0), 1.0)
+    if rule == "regime":
+        return np.repeat(margin.max(axis=1, keepdims=True), margin.shape[1], axis=1)
+    if rule == "global":
+        return np.full_like(margin, margin.max())
+    return margin

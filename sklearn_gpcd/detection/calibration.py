@@ -24,6 +24,8 @@ from sklearn.base import clone
 from sklearn.utils import Bunch
 
 from ..features.masks import contiguous_segments
+from ._signal import debounce_segments, segment_starts
+from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
 
 __all__ = [
     "MARGIN_RULES",
@@ -33,11 +35,6 @@ __all__ = [
     "regime_excursions",
     "regime_levels",
 ]
-
-#: How far the leave-one-recording-out margin is shared: one per (regime,
-#: joint) cell, one per regime (largest over the joints), or one for all.
-MARGIN_RULES = ("cell", "regime", "global")
-
 
 def regime_excursions(detector, blocks):
     """Debounced ``|m|``, regimes and peak per (regime, joint) of each recording.
@@ -72,17 +69,14 @@ def regime_excursions(detector, blocks):
     >>> debounced.shape, peaks.shape
     ((200, 1), (1, 1))
     """
-    scale = np.atleast_2d(detector.scale_)
     n_rows = len(detector.regime_names_)
     out = {}
     for key, block in blocks.items():
         mon = detector.monitoring_signal(block)
-        debounced = mon.ratio * scale[mon.regime]
-        peaks = np.zeros((n_rows, debounced.shape[1]))
-        for g in range(n_rows):
-            rows = mon.regime == g
-            if rows.any():
-                peaks[g] = debounced[rows].max(axis=0)
+        starts = segment_starts(len(block))
+        debounced = debounce_segments(np.abs(mon.signal), detector.min_duration, starts)
+        recording = np.zeros(len(block), dtype=np.intp)
+        peaks = recording_peaks(debounced, mon.regime, recording, n_rows)[0]
         out[key] = (debounced, mon.regime, peaks)
     return out
 
@@ -111,14 +105,20 @@ def regime_levels(peaks, keys):
     >>> regime_levels(peaks, ["a"])[1].tolist()
     [1.0, 2.0]
     """
-    table = np.max([peaks[k] for k in keys], axis=0)
-    present = np.array([any(peaks[k][g].any() for k in keys) for g in range(len(table))])
-    table[~present] = table[present].max(axis=0)
-    return np.maximum(table, np.finfo(float).tiny)
+    return peak_levels(np.stack([peaks[k] for k in keys]))
 
 
 def loro_margin(peaks, keys, rule="global"):
     """The largest factor by which a left-out recording exceeds the others' level.
+
+    .. math::
+
+        \\mu_{g\\ell} = \\max\\Big(1,\\; \\max_r
+        \\frac{p^{(r)}_{g\\ell}}{\\max_{r' \\ne r} p^{(r')}_{g\\ell}}\\Big)
+
+    for regime ``g`` and joint ``l`` (peaks ``p`` of the recordings ``r``),
+    then shared. ``CollisionDetector(margin="loro")`` applies this rule with
+    ``rule="global"`` in its ``fit``.
 
     Parameters
     ----------
@@ -142,18 +142,7 @@ def loro_margin(peaks, keys, rule="global"):
     >>> loro_margin(peaks, ["a", "b"]).tolist()[0]
     [2.0, 2.0]
     """
-    if rule not in MARGIN_RULES:
-        raise ValueError(f"rule must be one of {MARGIN_RULES}, got {rule!r}")
-    if len(keys) < 2:
-        raise ValueError("leave-one-recording-out needs at least 2 recordings, got "
-                         f"{len(keys)}")
-    factors = [peaks[r] / regime_levels(peaks, [k for k in keys if k != r]) for r in keys]
-    margin = np.maximum(np.max(factors, axis=0), 1.0)
-    if rule == "regime":
-        return np.repeat(margin.max(axis=1, keepdims=True), margin.shape[1], axis=1)
-    if rule == "global":
-        return np.full_like(margin, margin.max())
-    return margin
+    return loro_factors(np.stack([peaks[k] for k in keys]), rule)
 
 
 def _alarm_onsets(alarm, t):

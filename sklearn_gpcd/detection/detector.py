@@ -16,9 +16,17 @@ from ._signal import (
     debounce_segments,
     filter_segments,
     lowpass_coefficients,
+    recording_index,
     segment_starts,
 )
-from ._thresholds import contamination_level, false_alarm_level, rms_scale
+from ._thresholds import (
+    contamination_level,
+    false_alarm_level,
+    fill_absent_regimes,
+    loro_factors,
+    recording_peaks,
+    rms_scale,
+)
 
 _THRESHOLD_RULES = ("contamination", "false_alarm_rate", "per_joint", "std")
 #: Relative deviation of ``sample_time`` from the data's median step that warns.
@@ -173,13 +181,19 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     k : float, default=3.0
         Width of the band in predictive standard deviations, for
         ``threshold="std"``.
-    margin : float >= 1 or array-like, default=1.0
+    margin : float >= 1, array-like or "loro", default=1.0
         Factor on the levels of ``threshold="per_joint"``: thresholds that
         were just not crossed on the calibration data are crossed on unseen
         data by the next-largest excursion; a margin buys robustness at the
         cost of sensitivity. A scalar, or one value per joint (shape
-        ``(n_joints,)``) or per regime and joint (the shape of ``scale_``),
-        e.g. chosen by leave-one-recording-out (see the user guide).
+        ``(n_joints,)``) or per regime and joint (the shape of ``scale_``).
+        ``"loro"`` learns it in :meth:`fit` by leaving one recording out
+        (``groups`` names the recordings, at least 2): the largest factor by
+        which a recording's peak debounced ``|m|`` exceeds the level of the
+        other recordings, over all regimes and joints
+        (:func:`~sklearn_gpcd.detection.loro_margin`, ``rule="global"``; a
+        margin per cell or per regime over-fits, see the user guide). With
+        ``false_alarm_rate=0`` the thresholds then match ``gpcd calibrate``.
     normalize : {None, "std"}, default=None
         Divide the residual by the predictive std before filtering.
     filter_cutoff : float, default=None
@@ -232,6 +246,10 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         per regime (``regime_names_``) when ``regimes=True``.
     offset_ : float
         ``-gamma``: a joint fires when ``|m_l| / scale_l > -offset_``.
+    margin_ : ndarray of the shape of ``scale_``
+        The margin applied to the levels of ``threshold="per_joint"`` (the
+        given ``margin`` broadcast, or the one learned with ``"loro"``); 1
+        for the other rules.
     thresholds_ : ndarray of shape (n_joints,) or (3, n_joints)
         ``sigma_CD`` per joint (and regime), in units of the monitoring
         signal (current units, or standard deviations when
@@ -350,7 +368,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         residual, std, starts, qd = self._fit_regressor(
             X, labels, groups, self._needs_std(fitting=True)
         )
-        self._calibrate(residual, std, starts, qd)
+        self._calibrate(residual, std, starts, qd, recording_index(groups, labels))
         return self
 
     def _check_sample_time(self, time, groups, n_rows):
@@ -468,7 +486,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "false_alarm_rate": isinstance(self.false_alarm_rate, Real)
             and self.false_alarm_rate >= 0.0,
             "k": isinstance(self.k, Real) and self.k > 0.0,
-            "margin": _valid_margin(self.margin),
+            "margin": _valid_margin(self.margin)
+            and (not _is_loro(self.margin) or self.threshold == "per_joint"),
             "normalize": self.normalize in (None, "std"),
             "filter_cutoff": self.filter_cutoff is None
             or (isinstance(self.filter_cutoff, Real) and self.filter_cutoff > 0.0),
@@ -491,7 +510,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "contamination": "a float in (0, 0.5]",
             "false_alarm_rate": "a float >= 0 (alarms per hour)",
             "k": "a float > 0",
-            "margin": "a float >= 1 or an array of floats >= 1",
+            "margin": "a float >= 1, an array of floats >= 1 or 'loro' (with "
+            "threshold='per_joint')",
             "normalize": "None or 'std'",
             "filter_cutoff": "None or a float > 0 (Hz)",
             "filter_order": "1 or 2",
@@ -600,8 +620,12 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
         return debounced / np.atleast_2d(self.scale_)[regimes]
 
-    def _calibrate(self, residual, std, starts, qd):
-        """Set filter_coefficients_, scale_, offset_ and thresholds_ from training residuals."""
+    def _calibrate(self, residual, std, starts, qd, recordings=None):
+        """Set filter_coefficients_, scale_, margin_, offset_ and thresholds_.
+
+        ``recordings``: recording index of each training residual row (for
+        ``margin="loro"``), or None when no ``groups`` were given.
+        """
         self.filter_coefficients_ = None
         if self.filter_cutoff is not None:
             self.filter_coefficients_ = lowpass_coefficients(
@@ -614,12 +638,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             gamma = float(self.k)
         elif self.threshold == "per_joint":
             levels = self._joint_levels(signal, regimes, starts)
-            margin = np.asarray(self.margin, dtype=float)
-            if margin.shape not in ((), (self.n_joints,), levels.shape):
-                raise ValueError(
-                    f"margin has shape {margin.shape}; expected a scalar, ({self.n_joints},) "
-                    f"or {levels.shape} (regimes x joints)"
-                )
+            margin = self._margin(signal, regimes, starts, recordings, levels.shape)
             self.scale_ = margin * levels
             gamma = 1.0
         else:
@@ -631,8 +650,32 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                 gamma = contamination_level(peak, self.contamination)
             else:
                 gamma = false_alarm_level(peak, starts, self.sample_time_, self.false_alarm_rate)
+        if self.threshold != "per_joint":
+            margin = np.ones(np.shape(self.scale_))
+        self.margin_ = np.broadcast_to(margin, np.shape(self.scale_)).copy()
         self.offset_ = -gamma
         self.thresholds_ = gamma * self.scale_
+
+    def _margin(self, signal, regimes, starts, recordings, shape):
+        """The given margin, checked against the levels' shape, or the LORO one."""
+        if not _is_loro(self.margin):
+            margin = np.asarray(self.margin, dtype=float)
+            if margin.shape not in ((), (self.n_joints,), shape):
+                raise ValueError(
+                    f"margin has shape {margin.shape}; expected a scalar, ({self.n_joints},) "
+                    f"or {shape} (regimes x joints)"
+                )
+            return margin
+        n_recordings = 0 if recordings is None else int(recordings.max()) + 1
+        if n_recordings < 2:
+            raise ValueError(
+                "margin='loro' leaves one recording out: pass groups= naming at least 2 "
+                f"recordings to fit, got {n_recordings}"
+            )
+        debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
+        n_rows = len(self.regime_names_)
+        peaks = recording_peaks(debounced, regimes, recordings, n_rows)
+        return loro_factors(peaks, "global").reshape(shape)
 
     def _regime_rows(self, per_regime, regimes):
         """``per_regime(rows)`` for each regime, stacked (one row without regimes).
@@ -642,13 +685,13 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         """
         if not self.regimes:
             return per_regime(slice(None))
-        table = np.full((len(REGIME_NAMES), self.n_joints), np.nan)
+        table = np.zeros((len(REGIME_NAMES), self.n_joints))
+        present = np.zeros(len(REGIME_NAMES), dtype=bool)
         for code in range(len(REGIME_NAMES)):
             rows = regimes == code
             if rows.any():
-                table[code] = per_regime(rows)
-        fill = np.nanmax(table, axis=0)
-        return np.where(np.isnan(table), np.nan_to_num(fill, nan=1.0), table)
+                table[code], present[code] = per_regime(rows), True
+        return fill_absent_regimes(table, present)
 
     def _joint_levels(self, signal, regimes, starts):
         """Per joint (and regime) false-alarm levels of the debounced |m|.
@@ -803,8 +846,16 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         return self.monitoring_signal(X, groups).alarms
 
 
+def _is_loro(margin):
+    return isinstance(margin, str) and margin == "loro"
+
+
 def _valid_margin(margin):
-    """A number or an array of numbers, all finite and >= 1."""
+    """"loro", or a number or an array of numbers, all finite and >= 1."""
+    if _is_loro(margin):
+        return True
+    if isinstance(margin, str):
+        return False
     try:
         values = np.asarray(margin, dtype=float)
     except (TypeError, ValueError):

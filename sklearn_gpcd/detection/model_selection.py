@@ -11,7 +11,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._persistence import VersionedStateMixin
 from ..metrics import event_recall, false_alarms_per_hour, mean_detection_delay
-from ._signal import segment_starts
+from ._signal import recording_index, segment_starts
 
 #: CollisionDetector parameters applied after the regressor: changing them
 #: re-uses the fitted regressor and its residuals.
@@ -206,7 +206,7 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
         self.n_jobs = n_jobs
         self.refit = refit
 
-    def fit(self, X, y, *, groups):
+    def fit(self, X, y, *, groups, time=None):
         """Score every candidate and refit the best one.
 
         Parameters
@@ -218,6 +218,11 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
             Contact labels: 0 free, ``k > 0`` inside contact ``k``.
         groups : array-like of shape (n_samples,)
             Recording id of each row.
+        time : array-like of shape (n_samples,), default=None
+            Time stamps [s] of the rows. Each fold's detector checks (or,
+            with ``sample_time="auto"``, takes) its sampling period from
+            them, and the delays and false alarms per hour are measured on
+            them; without ``time`` they use ``sample_time``.
 
         Returns
         -------
@@ -228,7 +233,11 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
         groups = np.asarray(groups)
         if X.ndim != 2:
             raise ValueError(f"X must be 2-D (n_samples, n_columns), got shape {X.shape}")
-        for name, value in (("y (labels)", labels), ("groups", groups)):
+        if time is not None:
+            time = np.asarray(time, dtype=float)
+        for name, value in (("y (labels)", labels), ("groups", groups), ("time", time)):
+            if value is None:
+                continue
             if value.shape != (X.shape[0],):
                 raise ValueError(f"{name} must have shape ({X.shape[0]},), got {value.shape}")
         cv = self._splitter(groups)
@@ -240,7 +249,7 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
         jobs = Parallel(n_jobs=self.n_jobs)(
             delayed(_evaluate_fold)(
                 self.detector, heavy, [candidates[i] for i in members],
-                X, labels, groups, train, test, self.max_delay,
+                X, labels, groups, train, test, self.max_delay, time,
             )
             for train, test in splits
             for heavy, members in blocks
@@ -260,7 +269,7 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
         self.best_params_ = candidates[self.best_index_]
         if self.refit:
             self.best_estimator_ = clone(self.detector).set_params(**self.best_params_)
-            self.best_estimator_.fit(X, labels=labels, groups=groups)
+            self.best_estimator_.fit(X, labels=labels, groups=groups, time=time)
         return self
 
     def _splitter(self, groups):
@@ -348,33 +357,40 @@ def _equal(a, b):
         return False
 
 
-def _evaluate_fold(detector, heavy, lights, X, labels, groups, train, test, max_delay):
+def _evaluate_fold(detector, heavy, lights, X, labels, groups, train, test, max_delay,
+                   time=None):
     """Metrics of the candidates ``heavy | light`` for one train/test split."""
     base = clone(detector).set_params(**heavy)
     variants = [clone(base).set_params(**light) for light in lights]
     needs_std = any(v._needs_std(fitting=True) for v in variants)
+    train_time = None if time is None else time[train]
     base._validate_params()
-    base.sample_time_ = base._check_sample_time(None, None, len(train))
+    base.sample_time_ = base._check_sample_time(train_time, groups[train], len(train))
     residual, std, train_starts, _ = base._fit_regressor(
         X[train], labels[train], groups[train], needs_std
     )
     X_train, X_test = X[train][labels[train] == 0], X[test]
     _, test_std, test_residual = base._residual(X_test, any(v._needs_std() for v in variants))
     test_starts = segment_starts(len(test), groups[test])
+    train_recordings = recording_index(groups[train], labels[train])
     results = []
     for variant in variants:
         variant._validate_params()
-        variant.sample_time_ = variant._check_sample_time(None, None, len(train))
+        variant.sample_time_ = variant._check_sample_time(train_time, groups[train],
+                                                          len(train))
         variant.regressor_ = base.regressor_
         variant.velocity_columns_ = variant._velocity_columns(X.shape[1] - variant.n_joints)
-        variant._calibrate(residual, std, train_starts, variant._velocities(X_train))
+        variant._calibrate(residual, std, train_starts, variant._velocities(X_train),
+                           train_recordings)
         signal, regimes, _ = variant._signal(
             test_residual, test_std, test_starts, variant._velocities(X_test)
         )
         alarms = variant._ratio(signal, regimes, test_starts).max(axis=1) > -variant.offset_
-        kwargs = dict(
-            max_delay=max_delay, sample_time=variant.sample_time_, groups=groups[test]
-        )
+        kwargs = dict(max_delay=max_delay, groups=groups[test])
+        if time is None:
+            kwargs["sample_time"] = variant.sample_time_
+        else:
+            kwargs["time"] = time[test]
         results.append(
             {
                 "recall": event_recall(labels[test], alarms, **kwargs),

@@ -1,0 +1,143 @@
+"""The leave-one-recording-out margin as a detector parameter (issue 14).
+
+``CollisionDetector(margin="loro")`` learns the margin that
+``calibrate_across_recordings`` (``gpcd calibrate``) chooses, so that
+``CollisionThresholdCV`` with recordings as groups scores it on recordings
+it never saw, the same figure as the calibration's nested false alarms.
+"""
+
+import numpy as np
+import pytest
+from sklearn.linear_model import LinearRegression
+from sklearn.model_selection import LeaveOneGroupOut
+
+from sklearn_gpcd.detection import (
+    CollisionDetector,
+    CollisionThresholdCV,
+    calibrate_across_recordings,
+    loro_margin,
+    nested_false_alarms,
+    regime_excursions,
+    stack_currents,
+)
+
+DT = 0.01
+
+
+def _recordings(n_recordings=4, n=600, seed=0):
+    """Collision-free recordings of one joint: a drive, motion and rest phases.
+
+    The noise level differs between recordings (as between real runs), so a
+    left-out recording exceeds the others' level and the margin exceeds 1.
+    """
+    rng = np.random.default_rng(seed)
+    blocks, times = {}, {}
+    for r in range(n_recordings):
+        t = np.arange(n) * DT
+        qd = np.where((t % 2.0) < 1.0, np.sin(np.pi * t), 0.0)[:, None]
+        current = 2.0 * qd[:, 0] + (0.05 + 0.03 * r) * rng.standard_t(4, size=n)
+        blocks[f"rec{r}"] = stack_currents(qd, current)
+        times[f"rec{r}"] = t
+    return blocks, times
+
+
+def _template(**params):
+    return CollisionDetector(LinearRegression(), threshold="per_joint", false_alarm_rate=0.0,
+                             sample_time=DT, filter_cutoff=5.0, min_duration=3,
+                             regimes=True, velocity_columns=[0], **params)
+
+
+def _stacked(blocks):
+    keys = list(blocks)
+    Z = np.concatenate([blocks[k] for k in keys])
+    groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
+    return Z, groups
+
+
+def test_loro_margin_is_the_calibration_margin():
+    blocks, times = _recordings()
+    result = calibrate_across_recordings(_template(), blocks, times)
+    Z, groups = _stacked(blocks)
+    det = _template(margin="loro").fit(Z, groups=groups)
+    assert det.margin_.shape == det.scale_.shape
+    assert det.margin_.min() > 1.0          # the noisiest recording sets it
+    np.testing.assert_allclose(det.margin_, result.margin, rtol=1e-12)
+    np.testing.assert_allclose(det.thresholds_, result.detector.thresholds_, rtol=1e-12)
+    # the margin is the worst left-out excess of the recordings' peaks
+    peaks = {k: v[2] for k, v in regime_excursions(
+        _template().fit(Z, groups=groups), blocks).items()}
+    np.testing.assert_allclose(det.margin_, loro_margin(peaks, list(peaks)), rtol=1e-12)
+
+
+def test_numeric_margin_is_stored_broadcast():
+    blocks, _ = _recordings(n_recordings=2)
+    Z, groups = _stacked(blocks)
+    det = _template(margin=1.5).fit(Z, groups=groups)
+    assert det.margin_.shape == det.scale_.shape
+    assert np.all(det.margin_ == 1.5)
+    plain = CollisionDetector(LinearRegression(), sample_time=DT).fit(Z)
+    assert np.all(plain.margin_ == 1.0)
+
+
+def test_loro_margin_needs_two_recordings():
+    blocks, _ = _recordings(n_recordings=2)
+    Z, groups = _stacked(blocks)
+    with pytest.raises(ValueError, match="groups= naming at least 2 recordings"):
+        _template(margin="loro").fit(Z)
+    with pytest.raises(ValueError, match="got 1"):
+        _template(margin="loro").fit(Z, groups=np.zeros(len(Z)))
+
+
+def test_loro_margin_needs_the_per_joint_rule():
+    blocks, _ = _recordings(n_recordings=2)
+    Z, groups = _stacked(blocks)
+    with pytest.raises(ValueError, match="'loro' \\(with threshold='per_joint'\\)"):
+        CollisionDetector(LinearRegression(), margin="loro", sample_time=DT).fit(
+            Z, groups=groups)
+    with pytest.raises(ValueError, match="margin must be"):
+        _template(margin="global").fit(Z, groups=groups)
+
+
+def test_threshold_cv_scores_the_loro_margin_like_the_nested_calibration():
+    """Leave-one-recording-out CV of margin="loro" == nested_false_alarms, recording by recording."""
+    blocks, times = _recordings(n_recordings=5, seed=3)
+    Z, groups = _stacked(blocks)
+    labels = np.zeros(len(Z), dtype=int)
+    search = CollisionThresholdCV(_template(), {"margin": ["loro", 1.0]},
+                                  cv=LeaveOneGroupOut()).fit(Z, labels, groups=groups)
+    assert search.best_estimator_.margin_.min() >= 1.0
+    base = _template().fit(Z, groups=groups)
+    folds = nested_false_alarms(regime_excursions(base, blocks), times)
+    hours = len(Z) / len(blocks) * DT / 3600.0     # the CV counts every sample's period
+    for k, key in enumerate(blocks):               # LeaveOneGroupOut: fold k leaves group k out
+        rate = search.cv_results_[f"split{k}_test_false_alarms_per_hour"][0]
+        assert round(rate * hours) == len(folds[key]["onsets"])
+    # a unit margin is at least as alarm-prone on unseen recordings as the LORO one
+    mean = search.cv_results_["mean_test_false_alarms_per_hour"]
+    assert mean[1] > mean[0]
+
+
+def test_threshold_cv_takes_the_sampling_period_from_time_stamps():
+    blocks, times = _recordings(n_recordings=3, seed=1)
+    Z, groups = _stacked(blocks)
+    labels = np.zeros(len(Z), dtype=int)
+    labels[700:730] = 1                             # a labelled stretch in recording 1
+    Z[700:730, -1] += 3.0
+    time = np.concatenate([times[k] for k in blocks])
+    grid = {"margin": ["loro", 1.0]}
+    given = CollisionThresholdCV(_template(), grid, cv=LeaveOneGroupOut(), max_delay=0.3)
+    given.fit(Z, labels, groups=groups)
+    auto = CollisionThresholdCV(_template().set_params(sample_time="auto"), grid,
+                                cv=LeaveOneGroupOut(), max_delay=0.3)
+    auto.fit(Z, labels, groups=groups, time=time)
+    assert auto.best_estimator_.sample_time_ == pytest.approx(DT)
+    for metric in ("recall", "false_alarms_per_hour", "delay"):
+        np.testing.assert_allclose(auto.cv_results_[f"mean_test_{metric}"],
+                                   given.cv_results_[f"mean_test_{metric}"], rtol=1e-9)
+    recall = [given.cv_results_[f"split{k}_test_recall"][0] for k in range(3)]
+    assert np.isnan(recall[0]) and recall[1] == 1.0 and np.isnan(recall[2])  # event in rec 1
+    with pytest.raises(ValueError, match="sample_time='auto'"):
+        CollisionThresholdCV(_template().set_params(sample_time="auto"), grid,
+                             cv=LeaveOneGroupOut()).fit(Z, labels, groups=groups)
+    with pytest.raises(ValueError, match="time must have shape"):
+        auto.fit(Z, labels, groups=groups, time=time[:-1])
