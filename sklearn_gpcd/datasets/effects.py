@@ -123,15 +123,35 @@ class FrictionChange:
     start: float = 0.0
     stop: float = None
 
-    def apply(self, plant):
-        """Scale the plant's friction; return the undo function."""
-        n = plant.n_joints
-        saved = plant.friction
-        plant.friction = saved.scaled(
+    def changed(self, friction):
+        """The friction levels ``friction`` becomes under this change.
+
+        Parameters
+        ----------
+        friction : JointFriction
+
+        Returns
+        -------
+        friction : JointFriction
+
+        Examples
+        --------
+        >>> from sklearn_gpcd.datasets import FrictionChange, JointFriction
+        >>> before = JointFriction([1.0], [2.0], [0.5], [0.02])
+        >>> FrictionChange(viscous=1.5).changed(before).viscous.tolist()
+        [0.75]
+        """
+        n = friction.n_joints
+        return friction.scaled(
             coulomb=_per_joint(self.coulomb, n, "FrictionChange.coulomb"),
             static=_per_joint(self.static, n, "FrictionChange.static"),
             viscous=_per_joint(self.viscous, n, "FrictionChange.viscous"),
         )
+
+    def apply(self, plant):
+        """Scale the plant's friction; return the undo function."""
+        saved = plant.friction
+        plant.friction = self.changed(saved)
 
         def undo():
             plant.friction = saved
@@ -288,6 +308,3 @@ class JointSpring:
 
         return undo
 
-
-#: Effect types shipped with the simulator.
-EFFECTS = (Payload, FrictionChange, CurrentDelay, TorqueConstantError, CurrentOffset, JointSpring)
