@@ -13,11 +13,14 @@ entry's conversion of the injected parameters.
   improved on the joints it loads.
 """
 
+import importlib
 import inspect
+import pkgutil
 
 import numpy as np
 import pytest
 
+import sklearn_gpcd
 from sklearn_gpcd.datasets import (
     DIAGNOSIS_ONLY,
     EFFECT_REGISTRY,
@@ -71,6 +74,21 @@ def test_registry_is_complete():
 
 def test_no_injector_shares_a_name_with_an_identifier():
     assert not {cls.__name__ for cls in _injectors()} & {cls.__name__ for cls in EFFECTS}
+
+
+def test_no_two_package_classes_share_a_name():
+    """A class name means one thing in the whole package (issue #17)."""
+    modules = {}
+    for info in pkgutil.walk_packages(sklearn_gpcd.__path__, "sklearn_gpcd."):
+        try:
+            module = importlib.import_module(info.name)
+        except ImportError:  # an optional dependency (the tests of that module say so)
+            continue
+        for name, cls in inspect.getmembers(module, inspect.isclass):
+            if cls.__module__ == module.__name__ and not name.startswith("_"):
+                modules.setdefault(name, set()).add(module.__name__)
+    shared = {name: sorted(where) for name, where in modules.items() if len(where) > 1}
+    assert not shared, shared
 
 
 def test_expected_parameters_are_the_identifiers(nominal):

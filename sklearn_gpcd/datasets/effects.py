@@ -24,7 +24,10 @@ changes the plant and returns a function restoring it. The plant exposes
     parent joint id and placement of the flange frame.
 
 To add an effect, write a dataclass with ``start``/``stop`` fields and an
-``apply(plant)`` that returns the undo function.
+``apply(plant)`` that returns the undo function, and register it in
+:data:`~sklearn_gpcd.datasets.EFFECT_REGISTRY` with the diagnosis effect
+that names it (or in :data:`~sklearn_gpcd.datasets.SIMULATOR_ONLY` with the
+reason): ``tests/test_effect_registry.py`` fails on an unregistered one.
 """
 
 from dataclasses import dataclass

@@ -45,6 +45,10 @@ payload's centre of mass enters its inertia quadratically (fixed point).
 Each effect is a small class with :meth:`Effect.targets` (the joints or links
 it may act on), :meth:`Effect.design` (the columns) and
 :meth:`Effect.physical` (parameters with uncertainty in physical units).
+The classes are named ``<Thing>Effect``; the simulator's injectors
+(:mod:`sklearn_gpcd.datasets`) are named after the change they make, and
+:data:`sklearn_gpcd.datasets.EFFECT_REGISTRY` pairs the two (a new library
+effect needs an entry there, or in ``DIAGNOSIS_ONLY`` with the reason).
 """
 
 import numpy as np
