@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sklearn_gpcd.datasets import reference_d1
+from sklearn_gpcd.dynamics import stribeck_peak
 from sklearn_gpcd.io import Recording
 
 #: Plant friction of every run [Nm] and [Nm s/rad] (UR10-like levels).
@@ -174,7 +175,7 @@ def simulate(robot, torque_constants, armature, injection=None, n_targets=8,
         applied = np.zeros(6)
         for j, (peak, vs) in inj.stribeck.items():
             v = data.qvel[j]
-            applied[j] = -peak * np.sign(v) * np.exp(-(v / vs) ** 2)
+            applied[j] = -peak * stribeck_peak(v, vs)
         data.qfrc_applied[:] = applied
         data.ctrl[:] = 0.0
         data.qfrc_actuator[:] = 0.0

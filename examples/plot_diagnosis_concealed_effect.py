@@ -22,8 +22,7 @@ nominal model and the recordings. It
 # friction. The "real" robot carries a payload and a higher Stribeck peak.
 import numpy as np
 
-from sklearn_gpcd.datasets import Payload, default_friction, make_d1
-from sklearn_gpcd.datasets._extra_effects import FrictionDelta
+from sklearn_gpcd.datasets import FrictionDelta, Payload, default_friction, make_d1
 from sklearn_gpcd.datasets.plant import drive_parameters
 from sklearn_gpcd.diagnosis import DynamicsDiagnosis
 from sklearn_gpcd.robots import load_robot

@@ -2,7 +2,7 @@
 The diagnosis effect library, one concealed effect at a time
 ============================================================
 
-:class:`~sklearn_gpcd.diagnosis.DynamicsDiagnosis` tests twelve candidate
+:class:`~sklearn_gpcd.diagnosis.DynamicsDiagnosis` tests thirteen candidate
 effects against the residual of a nominal robot model. This example checks
 each of them in turn: the simulated UR10 is given one effect the nominal model
 does not know (a payload, a friction change, a torque-constant error, a
@@ -31,19 +31,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sklearn_gpcd.datasets import (
-    CurrentOffset,
-    FrictionChange,
-    FrictionDelta,
-    GravityTilt,
-    JointSpring,
-    LinkMass,
-    Payload,
-    RotorInertiaChange,
-    TorqueConstantError,
+    EFFECT_REGISTRY,
     default_friction,
-    delay_logged_current,
-    friction_drift,
     make_d1,
+    registered_effect,
 )
 from sklearn_gpcd.datasets.plant import drive_parameters
 from sklearn_gpcd.diagnosis import DynamicsDiagnosis
@@ -68,56 +59,60 @@ def one_hot(joint, value, n=6):
 # %%
 # The cases
 # ---------
-# Each case is ``(simulator effects, logged-current delay, expected)``, where
-# ``expected`` maps an effect name to the joints it acts on and its true
-# parameters, in the units the diagnosis reports. Per-joint effects (friction,
-# rotor inertia, torque constant, offset, spring, drift) must be found on
-# exactly the injected joints; shared effects (payload, link mass, gravity
-# tilt, time delay) must cover at least the joints they visibly load.
-CASES = {
-    "control (nominal physics)": ([], None, {}),
-    "coulomb_friction": ([FrictionDelta(coulomb=one_hot(2, 3.0), static=one_hot(2, 3.0))], None,
-                         {"coulomb_friction": ([2], {"delta_coulomb": 3.0})}),
-    "viscous_friction": ([FrictionChange(viscous=[1, 1, 1, 1, 1.5, 1])], None,
-                         # +50 % of joint 4's nominal viscous coefficient [Nm s/rad]
-                         {"viscous_friction": ([4], {"delta_viscous":
-                                                     0.5 * nominal_friction.viscous[4]})}),
-    "stribeck_friction": ([FrictionDelta(static=one_hot(2, 4.0))], None,
-                          {"stribeck_friction": ([2], {"delta_stribeck": 4.0})}),
-    "rotor_inertia": ([RotorInertiaChange(one_hot(1, 0.6))], None,
-                      {"rotor_inertia": ([1], {"delta_rotor_inertia": 0.6})}),
-    "payload": ([Payload(3.0, com=(0.0, 0.03, 0.06))], None,
-                {"payload": ([1, 2, 3, 4], {"mass": 3.0, "com_y": 0.03, "com_z": 0.06})}),
-    "link_mass": ([LinkMass(link=2, mass=2.0)], None,
-                  {"link_mass": ([0, 1, 2], {"delta_mass": 2.0})}),
-    "gravity_tilt": ([GravityTilt(roll=0.02, pitch=-0.015)], None,
-                     {"gravity_tilt": ([1, 2], {"roll": 0.02, "pitch": -0.015})}),
-    "torque_constant": ([TorqueConstantError([1, 1, 1, 0.85, 1, 1])], None,
-                        {"torque_constant": ([3], {"scale": 0.85})}),
-    "current_offset": ([CurrentOffset(one_hot(4, 0.15))], None,
-                       {"current_offset": ([4], {"offset": 0.15})}),
-    "time_delay": ([], 0.016,
-                   {"time_delay": ([0, 1, 2], {"delay": 0.016})}),
-    "joint_spring": ([JointSpring(one_hot(3, 20.0))], None,
-                     {"joint_spring": ([3], {"stiffness": 20.0,
-                                             "rest_position": -np.pi / 2})}),
-    "friction_drift": (friction_drift(coulomb_rate=one_hot(0, 0.1), duration=40.0), None,
-                       {"friction_drift": ([0], {"coulomb_rate": 0.1})}),
-    "payload + stribeck": ([Payload(2.0, com=(0.0, 0.0, 0.05)),
-                            FrictionDelta(static=one_hot(1, 6.0))], None,
-                           {"payload": ([1, 2, 3], {"mass": 2.0, "com_z": 0.05}),
-                            "stribeck_friction": ([1], {"delta_stribeck": 6.0,
-                                                        "stribeck_velocity": 0.02})}),
-}
+# The effect registry (:data:`~sklearn_gpcd.datasets.EFFECT_REGISTRY`) pairs
+# every library effect with the simulator effect that injects it, an example
+# injection and the conversion of the injected parameters into the estimate
+# the diagnosis should report, in its units (a +50 % viscous coefficient into
+# ``delta_viscous`` in Nm s/rad, a spring's rest position into the joint
+# position when it starts, ...). Per-joint effects (friction, rotor inertia,
+# torque constant, offset, spring, drift) must be found on exactly the
+# injected joints; shared effects (payload, link mass, gravity tilt, time
+# delay) must cover at least the joints they visibly load on this trajectory.
+LOADED_JOINTS = {"payload": [1, 2, 3, 4], "link_mass": [0, 1, 2], "gravity_tilt": [1, 2],
+                 "time_delay": [0, 1, 2]}
 
 
-def simulate(effects, delay, seed=1):
+def simulate(effects, seed=1):
     """A training and a held-out recording with the concealed effects."""
-    train = make_d1("ur10", n_targets=N_TRAIN, effects=list(effects), random_state=seed)
-    test = make_d1("ur10", n_targets=N_TEST, effects=list(effects), random_state=seed + 100)
-    if delay:
-        train, test = delay_logged_current(train, delay), delay_logged_current(test, delay)
-    return train, test
+    plant = [e for e in effects if hasattr(e, "apply")]
+
+    def run(n_targets, random_state):
+        recording = make_d1("ur10", n_targets=n_targets, effects=plant,
+                            random_state=random_state)
+        for effect in effects:  # a logging delay acts on the finished recording
+            if hasattr(effect, "apply_to_recording"):
+                recording = effect.apply_to_recording(recording)
+        return recording
+
+    return run(N_TRAIN, seed), run(N_TEST, seed + 100)
+
+
+def expectation(entry, effects, train, loaded=None):
+    """``{name: (joints, true parameters)}`` from the registry's conversion.
+
+    Parameters whose truth is 0 are left out of the table (it reports
+    relative errors).
+    """
+    expected = entry.expected(effects, nominal_robot, nominal_friction, train)
+    joints = sorted(expected) if entry.identifier.per_joint else (
+        loaded or LOADED_JOINTS[entry.name])
+    truths = next(iter(expected.values()))
+    return {entry.name: (joints, {k: v for k, v in truths.items() if v != 0})}
+
+
+# Each case: (simulator effects, function of the training run -> expected).
+CASES = {"control (nominal physics)": ([], lambda train: {})}
+for entry in EFFECT_REGISTRY:
+    injected = entry.inject()
+    CASES[entry.name] = (injected, lambda train, entry=entry, injected=injected:
+                         expectation(entry, injected, train))
+payload, peak = registered_effect("payload"), registered_effect("stribeck_friction")
+payload_2kg = payload.inject(mass=2.0, com=(0.0, 0.0, 0.05))
+peak_joint_2 = peak.inject(static=one_hot(1, 6.0))
+CASES["payload + stribeck"] = (
+    payload_2kg + peak_joint_2,
+    lambda train: {**expectation(payload, payload_2kg, train, loaded=[1, 2, 3]),
+                   **expectation(peak, peak_joint_2, train)})
 
 
 # %%
@@ -192,10 +187,10 @@ def _from_one(joints):
 
 
 rows = []
-for case, (effects, delay, expected) in CASES.items():
-    train, test = simulate(effects, delay)
+for case, (effects, expected) in CASES.items():
+    train, test = simulate(effects)
     diagnosis = DynamicsDiagnosis(nominal_robot, friction=nominal_friction).fit(train)
-    rows.extend(score(case, diagnosis, test, expected))
+    rows.extend(score(case, diagnosis, test, expected(train)))
 
 header = (f"{'case':<26} {'effect':<18} {'injected':<13} {'found':<19} "
           f"{'parameter: truth vs fit':<36} {'err %':>6}  {'nMSE before -> after':<20}  verdict")

@@ -417,8 +417,8 @@ def test_grid_search_with_detection_scorers(rng):
 # ------------------------------------------------------- simulated robot
 @pytest.fixture(scope="module")
 def interaction_runs():
-    datasets = pytest.importorskip("sklearn_gpcd.datasets")
-    features = pytest.importorskip("sklearn_gpcd.features")
+    from sklearn_gpcd import datasets, features
+
     reference, contacts = datasets.reference_interaction_test(
         n_turns=0.5, rest_duration=12.0, random_state=0
     )

@@ -4,7 +4,8 @@ Each scenario injects effects into the simulator (the diagnosis only sees
 the nominal model: the simulator's robot, torque constants, rotor inertias
 and nominal friction) and checks that the diagnosis names them on the right
 joints with parameters within 20 %, that the held-out nMSE improves, and
-that a control run yields nothing.
+that a control run yields nothing. Every library effect alone, injected and
+identified through the effect registry, is in ``tests/test_effect_registry.py``.
 """
 
 import json
@@ -14,21 +15,12 @@ import pytest
 
 from sklearn_gpcd.datasets import (
     CurrentDelay,
-    CurrentOffset,
-    FrictionChange,
-    JointSpring,
+    FrictionDelta,
     Payload,
     TorqueConstantError,
     default_friction,
-    make_d1,
-)
-from sklearn_gpcd.datasets._extra_effects import (
-    FrictionDelta,
-    GravityTilt,
-    LinkMass,
-    RotorInertiaChange,
     delay_logged_current,
-    friction_drift,
+    make_d1,
 )
 from sklearn_gpcd.datasets.plant import drive_parameters
 from sklearn_gpcd.diagnosis import (
@@ -146,35 +138,6 @@ def test_command_delay_is_not_a_missing_effect(nominal):
     still drives the joints, so inverse dynamics has nothing to add."""
     train, _ = _simulate([CurrentDelay(0.004)])
     assert _diagnose(nominal, train).effects_ == []
-
-
-# ------------------------------------------------------------- slow: the rest
-SLOW_CASES = {
-    "viscous": ([FrictionChange(viscous=[1, 1, 1, 1, 1.5, 1])],
-                {"viscous_friction": ([4], {"delta_viscous": 0.5 * 0.07 * 54.0})}),
-    "stribeck": ([FrictionDelta(static=_one_hot(2, 4.0))],
-                 {"stribeck_friction": ([2], {"delta_stribeck": 4.0})}),
-    "rotor": ([RotorInertiaChange(_one_hot(1, 0.6))],
-              {"rotor_inertia": ([1], {"delta_rotor_inertia": 0.6})}),
-    "link_mass": ([LinkMass(link=2, mass=2.0)],
-                  {"link_mass": ([0, 1, 2], {"delta_mass": 2.0})}),
-    "gravity_tilt": ([GravityTilt(roll=0.02, pitch=-0.015)],
-                     {"gravity_tilt": ([1, 2], {"roll": 0.02, "pitch": -0.015})}),
-    "current_offset": ([CurrentOffset(_one_hot(4, 0.15))],
-                       {"current_offset": ([4], {"offset": 0.15})}),
-    "joint_spring": ([JointSpring(_one_hot(3, 20.0))],
-                     {"joint_spring": ([3], {"stiffness": 20.0, "rest_position": -np.pi / 2})}),
-    "friction_drift": (friction_drift(coulomb_rate=_one_hot(0, 0.1), duration=40.0),
-                       {"friction_drift": ([0], {"coulomb_rate": 0.1})}),
-}
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("case", sorted(SLOW_CASES))
-def test_each_library_effect_found(nominal, case):
-    effects, expected = SLOW_CASES[case]
-    train, test = _simulate(effects)
-    _check(_diagnose(nominal, train), test, expected)
 
 
 # ---------------------------------------------------------- pair / base model

@@ -347,7 +347,7 @@ def test_detector_on_a_tiny_training_set(n_rows, threshold):
     )
     fit_quietly(det, stack_currents(X[:n_rows], Y[:n_rows]))
     assert np.all(np.isfinite(det.scale_)) and np.isfinite(det.offset_)
-    Z = stack_currents(X[n_rows:], Y[n_rows:])  # new rows (see the xfail below)
+    Z = stack_currents(X[n_rows:], Y[n_rows:])  # rows the fit has not seen
     assert np.all(np.isfinite(det.decision_function(Z)))
     batch = det.predict(Z)
     assert_array_equal(StreamingMonitor(det).replay(Z).prediction, batch)

@@ -8,9 +8,7 @@ gradients, and estimators whose predictions are finite and row-wise.
 
 Example budget of the default run (``max_examples`` set on every test):
 loaders 220 + features 105 + kernels 130 + regressor 93 + metrics 45 +
-detector 35 = 628 examples in total, about 8 s on 2 cores. A plain test
-marked ``xfail(strict=True)`` pins a failure found here in a module this file
-does not own (ParametricMean overflow).
+detector 35 = 628 examples in total, about 8 s on 2 cores.
 """
 
 import tempfile

@@ -11,11 +11,19 @@ from ._extra_effects import (
     FrictionDelta,
     GravityTilt,
     LinkMass,
+    LoggedCurrentDelay,
     RotorInertiaChange,
     delay_logged_current,
     friction_drift,
 )
 from .contacts import Contact, contact_labels
+from .effect_registry import (
+    DIAGNOSIS_ONLY,
+    EFFECT_REGISTRY,
+    SIMULATOR_ONLY,
+    RegisteredEffect,
+    registered_effect,
+)
 from .effects import (
     CurrentDelay,
     CurrentOffset,
@@ -44,10 +52,16 @@ __all__ = [
     "FrictionDelta",
     "GravityTilt",
     "LinkMass",
+    "LoggedCurrentDelay",
     "RotorInertiaChange",
     "delay_logged_current",
     "friction_drift",
     "Contact",
+    "DIAGNOSIS_ONLY",
+    "EFFECT_REGISTRY",
+    "RegisteredEffect",
+    "SIMULATOR_ONLY",
+    "registered_effect",
     "CurrentDelay",
     "CurrentOffset",
     "FrictionChange",

@@ -2,8 +2,8 @@
 
 They follow the protocol of :mod:`sklearn_gpcd.datasets.effects` (a frozen
 dataclass with ``start``/``stop`` and ``apply(plant)`` returning an undo
-function), except :func:`delay_logged_current`, which acts on a finished
-recording (a logging delay is not part of the plant), and
+function), except :class:`LoggedCurrentDelay` (:func:`delay_logged_current`),
+which acts on a finished recording (a logging delay is not part of the plant), and
 :func:`friction_drift`, which returns a staircase of small friction steps
 (the plant's friction is refreshed only when an effect starts or stops).
 
@@ -19,18 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from .effects import _per_joint
 from .friction import JointFriction
-
-
-def _per_joint(value, n_joints, what):
-    value = np.asarray(value, dtype=float)
-    if value.ndim == 0:
-        value = np.full(n_joints, float(value))
-    if value.shape != (n_joints,) or not np.all(np.isfinite(value)):
-        raise ValueError(
-            f"{what} must be a finite scalar or one value per joint ({n_joints}), got {value!r}"
-        )
-    return value
 
 
 @dataclass(frozen=True)
@@ -53,7 +43,7 @@ class FrictionDelta:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets._extra_effects import FrictionDelta
+    >>> from sklearn_gpcd.datasets import FrictionDelta
     >>> FrictionDelta(static=[3.0, 0, 0, 0, 0, 0]).coulomb
     0.0
     """
@@ -65,18 +55,39 @@ class FrictionDelta:
     start: float = 0.0
     stop: float = None
 
+    def changed(self, friction):
+        """The friction levels ``friction`` becomes under this change.
+
+        Parameters
+        ----------
+        friction : JointFriction
+
+        Returns
+        -------
+        friction : JointFriction
+            Static level kept at least the new Coulomb level.
+
+        Examples
+        --------
+        >>> from sklearn_gpcd.datasets import FrictionDelta, JointFriction
+        >>> before = JointFriction([1.0, 1.0], [2.0, 2.0], [0.5, 0.5], [0.02, 0.02])
+        >>> FrictionDelta(static=[3.0, 0.0]).changed(before).static.tolist()
+        [5.0, 2.0]
+        """
+        n = friction.n_joints
+        coulomb = friction.coulomb + _per_joint(self.coulomb, n, "FrictionDelta.coulomb")
+        static = friction.static + _per_joint(self.static, n, "FrictionDelta.static")
+        vs = friction.stribeck_velocity if self.stribeck_velocity is None else _per_joint(
+            self.stribeck_velocity, n, "FrictionDelta.stribeck_velocity")
+        return JointFriction(
+            coulomb=coulomb, static=np.maximum(static, coulomb),
+            viscous=friction.viscous + _per_joint(self.viscous, n, "FrictionDelta.viscous"),
+            stribeck_velocity=vs)
+
     def apply(self, plant):
         """Change the plant's friction; return the undo function."""
-        n = plant.n_joints
         saved = plant.friction
-        coulomb = saved.coulomb + _per_joint(self.coulomb, n, "FrictionDelta.coulomb")
-        static = saved.static + _per_joint(self.static, n, "FrictionDelta.static")
-        vs = saved.stribeck_velocity if self.stribeck_velocity is None else _per_joint(
-            self.stribeck_velocity, n, "FrictionDelta.stribeck_velocity")
-        plant.friction = JointFriction(
-            coulomb=coulomb, static=np.maximum(static, coulomb),
-            viscous=saved.viscous + _per_joint(self.viscous, n, "FrictionDelta.viscous"),
-            stribeck_velocity=vs)
+        plant.friction = self.changed(saved)
 
         def undo():
             plant.friction = saved
@@ -109,7 +120,7 @@ def friction_drift(coulomb_rate=0.0, viscous_rate=0.0, duration=60.0, step=0.5, 
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets._extra_effects import friction_drift
+    >>> from sklearn_gpcd.datasets import friction_drift
     >>> steps = friction_drift(coulomb_rate=0.1, duration=2.0, step=0.5)
     >>> len(steps), steps[0].start, round(steps[0].coulomb, 3)
     (4, 0.25, 0.05)
@@ -138,7 +149,7 @@ class RotorInertiaChange:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets._extra_effects import RotorInertiaChange
+    >>> from sklearn_gpcd.datasets import RotorInertiaChange
     >>> RotorInertiaChange([0.5, 0, 0, 0, 0, 0]).start
     0.0
     """
@@ -179,7 +190,7 @@ class LinkMass:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets._extra_effects import LinkMass
+    >>> from sklearn_gpcd.datasets import LinkMass
     >>> LinkMass(link=2, mass=1.5).mass
     1.5
     """
@@ -224,7 +235,7 @@ class GravityTilt:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets._extra_effects import GravityTilt
+    >>> from sklearn_gpcd.datasets import GravityTilt
     >>> GravityTilt(roll=0.02, pitch=-0.01).roll
     0.02
     """
@@ -247,6 +258,37 @@ class GravityTilt:
         return undo
 
 
+@dataclass(frozen=True)
+class LoggedCurrentDelay:
+    """The logged current lags the motion by ``delay`` seconds (a logging delay).
+
+    Unlike the plant effects it acts on the finished recording, through
+    :meth:`apply_to_recording` (:func:`delay_logged_current`); the joints
+    are still driven by the current of the same instant. The simulator's
+    :class:`~sklearn_gpcd.datasets.CurrentDelay` delays the *command*
+    instead, which the logged current does not show.
+
+    Parameters
+    ----------
+    delay : float
+        Delay [s], >= 0.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.datasets import LoggedCurrentDelay, make_d1
+    >>> recording = make_d1("ur10", n_targets=1, random_state=0)
+    >>> delayed = LoggedCurrentDelay(0.016).apply_to_recording(recording)
+    >>> recording.n_samples - delayed.n_samples  # the first 16 ms have no logged current
+    2
+    """
+
+    delay: float
+
+    def apply_to_recording(self, recording):
+        """The recording with its logged current delayed (:func:`delay_logged_current`)."""
+        return delay_logged_current(recording, self.delay)
+
+
 def delay_logged_current(recording, delay):
     """The recording with its logged current lagging by ``delay`` seconds.
 
@@ -267,7 +309,7 @@ def delay_logged_current(recording, delay):
     --------
     >>> import numpy as np
     >>> from sklearn_gpcd.io import Recording
-    >>> from sklearn_gpcd.datasets._extra_effects import delay_logged_current
+    >>> from sklearn_gpcd.datasets import delay_logged_current
     >>> t = np.arange(5) * 0.01
     >>> rec = Recording(time=t, q=np.zeros((5, 1)), qd=np.zeros((5, 1)), current=t[:, None])
     >>> delay_logged_current(rec, 0.02).current.ravel().round(3).tolist()

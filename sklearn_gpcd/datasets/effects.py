@@ -24,7 +24,10 @@ changes the plant and returns a function restoring it. The plant exposes
     parent joint id and placement of the flange frame.
 
 To add an effect, write a dataclass with ``start``/``stop`` fields and an
-``apply(plant)`` that returns the undo function.
+``apply(plant)`` that returns the undo function, and register it in
+:data:`~sklearn_gpcd.datasets.EFFECT_REGISTRY` with the diagnosis effect
+that names it (or in :data:`~sklearn_gpcd.datasets.SIMULATOR_ONLY` with the
+reason): ``tests/test_effect_registry.py`` fails on an unregistered one.
 """
 
 from dataclasses import dataclass
@@ -123,15 +126,35 @@ class FrictionChange:
     start: float = 0.0
     stop: float = None
 
-    def apply(self, plant):
-        """Scale the plant's friction; return the undo function."""
-        n = plant.n_joints
-        saved = plant.friction
-        plant.friction = saved.scaled(
+    def changed(self, friction):
+        """The friction levels ``friction`` becomes under this change.
+
+        Parameters
+        ----------
+        friction : JointFriction
+
+        Returns
+        -------
+        friction : JointFriction
+
+        Examples
+        --------
+        >>> from sklearn_gpcd.datasets import FrictionChange, JointFriction
+        >>> before = JointFriction([1.0], [2.0], [0.5], [0.02])
+        >>> FrictionChange(viscous=1.5).changed(before).viscous.tolist()
+        [0.75]
+        """
+        n = friction.n_joints
+        return friction.scaled(
             coulomb=_per_joint(self.coulomb, n, "FrictionChange.coulomb"),
             static=_per_joint(self.static, n, "FrictionChange.static"),
             viscous=_per_joint(self.viscous, n, "FrictionChange.viscous"),
         )
+
+    def apply(self, plant):
+        """Scale the plant's friction; return the undo function."""
+        saved = plant.friction
+        plant.friction = self.changed(saved)
 
         def undo():
             plant.friction = saved
@@ -288,6 +311,3 @@ class JointSpring:
 
         return undo
 
-
-#: Effect types shipped with the simulator.
-EFFECTS = (Payload, FrictionChange, CurrentDelay, TorqueConstantError, CurrentOffset, JointSpring)

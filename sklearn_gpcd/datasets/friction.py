@@ -4,6 +4,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..dynamics.friction import stribeck_friction
+
 #: Default friction levels as fractions of each joint's effort limit. They put
 #: a UR10 base joint (330 Nm) at about 15 Nm Coulomb friction, the order of
 #: magnitude of published UR friction identifications (~1.4 A of motor current
@@ -109,13 +111,11 @@ class JointFriction:
         Returns
         -------
         tau_f : ndarray of shape (..., n_joints)
-            Friction torque [Nm] opposing the motion, Stribeck law above.
+            Friction torque [Nm] opposing the motion: the Stribeck law above
+            (:func:`~sklearn_gpcd.dynamics.stribeck_friction`).
         """
-        qd = np.asarray(qd, dtype=float)
-        level = self.coulomb + (self.static - self.coulomb) * np.exp(
-            -((qd / self.stribeck_velocity) ** 2)
-        )
-        return level * np.sign(qd) + self.viscous * qd
+        return stribeck_friction(qd, self.coulomb, self.static, self.viscous,
+                                 self.stribeck_velocity)
 
     def scaled(self, coulomb=1.0, static=1.0, viscous=1.0):
         """A copy with the levels multiplied per joint (scalars broadcast).

@@ -65,6 +65,7 @@ import numpy as np
 import pinocchio as pin
 from sklearn.utils import check_random_state
 
+from ..dynamics.friction import stribeck_friction
 from ..io import Recording
 from .contacts import Contact, contact_labels
 from .friction import JointFriction, default_friction
@@ -454,11 +455,11 @@ def _simulate(robot, reference, friction, gains, contacts, effects, *, dt, decim
 
     def refresh():
         fr = plant.friction
-        return (plant.torque_constants, fr.coulomb, fr.static - fr.coulomb, fr.viscous,
-                1.0 / fr.stribeck_velocity, fr.static, plant.spring_stiffness,
-                plant.spring_rest, bool(np.any(plant.spring_stiffness)), plant.current_delay)
+        return (plant.torque_constants, fr.coulomb, fr.viscous, fr.stribeck_velocity, fr.static,
+                plant.spring_stiffness, plant.spring_rest, bool(np.any(plant.spring_stiffness)),
+                plant.current_delay)
 
-    (k_true, f_c, f_peak, f_v, inv_vs, f_s, k_spring, q_spring, has_spring,
+    (k_true, f_c, f_v, v_s, f_s, k_spring, q_spring, has_spring,
      delay) = refresh()
     minverse, gravity_and_coriolis, hold = pin.computeMinverse, pin.nonLinearEffects, _hold_friction
     minimum, maximum, absolute = np.minimum, np.maximum, np.abs
@@ -483,7 +484,7 @@ def _simulate(robot, reference, friction, gains, contacts, effects, *, dt, decim
                     undo[index] = effects[index].apply(plant)
                 elif index in undo:
                     undo.pop(index)()
-                (k_true, f_c, f_peak, f_v, inv_vs, f_s, k_spring, q_spring, has_spring,
+                (k_true, f_c, f_v, v_s, f_s, k_spring, q_spring, has_spring,
                  delay) = refresh()
                 next_event = events[0][0] if events else n_steps + 1
 
@@ -536,7 +537,7 @@ def _simulate(robot, reference, friction, gains, contacts, effects, *, dt, decim
                                           model, data, q)
             else:
                 minv = minverse(model, data, q)
-                f_slide = (f_c + f_peak * np.exp(-((v * inv_vs) ** 2))) * np.sign(v) + f_v * v
+                f_slide = stribeck_friction(v, f_c, f_s, f_v, v_s)
                 v_free = v + dt * (minv @ (tau - gravity_and_coriolis(model, data, q, v) - f_slide))
                 if (v * v_free).min() <= 0.0:
                     v_new, f_total = hold(v, v_free, f_slide, minv, dt, f_s, model, data, q)

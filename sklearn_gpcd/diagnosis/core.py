@@ -28,11 +28,6 @@ MAX_RESELECTIONS = 2
 WALD_LEVEL = 1e-3
 
 
-def _nmse(current, prediction, mask):
-    """Per-joint nMSE (paper Eq. 18) over ``mask``; NaN where the current is constant."""
-    return np.asarray(nmse(current, prediction, mask=mask), dtype=float)
-
-
 def _inseparable_friction(effects):
     """A Stribeck peak and a softening on one joint with velocity scales too close to tell.
 
@@ -372,9 +367,9 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         self.breakdown_after_ = residual_breakdown(signals, after, self.sigma_v, self.sigma_rest,
                                                    units=units)
         self.n_candidates_ = len(candidates)
-        self.nmse_train_before_ = _nmse(signals.current, signals.reference, mask)
-        self.nmse_train_after_ = _nmse(signals.current, self.model_.predict_signals(signals),
-                                       mask)
+        self.nmse_train_before_ = nmse(signals.current, signals.reference, mask=mask)
+        self.nmse_train_after_ = nmse(signals.current, self.model_.predict_signals(signals),
+                                      mask=mask)
         end = _time.perf_counter()
         self.training_summary_ = {
             "recordings": list(signals.names),
@@ -486,10 +481,10 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         return {
             "recordings": list(signals.names),
             "n_samples": int(signals.n_samples),
-            "nmse_before": _nmse(signals.current, signals.reference, mask).tolist(),
-            "nmse_after": _nmse(signals.current, after, mask).tolist(),
-            "nmse_before_all": _nmse(signals.current, signals.reference, every).tolist(),
-            "nmse_after_all": _nmse(signals.current, after, every).tolist(),
+            "nmse_before": nmse(signals.current, signals.reference, mask=mask).tolist(),
+            "nmse_after": nmse(signals.current, after, mask=mask).tolist(),
+            "nmse_before_all": nmse(signals.current, signals.reference, mask=every).tolist(),
+            "nmse_after_all": nmse(signals.current, after, mask=every).tolist(),
         }
 
     def report(self, test=None, test_simulated=None):

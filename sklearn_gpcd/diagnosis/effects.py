@@ -45,10 +45,16 @@ payload's centre of mass enters its inertia quadratically (fixed point).
 Each effect is a small class with :meth:`Effect.targets` (the joints or links
 it may act on), :meth:`Effect.design` (the columns) and
 :meth:`Effect.physical` (parameters with uncertainty in physical units).
+The classes are named ``<Thing>Effect``; the simulator's injectors
+(:mod:`sklearn_gpcd.datasets`) are named after the change they make, and
+:data:`sklearn_gpcd.datasets.EFFECT_REGISTRY` pairs the two (a new library
+effect needs an entry there, or in ``DIAGNOSIS_ONLY`` with the reason).
 """
 
 import numpy as np
 import pinocchio as pin
+
+from ..dynamics.friction import stribeck_peak
 
 #: Standard gravity [m/s^2] used to convert gravity components into tilt angles.
 STANDARD_GRAVITY = 9.81
@@ -309,12 +315,12 @@ def _joint_list(joints):
     return "joints " + ", ".join(map(str, js))
 
 
-class CoulombFriction(Effect):
+class CoulombFrictionEffect(Effect):
     """Missing Coulomb friction :math:`\\Delta F_c\\,\\mathrm{sign}(\\dot q_\\ell)` [Nm].
 
     Examples
     --------
-    >>> CoulombFriction().parameter_names
+    >>> CoulombFrictionEffect().parameter_names
     ('delta_coulomb',)
     """
 
@@ -340,12 +346,12 @@ class CoulombFriction(Effect):
                 "(Coulomb) friction than the model")
 
 
-class ViscousFriction(Effect):
+class ViscousFrictionEffect(Effect):
     """Missing viscous friction :math:`\\Delta F_v\\,\\dot q_\\ell` [Nm s/rad].
 
     Examples
     --------
-    >>> ViscousFriction().units
+    >>> ViscousFrictionEffect().units
     ('Nm s/rad',)
     """
 
@@ -371,7 +377,7 @@ class ViscousFriction(Effect):
                 "viscous friction than the model")
 
 
-class StribeckFriction(Effect):
+class StribeckFrictionEffect(Effect):
     """Missing low-speed friction peak (Stribeck effect).
 
     .. math::
@@ -392,7 +398,7 @@ class StribeckFriction(Effect):
 
     Examples
     --------
-    >>> len(StribeckFriction().settings_grid())
+    >>> len(StribeckFrictionEffect().settings_grid())
     10
     """
 
@@ -408,8 +414,7 @@ class StribeckFriction(Effect):
         return [{"stribeck_velocity": float(v)} for v in self.velocities]
 
     def design(self, signals, nominal, target, stribeck_velocity=0.02, **ignored):
-        qd = signals.qd[:, target]
-        peak = np.sign(qd) * np.exp(-((qd / stribeck_velocity) ** 2))
+        peak = stribeck_peak(signals.qd[:, target], stribeck_velocity)
         return _per_joint_column(signals, target, peak)
 
     def physical(self, theta, cov, target, settings, nominal):
@@ -453,7 +458,7 @@ class StribeckFriction(Effect):
                 f"{abs(value):.3g} +- {std:.2g} Nm below about {vs:.3g} rad/s")
 
 
-class FrictionSoftening(StribeckFriction):
+class FrictionSofteningEffect(StribeckFrictionEffect):
     """Dry friction that softens at low speed (regularised or constraint-based friction).
 
     .. math::
@@ -465,13 +470,13 @@ class FrictionSoftening(StribeckFriction):
     velocity goes to zero, over a velocity scale :math:`v_0` (the smooth
     ``tanh``/saturated laws of simulators, the soft friction constraint of
     MuJoCo, the pre-sliding regime of a real gearbox). Same columns as
-    :class:`StribeckFriction` with the opposite, physically constrained
+    :class:`StribeckFrictionEffect` with the opposite, physically constrained
     sign: a Stribeck peak raises the friction at low speed, softening lowers
     it; a fit of one with the other's sign is rejected.
 
     Examples
     --------
-    >>> FrictionSoftening().name, FrictionSoftening().parameter_names
+    >>> FrictionSofteningEffect().name, FrictionSofteningEffect().parameter_names
     ('friction_softening', ('softening', 'softening_velocity'))
     """
 
@@ -509,12 +514,12 @@ class FrictionSoftening(StribeckFriction):
                 f"{value:.3g} +- {std:.2g} Nm below the Coulomb level under about {vs:.3g} rad/s")
 
 
-class RotorInertia(Effect):
+class RotorInertiaEffect(Effect):
     """Missing reflected rotor inertia :math:`\\Delta J\\,\\ddot q_\\ell` [kg m^2] (Eq. 4).
 
     Examples
     --------
-    >>> RotorInertia().name
+    >>> RotorInertiaEffect().name
     'rotor_inertia'
     """
 
@@ -656,7 +661,7 @@ class PayloadEffect(Effect):
                 f"(centre of mass at ({com}) m in the flange frame)")
 
 
-class LinkMass(Effect):
+class LinkMassEffect(Effect):
     """A link heavier or lighter than the model (e.g. cables, a tool bracket).
 
     Parameters of link ``k``: ``delta_mass`` [kg], added at the link's
@@ -679,7 +684,7 @@ class LinkMass(Effect):
 
     Examples
     --------
-    >>> LinkMass().name
+    >>> LinkMassEffect().name
     'link_mass'
     """
 
@@ -726,7 +731,7 @@ class LinkMass(Effect):
         return f"a link is {abs(m):.3g} +- {sm:.2g} kg {word} than the model"
 
 
-class GravityTilt(Effect):
+class GravityTiltEffect(Effect):
     """The robot base is tilted: gravity is not along the base's -z axis.
 
     For a base rotated by small roll ``a`` (about x) and pitch ``b`` (about
@@ -740,7 +745,7 @@ class GravityTilt(Effect):
 
     Examples
     --------
-    >>> GravityTilt().parameter_names
+    >>> GravityTiltEffect().parameter_names
     ('roll', 'pitch')
     """
 
@@ -787,7 +792,7 @@ class GravityTilt(Effect):
                 f"pitch {pitch:.2f} +- {sp:.2f} deg")
 
 
-class TorqueConstant(Effect):
+class TorqueConstantEffect(Effect):
     """A wrong torque constant: current scaled per joint.
 
     If the true constant is :math:`K_\\ell s`, the current is
@@ -798,7 +803,7 @@ class TorqueConstant(Effect):
 
     Examples
     --------
-    >>> TorqueConstant().parameter_names
+    >>> TorqueConstantEffect().parameter_names
     ('scale', 'torque_constant')
     """
 
@@ -830,12 +835,12 @@ class TorqueConstant(Effect):
                 f"{100 * (s - 1):+.1f} % off the nominal value")
 
 
-class CurrentOffset(Effect):
+class CurrentOffsetEffect(Effect):
     """A constant bias of the logged current (sensor offset) [A].
 
     Examples
     --------
-    >>> CurrentOffset().units
+    >>> CurrentOffsetEffect().units
     ('A',)
     """
 
@@ -852,7 +857,7 @@ class CurrentOffset(Effect):
         return f"the current of {_joint_list(joints)} is offset by {value:.3g} +- {std:.2g} A"
 
 
-class TimeDelay(Effect):
+class TimeDelayEffect(Effect):
     """The logged current lags the motion by ``d`` seconds (all joints).
 
     If the logged current is :math:`i(t) = i^*(t - d)`, with :math:`i^*` the
@@ -876,7 +881,7 @@ class TimeDelay(Effect):
 
     Examples
     --------
-    >>> TimeDelay().needs_time
+    >>> TimeDelayEffect().needs_time
     True
     """
 
@@ -940,7 +945,7 @@ def _shift(signals, values, delay):
     return out
 
 
-class JointSpring(Effect):
+class JointSpringEffect(Effect):
     """A spring (e.g. a cable or a gravity compensator) on a joint: :math:`-k(q_\\ell - q_0)`.
 
     The motor must add :math:`k(q_\\ell - q_0)` to hold against it: columns
@@ -949,7 +954,7 @@ class JointSpring(Effect):
 
     Examples
     --------
-    >>> JointSpring().parameter_names
+    >>> JointSpringEffect().parameter_names
     ('stiffness', 'rest_position')
     """
 
@@ -983,7 +988,7 @@ class JointSpring(Effect):
                 f"pulled it towards {q0:.3g} rad")
 
 
-class FrictionDrift(Effect):
+class FrictionDriftEffect(Effect):
     """Friction changing linearly with time (warm-up of the gearbox grease).
 
     Columns ``[t sign(qd_l), t qd_l] / K`` with ``t`` the time since the
@@ -992,7 +997,7 @@ class FrictionDrift(Effect):
 
     Examples
     --------
-    >>> FrictionDrift().needs_time
+    >>> FrictionDriftEffect().needs_time
     True
     """
 
@@ -1025,10 +1030,10 @@ class FrictionDrift(Effect):
 
 #: The effect library, in order of prior plausibility: on ties within one
 #: standard error the selection prefers the effect listed first.
-EFFECTS = (CoulombFriction, ViscousFriction, StribeckFriction, FrictionSoftening, PayloadEffect,
-           TorqueConstant,
-           CurrentOffset, RotorInertia, GravityTilt, TimeDelay, JointSpring, FrictionDrift,
-           LinkMass)
+EFFECTS = (CoulombFrictionEffect, ViscousFrictionEffect, StribeckFrictionEffect,
+           FrictionSofteningEffect, PayloadEffect, TorqueConstantEffect, CurrentOffsetEffect,
+           RotorInertiaEffect, GravityTiltEffect, TimeDelayEffect, JointSpringEffect,
+           FrictionDriftEffect, LinkMassEffect)
 
 
 def effect_library(names="all"):

@@ -7,6 +7,7 @@
 
 from .base_parameters import base_parameters
 from .controller import ControllerCurrent, ControllerFeatures
+from .friction import stribeck_friction, stribeck_peak
 from .regressor import (
     FRICTION_TERMS,
     INERTIAL_PARAMETERS,
@@ -30,4 +31,6 @@ __all__ = [
     "base_parameters",
     "FRICTION_TERMS",
     "INERTIAL_PARAMETERS",
+    "stribeck_friction",
+    "stribeck_peak",
 ]

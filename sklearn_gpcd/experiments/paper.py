@@ -31,8 +31,7 @@ from ..features import CausalFeatures, contiguous_segments, make_inputs
 from ..gp import make_p_f, make_sp_p, make_sp_s
 from ..metrics import nmse
 from ..robots import resolve_robot
-
-ESTIMATORS = ("P_f", "SP_S", "SP_P")
+from .report import ESTIMATORS, write_report
 
 
 @dataclass(frozen=True)
@@ -318,8 +317,6 @@ def reproduce(output_dir, quick=False, robot="ur10", random_state=0, n_jobs=None
     >>> sorted(results)[:3]  # doctest: +SKIP
     ['checks', 'config', 'cyclic_rest_phases']
     """
-    from .report import write_report
-
     progress = Progress(verbose)
     config = config or (PaperConfig.quick() if quick else PaperConfig.full())
     robot = resolve_robot(robot)

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .paper import ESTIMATORS
-
+#: The paper's three estimators, in the order of the tables and figures.
+ESTIMATORS = ("P_f", "SP_S", "SP_P")
 COLORS = {"P_f": "#7f7f7f", "SP_S": "#1f77b4", "SP_P": "#d62728"}
 
 

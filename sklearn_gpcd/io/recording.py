@@ -1,6 +1,6 @@
 """One in-memory type for every robot log the package reads or writes."""
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -266,8 +266,3 @@ class Recording:
                 out[key] = np.concatenate(values)
         names = ",".join(r.name for r in recordings if r.name)
         return cls(name=names, units=recordings[0].units, **out)
-
-
-def recording_fields():
-    """Names of all :class:`Recording` fields (for loaders' column maps)."""
-    return [f.name for f in fields(Recording)]
