@@ -16,6 +16,11 @@ Protocol
    ``identification_data`` except the held-out ones (``HELD_OUT``) and the
    two early files without the target current (the peer and SP_C need it);
    loaded runs are left out (the controller was not told the payload).
+   Causal inputs, ``n_support`` rows per joint, Adam, ``random_state=seed``,
+   through ``sklearn_gpcd.workflow.train_model`` -- the function of ``gpcd
+   train``, so ``gpcd train --inputs causal --n-support N --optimizer adam
+   --seed S`` gives the same model (``train_settings``; checked by
+   ``tests/test_cli_monitor_real.py``).
 2. **unseen collision-free set** ``C``: the held-out identification runs,
    the six ``jointwise_motion`` runs, ``ptp_10_points`` and the still poses
    ``p1 .. p10``.

@@ -51,7 +51,7 @@ import warnings
 from pathlib import Path
 
 from .cli_monitor import add_commands as add_monitor_commands
-from .workflow import MAX_TRAIN_ROWS, TRAIN_RULE  # noqa: F401  (the rule --help prints)
+from .workflow import INPUTS, MAX_TRAIN_ROWS, MODELS, OPTIMIZERS, TRAIN_RULE  # noqa: F401
 from .workflow import training_rows as _training_rows  # noqa: F401
 
 __all__ = ["main", "build_parser", "parse_args"]
@@ -514,7 +514,7 @@ def build_parser():
                      help="recordings (files, folders or glob patterns)")
     _add_recording_options(tra, "built-in name or URDF path (default: the robot named in "
                            "the recordings' metadata; required when they name none)")
-    tra.add_argument("--model", choices=["sp_p", "sp_s", "p_f", "sp_c"], default="sp_p",
+    tra.add_argument("--model", choices=MODELS, default="sp_p",
                      help="estimator: sp_p (proposed, default), sp_s, p_f, or sp_c (the "
                      "controller's target current as mean; recordings must log it)")
     tra.add_argument("--sigma-v", type=_positive_float, default=None,
@@ -522,11 +522,11 @@ def build_parser():
                      "p_f and sp_s use the paper's unmasked friction unless given)")
     tra.add_argument("--n-support", type=_n_support_arg, default="auto",
                      help="GP support rows per joint (default auto: at most 2000)")
-    tra.add_argument("--inputs", choices=["causal", "zero-phase"], default="causal",
+    tra.add_argument("--inputs", choices=INPUTS, default=INPUTS[0],
                      help="GP inputs to fit on: causal (default; what the robot computes "
                      "sample by sample, on which gpcd calibrate and gpcd monitor run the "
                      "model) or zero-phase (the paper's offline derivatives)")
-    tra.add_argument("--optimizer", choices=["auto", "adam", "fmin_l_bfgs_b"], default="auto",
+    tra.add_argument("--optimizer", choices=OPTIMIZERS, default="auto",
                      help="hyperparameter optimizer (default auto: the rule above)")
     tra.add_argument("--seed", type=int, default=0,
                      help="random seed (support rows, Adam minibatches)")

@@ -16,9 +16,9 @@ Inputs (``inputs=``):
   acceleration). Detection always runs on this path, so a model fitted on
   it is calibrated and monitored on the very inputs it was trained on.
 * ``"zero-phase"``: :func:`~sklearn_gpcd.features.make_inputs` (zero-phase
-  Savitzky-Golay derivatives, the paper's offline inputs): the better
-  regression fit for offline analysis, but the detector then feeds the model
-  causal inputs it never saw (a lagged, noisier acceleration).
+  Savitzky-Golay derivatives, the paper's offline inputs), for offline
+  analysis; the detector then feeds the model causal inputs it never saw (a
+  lagged, noisier acceleration).
 
 The rows that enter the fit, the support subset and the optimizer follow
 :data:`TRAIN_RULE`.
