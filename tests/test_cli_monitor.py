@@ -86,6 +86,25 @@ def test_calibrate_applies_the_loro_rule_and_reports_it(work, capsys):
     np.testing.assert_allclose(kt[0], [11.976, 11.976, 9.839, 10.763, 10.763, 10.763])
 
 
+def test_calibrate_reads_a_bare_regressor_with_a_warning(work, capsys):
+    """A model file from before gpcd train saved its features: calibrated on causal features
+    fitted on the calibration recordings, with one warning line."""
+    from sklearn_gpcd.persistence import save
+
+    bare = save(load_model(work["model"]).regressor, work["folder"] / "bare.joblib")
+    out = work["folder"] / "bare_detector.skops"
+    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "holds no input features" in err[0]
+    assert load_detector(out)[2]["training"] == {}
+
+
+def test_calibrate_refuses_a_detector_file_as_model(work, capsys):
+    assert main(["calibrate", str(work["detector"]), *map(str, work["free"]), "-q",
+                 "-o", str(work["folder"] / "d2.skops")]) == 2
+    assert "not a model file written by gpcd train" in capsys.readouterr().err
+
+
 def test_calibrate_needs_two_recordings(work, capsys):
     assert main(["calibrate", str(work["model"]), str(work["free"][0]),
                  "-o", str(work["folder"] / "one.skops")]) == 2

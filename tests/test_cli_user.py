@@ -308,6 +308,15 @@ def test_train_inputs_optimizer_and_seed_options(sims, tmp_path, capsys):
                                   causal.regressor.predict(X_causal))
 
 
+def test_train_sp_c_needs_the_target_current(sims, tmp_path, capsys):
+    rec = load_recording(sims["rtde"]).replace(target_current=None)
+    path = write_rtde_csv(rec, tmp_path / "no_ic.csv", robot_comment=True)
+    assert main(["train", str(path), "--model", "sp_c", "-q",
+                 "-o", str(tmp_path / "m.joblib")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs the target current" in err[0]
+
+
 def test_train_sp_s_with_column_map_and_n_support(sims, tmp_path, capsys):
     pytest.importorskip("skops")
     from sklearn_gpcd.workflow import load_model
