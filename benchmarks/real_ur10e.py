@@ -16,6 +16,11 @@ Protocol
    ``identification_data`` except the held-out ones (``HELD_OUT``) and the
    two early files without the target current (the peer and SP_C need it);
    loaded runs are left out (the controller was not told the payload).
+   Causal inputs, ``n_support`` rows per joint, Adam, ``random_state=seed``,
+   through ``sklearn_gpcd.workflow.train_model`` -- the function of ``gpcd
+   train``, so ``gpcd train --inputs causal --n-support N --optimizer adam
+   --seed S`` gives the same model (``train_settings``; checked by
+   ``tests/test_cli_monitor_real.py``).
 2. **unseen collision-free set** ``C``: the held-out identification runs,
    the six ``jointwise_motion`` runs, ``ptp_10_points`` and the still poses
    ``p1 .. p10``.
@@ -85,12 +90,12 @@ from sklearn_gpcd.detection import (  # noqa: E402
 )
 from sklearn_gpcd.detection import loro_margin as _loro_margin  # noqa: E402
 from sklearn_gpcd.detection import nested_false_alarms as _nested_false_alarms  # noqa: E402
-from sklearn_gpcd.dynamics import ControllerCurrent, RigidBodyRegressor  # noqa: E402
+from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress, split_nmse  # noqa: E402
-from sklearn_gpcd.features import CausalFeatures, contiguous_segments  # noqa: E402
-from sklearn_gpcd.gp import make_p_f, make_sp_c, make_sp_p, make_sp_s  # noqa: E402
+from sklearn_gpcd.features import contiguous_segments  # noqa: E402
 from sklearn_gpcd.io import RecordingWarning, load_recording  # noqa: E402
 from sklearn_gpcd.robots import load_robot  # noqa: E402
+from sklearn_gpcd.workflow import train_model, training_set  # noqa: E402
 
 DATASET = "ur10e_mamedov"
 IDENTIFICATION = "identification_data"
@@ -146,18 +151,37 @@ def split_recordings(root, quick):
     return train, {key: load(root / key) for key in unseen}, [r.name for r in left_out]
 
 
-def build_models(robot, n_support, seed, n_jobs):
-    """The paper's three estimators and SP_C, on one support-subset rule."""
-    n = robot.n_joints
-    phi = [RigidBodyRegressor(robot, joint=j) for j in range(n)]
-    gp = dict(n_support=n_support, optimizer="adam", batch_size=min(512, n_support),
-              random_state=seed, n_jobs=n_jobs)
-    return {
-        "P_f": make_p_f(phi, n, **gp),
-        "SP_S": make_sp_s(phi, n, **gp),
-        "SP_P": make_sp_p(phi, n, sigma_v=SIGMA_V, **gp),
-        "SP_C": make_sp_c(n, **gp),
-    }
+#: The benchmark's models and their ``gpcd train --model`` names.
+MODELS = {"P_f": "p_f", "SP_S": "sp_s", "SP_P": "sp_p", "SP_C": "sp_c"}
+
+
+def train_settings(n_support, seed, n_jobs):
+    """How every model is trained: ``train_model``'s keywords (``gpcd train`` options)."""
+    return dict(inputs="causal", n_support=n_support, optimizer="adam", seed=seed,
+                n_jobs=n_jobs)
+
+
+def train_models(data, n_support, seed, n_jobs, names=tuple(MODELS), progress=None):
+    """The paper's three estimators and SP_C on one rule: ``sklearn_gpcd.workflow.train_model``.
+
+    ``data`` is the :class:`~sklearn_gpcd.workflow.TrainingSet` of the training
+    runs (causal inputs), shared by the models. Returns ``({name: regressor},
+    {name: fit seconds})``; the function and settings are those of ``gpcd
+    train --inputs causal --n-support N --optimizer adam --seed S``.
+    """
+    robot = load_robot("ur10e")
+    models, seconds = {}, {}
+    for name in names:
+        tic = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            models[name] = train_model(data, robot, MODELS[name], sigma_v=(
+                SIGMA_V if name == "SP_P" else None),
+                **train_settings(n_support, seed, n_jobs)).regressor
+        seconds[name] = time.perf_counter() - tic
+        if progress is not None:
+            progress(f"trained {name} in {seconds[name]:.1f} s")
+    return models, seconds
 
 
 def detector(regressor, rest_reference=None, margin=1.0):
@@ -206,8 +230,18 @@ def nested_false_alarms(series, recordings, rule=MARGIN_RULE):
 def score_events(det, block, rec, events, tail=0.5):
     """Per labelled event: detected, delay; alarm onsets outside the events."""
     mon = det.monitoring_signal(block)
-    t = rec.time - rec.time[0]
-    alarm = mon.alarms.any(axis=1)
+    scored, outside = score_alarms(mon.alarms, rec.time - rec.time[0], events, tail)
+    return scored, outside, mon
+
+
+def score_alarms(alarms, t, events, tail=0.5):
+    """``score_events`` on alarms (n, n_joints) at times ``t`` [s from the start].
+
+    ``joints_fired`` needs per-joint alarms; with one column (any joint) it is
+    left out.
+    """
+    per_joint = alarms.ndim == 2 and alarms.shape[1] > 1
+    alarm = alarms.any(axis=1) if alarms.ndim == 2 else alarms
     scored, inside = [], np.zeros(len(t), dtype=bool)
     for ev in events:
         stop = ev.get("tail_stop_s", ev["stop_s"]) + tail
@@ -218,11 +252,12 @@ def score_events(det, block, rec, events, tail=0.5):
             "start_s": ev["start_s"], "stop_s": ev["stop_s"], "joints": ev["joints"],
             "detected": bool(hits.size),
             "delay_s": float(t[hits[0]] - ev["start_s"]) if hits.size else None,
-            "joints_fired": [int(j) + 1 for j in np.flatnonzero(
-                mon.alarms[window].any(axis=0))],
         })
+        if per_joint:
+            scored[-1]["joints_fired"] = [int(j) + 1 for j in np.flatnonzero(
+                alarms[window].any(axis=0))]
     outside = [o for o in alarm_onsets(alarm, t) if not inside[np.searchsorted(t, o)]]
-    return scored, outside, mon
+    return scored, outside
 
 
 def free_segments(rec, entry, guard=0.5, min_seconds=2.0):
@@ -234,7 +269,7 @@ def free_segments(rec, entry, guard=0.5, min_seconds=2.0):
     return [(a, b) for a, b in contiguous_segments(~busy) if t[b - 1] - t[a] >= min_seconds]
 
 
-def collision_family(root, train, labels, build, progress):
+def collision_family(root, train, labels, n_support, seed, n_jobs, progress):
     """Detection on collision_detection_data_2020 (no target current logged).
 
     Models on the state only (P_f, SP_S), trained on the training runs.
@@ -246,9 +281,8 @@ def collision_family(root, train, labels, build, progress):
     """
     free = load(root / FAMILY_2020 / "collision_free.csv")
     recs = {key: load(root / key) for key in COLLISIONS}
-    features = CausalFeatures(allow_missing=True).fit(train)  # i_c is not logged there
-    X = features.transform(train)
-    y = np.concatenate([r.current for r in train])
+    data = training_set(list(train), "causal", allow_missing=True)  # i_c is not logged there
+    features = data.features
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the missing i_c block, filled with zeros
         inputs = {k: stack_currents(features.transform(r), r.current) for k, r in recs.items()}
@@ -256,11 +290,9 @@ def collision_family(root, train, labels, build, progress):
     unseen = {"collision_free": free}
     segments = {k: free_segments(r, labels[k]) for k, r in recs.items()}
     out = {}
-    for name, model in build.items():
+    for name in ("P_f", "SP_S"):
         tic = time.perf_counter()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            model.fit(X, y)
+        model = train_models(data, n_support, seed, n_jobs, names=(name,))[0][name]
         files = {}
         for key, rec in recs.items():
             blocks, pieces = dict(base_blocks), dict(unseen)
@@ -407,25 +439,18 @@ def main(argv=None):
 
     train, unseen, no_ic = split_recordings(root, args.quick)
     pushes = {key: load(root / key) for key in PUSHES}
-    features = CausalFeatures().fit(train)
-    X_train = features.transform(train)
-    y_train = np.concatenate([r.current for r in train])
+    data = training_set(list(train), "causal")
+    features = data.features
     hours = sum(r.duration for r in unseen.values()) / 3600.0
-    progress(f"training on {len(train)} runs ({len(y_train)} rows, causal inputs, signals "
+    progress(f"training on {len(train)} runs ({len(data.y)} rows, causal inputs, signals "
              f"{features.signals_}); left out without target current: {no_ic}; unseen "
              f"collision-free: {len(unseen)} recordings, {hours * 60:.1f} min")
 
     models = {PEER: ControllerCurrent(6)}
-    fit_seconds = {}
-    for name, model in build_models(load_robot("ur10e"), n_support, args.seed,
-                                    args.n_jobs).items():
-        tic = time.perf_counter()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            models[name] = model.fit(X_train, y_train)
-        fit_seconds[name] = time.perf_counter() - tic
-        progress(f"trained {name} in {fit_seconds[name]:.1f} s")
-    models[PEER].fit(X_train, y_train)
+    trained, fit_seconds = train_models(data, n_support, args.seed, args.n_jobs,
+                                        progress=progress)
+    models.update(trained)
+    models[PEER].fit(data.X, data.y)
 
     blocks = {k: stack_currents(features.transform(r), r.current) for k, r in unseen.items()}
     push_blocks = {k: stack_currents(features.transform(r), r.current) for k, r in pushes.items()}
@@ -468,11 +493,8 @@ def main(argv=None):
     # -- collision_detection_data_2020: no target current, state-only models -----
     family = None
     if all((root / key).exists() for key in COLLISIONS):
-        family = collision_family(
-            root, train, labels,
-            {k: v for k, v in build_models(load_robot("ur10e"), n_support, args.seed,
-                                           args.n_jobs).items() if k in ("P_f", "SP_S")},
-            progress)
+        family = collision_family(root, train, labels, n_support, args.seed, args.n_jobs,
+                                  progress)
 
     # -- quasi-static nMSE ---------------------------------------------------
     nmse = {}

@@ -8,8 +8,9 @@ Subcommands
     Write a simulated recording as a UR RTDE CSV.
 ``gpcd robots``
     List the built-in robot models.
-``gpcd train RECORDINGS... [--robot ROBOT] --model sp_p|sp_s|p_f -o MODEL.skops``
-    Fit the paper's estimator on a user's own recordings (rule: ``TRAIN_RULE``).
+``gpcd train RECORDINGS... [--robot ROBOT] --model sp_p|sp_s|p_f|sp_c -o MODEL.skops``
+    Fit the paper's estimator on a user's own recordings, on causal inputs by
+    default (:func:`sklearn_gpcd.workflow.train_model`, rule ``TRAIN_RULE``).
 ``gpcd diagnose TRAIN... [--test TEST]... [--robot ROBOT]``
     Name the physics the robot model misses in real recordings.
 ``gpcd calibrate MODEL COLLISION_FREE... -o DETECTOR.skops``
@@ -45,30 +46,15 @@ import json
 import math
 import os
 import sys
-import tempfile
-import threading
 import time
 import warnings
 from pathlib import Path
 
 from .cli_monitor import add_commands as add_monitor_commands
+from .workflow import INPUTS, MAX_TRAIN_ROWS, MODELS, OPTIMIZERS, TRAIN_RULE  # noqa: F401
+from .workflow import training_rows as _training_rows  # noqa: F401
 
 __all__ = ["main", "build_parser", "parse_args"]
-
-#: The rule ``gpcd train`` follows, safe on any log size (printed by ``--help``).
-TRAIN_RULE = (
-    "Rows: at most 200,000 rows enter the fit; a longer log is thinned to every k-th row "
-    "(k = ceil(rows / 200,000); at 500 Hz neighbouring rows are 2 ms apart and nearly "
-    "identical). GP support: --n-support rows per joint (default 'auto': min(rows, 2000), "
-    "drawn at random). Optimizer: the regressor's 'auto' rule -- L-BFGS-B on the exact "
-    "likelihood of the support while support rows <= 3,000 and support rows x hyperparameters "
-    "<= 60,000 (P_f: 1 hyperparameter), else minibatch Adam (512-row minibatches from all "
-    "rows, early stopping), so SP_P (57 hyperparameters on 6 joints) uses Adam from 1,053 "
-    "support rows on. "
-    "The parametric mean is fitted by least squares on every row that enters the fit."
-)
-#: Rows that enter ``gpcd train``'s fit at most (see :data:`TRAIN_RULE`).
-MAX_TRAIN_ROWS = 200_000
 
 
 # ---------------------------------------------------------------- arguments
@@ -260,51 +246,6 @@ def _seconds(value):
     return f"{value // 60}m{value % 60:02d}s" if value >= 60 else f"{value}s"
 
 
-@contextlib.contextmanager
-def _count_fitted_outputs(progress):
-    """Advance ``progress`` once per output a :class:`SemiParametricGPRegressor` fits.
-
-    Outputs may be fitted in other processes (``n_jobs``): each finished
-    output appends one byte to a temporary file, which a thread of this
-    process polls.
-    """
-    from .gp import regressor
-
-    fit_output = regressor._fit_output
-    handle, ticks = tempfile.mkstemp(prefix="gpcd-progress-")
-    os.close(handle)
-
-    def counted(*args, **kwargs):
-        result = fit_output(*args, **kwargs)
-        with open(ticks, "a") as log:
-            log.write(".")
-        return result
-
-    stop = threading.Event()
-
-    def poll():
-        seen = 0
-        while True:
-            stopped = stop.wait(0.5)
-            now = os.path.getsize(ticks)
-            if now > seen:
-                progress.update(now - seen)
-                seen = now
-            if stopped:
-                return
-
-    watcher = threading.Thread(target=poll, daemon=True)
-    regressor._fit_output = counted
-    watcher.start()
-    try:
-        yield
-    finally:
-        regressor._fit_output = fit_output
-        stop.set()
-        watcher.join()
-        os.unlink(ticks)
-
-
 # ---------------------------------------------------------------- recordings
 def _read_recordings(paths, args, what="recordings", progress=True):
     """Load ``paths`` with ``--column-map`` (and ``n_joints`` of ``--robot`` when given)."""
@@ -408,91 +349,40 @@ def _cmd_robots(args):
     return 0
 
 
-def _training_rows(n_rows, max_rows=MAX_TRAIN_ROWS):
-    """Rows of ``TRAIN_RULE``: every k-th row, k = ceil(n_rows / max_rows).
-
-    Examples
-    --------
-    >>> _training_rows(41707).stop, _training_rows(1_800_000).step
-    (41707, 9)
-    """
-    return slice(0, n_rows, max(1, math.ceil(n_rows / max_rows)))
-
-
 def _cmd_train(args):
-    """``gpcd train``: fit P_f, SP_S or SP_P on recordings and save it."""
+    """``gpcd train``: fit P_f, SP_S, SP_P or SP_C on recordings and save it with its inputs."""
     import numpy as np
 
-    from .dynamics import RigidBodyRegressor
-    from .features import make_inputs
-    from .gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
-    from .gp._support import resolve_n_support
-    from .persistence import save
+    from .workflow import save_model, train_model
 
     start = time.perf_counter()
     quiet = args.quiet
     recordings = _read_recordings(args.recordings, args, "training recordings")
     robot = _robot_for(args, recordings)
-    if args.model == "sp_c" and (lacking := [r.name for r in recordings
-                                             if r.target_current is None]):
-        raise ValueError(f"--model sp_c needs the target current; {lacking[0]} does not log it")
     n_recordings = len(recordings)
-    n_rows = sum(rec.n_samples for rec in recordings)
-    step = _training_rows(n_rows).step
-    bar = _Progress("computing GP inputs", n_recordings, enabled=not quiet)
-    X, y, offset = [], [], 0
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        while recordings:  # thin each block to the global every-step-th row, free as we go
-            rec = recordings.pop(0)
-            Xr, yr = make_inputs([rec], augmented=True)
-            keep = slice((-offset) % step, None, step)
-            X.append(Xr[keep].copy())
-            y.append(yr[keep].copy())
-            offset += rec.n_samples
-            del rec, Xr, yr
-            bar.update()
-    _warn_once_per_kind(caught, n_recordings)
-    X, y = np.vstack(X), np.vstack(y)
-    n_support = resolve_n_support(args.n_support, len(y))
-    n = robot.n_joints
-    features = [RigidBodyRegressor(robot, joint=j) for j in range(n)]
-    factory = {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f,
-               "sp_c": lambda _phi, n, **gp: make_sp_c(n, **gp)}[args.model]
-    n_jobs = args.n_jobs if args.n_jobs is not None else min(n, os.cpu_count() or 1)
-    params = dict(n_support=n_support, optimizer="auto", batch_size=min(512, n_support),
-                  random_state=args.seed, n_jobs=n_jobs)
-    if args.sigma_v is not None or args.model == "sp_p":
-        params["sigma_v"] = 1e-2 if args.sigma_v is None else args.sigma_v
-    model = factory(features, n, **params)
-    bar = _Progress(f"fitting {args.model.upper()} ({n} joints)", n, enabled=not quiet)
-    fit_start = time.perf_counter()
-    with _count_fitted_outputs(bar):
-        model.fit(X, y)
-    fit_seconds = time.perf_counter() - fit_start
-    save(model, args.output)
-    print(f"trained {args.model.upper()} for robot {robot.name} ({n} joints) on "
-          f"{n_recordings} recording(s), {n_rows} rows"
-          + (f" (1 row in {step} used: {len(y)})" if step > 1 else ""))
-    print(f"  GP support {n_support} rows per joint, optimizer {model.optimizer_}, "
+    n_jobs = args.n_jobs if args.n_jobs is not None else min(robot.n_joints,
+                                                             os.cpu_count() or 1)
+    trained = train_model(
+        recordings, robot, args.model, inputs=args.inputs, n_support=args.n_support,
+        optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed, n_jobs=n_jobs,
+        progress=lambda label, total: _Progress(label, total, enabled=not quiet))
+    fit_seconds = time.perf_counter() - start
+    save_model(trained, args.output)
+    model, info = trained.regressor, trained.training
+    print(f"trained {args.model.upper()} for robot {robot.name} ({robot.n_joints} joints) on "
+          f"{n_recordings} recording(s), {info['n_rows']} rows, {info['inputs']} inputs"
+          + (f" (1 row in {info['step']} used: {info['n_rows_used']})"
+             if info["step"] > 1 else ""))
+    print(f"  GP support {info['n_support']} rows per joint, optimizer {model.optimizer_}, "
           f"iterations per joint {np.atleast_1d(model.n_iter_).tolist()}, "
-          f"sigma_v {params.get('sigma_v', '-')}")
+          f"sigma_v {info['sigma_v'] if info['sigma_v'] is not None else '-'}, seed "
+          f"{info['seed']}, controller signals {', '.join(info['signals']) or 'none'}")
     lml = np.atleast_1d(model.log_marginal_likelihood_value_)
     print("  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml))
-    print(f"  fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "
-          f"wrote {args.output}")
+    print(f"  inputs and fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "
+          f"wrote {args.output} (the model, its causal input features and how it was "
+          "trained)")
     return 0
-
-
-def _warn_once_per_kind(caught, n_recordings):
-    """Re-issue recorded warnings, one per category (with how many recordings had it)."""
-    by_kind = {}
-    for w in caught:
-        by_kind.setdefault(w.category, []).append(str(w.message))
-    for category, messages in by_kind.items():
-        more = (f" (and alike for {len(messages) - 1} more of the {n_recordings} recordings)"
-                if len(messages) > 1 else "")
-        warnings.warn(messages[0] + more, category, stacklevel=2)
 
 
 def _cmd_diagnose(args):
@@ -612,16 +502,19 @@ def build_parser():
 
     tra = sub.add_parser(
         "train",
-        help="fit P_f, SP_S or SP_P on your own recordings",
+        help="fit P_f, SP_S, SP_P or SP_C on your own recordings",
         description="Fit the paper's estimator (one GP per joint on the residual of the "
-        "rigid-body + friction model) on collision-free recordings and save it. "
+        "rigid-body + friction model) on collision-free recordings and save it with the "
+        "causal input features gpcd calibrate and gpcd monitor reuse, and a record of how "
+        "it was trained (sklearn_gpcd.workflow.train_model, the function "
+        "benchmarks/real_ur10e.py trains with). "
         + TRAIN_RULE,
     )
     tra.add_argument("recordings", nargs="+",
                      help="recordings (files, folders or glob patterns)")
     _add_recording_options(tra, "built-in name or URDF path (default: the robot named in "
                            "the recordings' metadata; required when they name none)")
-    tra.add_argument("--model", choices=["sp_p", "sp_s", "p_f", "sp_c"], default="sp_p",
+    tra.add_argument("--model", choices=MODELS, default="sp_p",
                      help="estimator: sp_p (proposed, default), sp_s, p_f, or sp_c (the "
                      "controller's target current as mean; recordings must log it)")
     tra.add_argument("--sigma-v", type=_positive_float, default=None,
@@ -629,7 +522,14 @@ def build_parser():
                      "p_f and sp_s use the paper's unmasked friction unless given)")
     tra.add_argument("--n-support", type=_n_support_arg, default="auto",
                      help="GP support rows per joint (default auto: at most 2000)")
-    tra.add_argument("--seed", type=int, default=0, help="random seed (support rows, Adam)")
+    tra.add_argument("--inputs", choices=INPUTS, default=INPUTS[0],
+                     help="GP inputs to fit on: causal (default; what the robot computes "
+                     "sample by sample, on which gpcd calibrate and gpcd monitor run the "
+                     "model) or zero-phase (the paper's offline derivatives)")
+    tra.add_argument("--optimizer", choices=OPTIMIZERS, default="auto",
+                     help="hyperparameter optimizer (default auto: the rule above)")
+    tra.add_argument("--seed", type=int, default=0,
+                     help="random seed (support rows, Adam minibatches)")
     tra.add_argument("--n-jobs", type=int, default=None,
                      help="joints fitted in parallel (default: one per core, at most one "
                      "per joint; 1 uses the least memory)")

@@ -7,7 +7,9 @@
     regime of the arm) whose thresholds are chosen across recordings by
     :func:`~sklearn_gpcd.detection.calibrate_across_recordings` (the
     leave-one-recording-out margin of ``benchmarks/real_ur10e.py``), and
-    saves it with its :class:`~sklearn_gpcd.features.CausalFeatures`.
+    saves it with the model's :class:`~sklearn_gpcd.features.CausalFeatures`
+    (fitted by ``gpcd train`` on the training recordings, so the detector
+    feeds the model the inputs it was trained on).
 ``gpcd monitor DETECTOR RECORDINGS... | --replay FILE | --rtde HOST``
     Feeds raw samples through :meth:`StreamingMonitor.update_raw
     <sklearn_gpcd.detection.StreamingMonitor.update_raw>` (the causal path
@@ -24,6 +26,7 @@ import shlex
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "add_commands", "load_detector"]
@@ -181,9 +184,9 @@ def _cmd_calibrate(args):
     from .cli import _Progress, _read_recordings
     from .detection import CollisionDetector, calibrate_across_recordings, stack_currents
     from .features import CausalFeatures
-    from .persistence import load, save
-
     from .io.load import recording_paths
+    from .persistence import save
+    from .workflow import load_model
 
     start = time.perf_counter()
     paths = [Path(p).resolve() for p in recording_paths(args.recordings)]
@@ -193,10 +196,16 @@ def _cmd_calibrate(args):
     if len(paths) < 2:  # before any work
         raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
                          f"give at least 2 collision-free recordings, got {len(paths)}")
-    model = load(args.model)
+    trained = load_model(args.model)
+    model, features = trained.regressor, trained.features
     recordings = _read_recordings(args.recordings, args, "calibration recordings")
     robot = _optional_robot(args, recordings)
-    features = CausalFeatures().fit(recordings)
+    if features is None:  # a bare regressor, from a gpcd train that did not save features
+        warnings.warn(f"{args.model} holds no input features (an older gpcd train file): "
+                      "causal features fitted on the calibration recordings are used; "
+                      "retrain with gpcd train to calibrate on the model's own inputs",
+                      UserWarning, stacklevel=2)
+        features = CausalFeatures().fit(recordings)
     _check_model_inputs(model, features, args.model)
     keys = _recording_keys(recordings)
     bar = _Progress("causal inputs", len(recordings), enabled=not args.quiet)
@@ -218,6 +227,8 @@ def _cmd_calibrate(args):
         "rest_reference_s": tau, "thresholds_A": thresholds.tolist(),
         "n_false_alarms_nested": result.n_false_alarms,
         "false_alarms_per_hour": result.false_alarms_per_hour,
+        "nested_onsets_s": {k: f["onsets"] for k, f in result.folds.items()},
+        "training": trained.training,
         "signals": list(features.signals_), "sample_time_s": float(det.sample_time_),
         "robot": None if robot is None else robot.name,
     }
@@ -238,6 +249,10 @@ def _print_calibration(summary, n_recordings):
           f"{summary['hours'] * 60:.1f} min, sample time {summary['sample_time_s']:g} s, "
           f"controller signals used: {', '.join(summary['signals']) or 'none'}; rest "
           f"reference {'none' if tau is None else f'{tau:g} s'}")
+    if (info := summary.get("training")):
+        print(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
+              f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "
+              f"seed {info['seed']}")
     print(f"  margin (leave-one-recording-out, one for all joints and regimes): "
           f"{summary['margin']:.3f}")
     if summary["false_alarms_per_hour"] is None:

@@ -19,7 +19,7 @@ from sklearn_gpcd.detection import (
 from sklearn_gpcd.features import CausalFeatures, contiguous_segments
 from sklearn_gpcd.io import load_recording, write_rtde_csv
 from sklearn_gpcd.io._rtde_live import LoopbackRTDEServer
-from sklearn_gpcd.persistence import load
+from sklearn_gpcd.workflow import load_model
 
 RATE = 500.0  # Hz, as a UR e-Series streams
 
@@ -65,12 +65,16 @@ def test_calibrate_applies_the_loro_rule_and_reports_it(work, capsys):
     for regime in ("moving", "settling", "rest"):
         assert regime in text
     detector, features, calibration = load_detector(out)
-    # the same rule by hand: the package function on the same causal inputs
+    # the same rule by hand: the package function on the model's own causal inputs
     recs = [load_recording(p) for p in work["free"]]
-    features = CausalFeatures().fit(recs)
-    blocks = {p.name: stack_currents(features.transform(r), r.current)
+    trained = load_model(work["model"])
+    assert trained.training["inputs"] == "causal" and calibration["training"] == \
+        trained.training
+    assert features.signals_ == trained.features.signals_ == CausalFeatures().fit(
+        recs[:2]).signals_  # fitted by gpcd train on its recordings
+    blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
               for p, r in zip(work["free"], recs)}
-    template = CollisionDetector(FrozenEstimator(load(work["model"])), n_joints=6,
+    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
                                  regimes=True, rest_reference=5.0, **DETECTOR_RULE)
     expected = calibrate_across_recordings(
         template, blocks, {p.name: r.time for p, r in zip(work["free"], recs)})
@@ -80,6 +84,25 @@ def test_calibrate_applies_the_loro_rule_and_reports_it(work, capsys):
     assert f"{expected.margin.max():.3f}" in text
     kt = np.array(calibration["thresholds_Nm"]) / np.array(calibration["thresholds_A"])
     np.testing.assert_allclose(kt[0], [11.976, 11.976, 9.839, 10.763, 10.763, 10.763])
+
+
+def test_calibrate_reads_a_bare_regressor_with_a_warning(work, capsys):
+    """A model file from before gpcd train saved its features: calibrated on causal features
+    fitted on the calibration recordings, with one warning line."""
+    from sklearn_gpcd.persistence import save
+
+    bare = save(load_model(work["model"]).regressor, work["folder"] / "bare.joblib")
+    out = work["folder"] / "bare_detector.skops"
+    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "holds no input features" in err[0]
+    assert load_detector(out)[2]["training"] == {}
+
+
+def test_calibrate_refuses_a_detector_file_as_model(work, capsys):
+    assert main(["calibrate", str(work["detector"]), *map(str, work["free"]), "-q",
+                 "-o", str(work["folder"] / "d2.skops")]) == 2
+    assert "not a model file written by gpcd train" in capsys.readouterr().err
 
 
 def test_calibrate_needs_two_recordings(work, capsys):

@@ -1,6 +1,15 @@
-"""``gpcd train`` -> ``gpcd calibrate`` -> ``gpcd monitor`` on the real UR10e logs gives the
-thresholds, nested false alarms and alarms of ``benchmarks/real_ur10e.py``'s functions on
-the same model and data (skips without the data)."""
+"""``gpcd train`` -> ``gpcd calibrate`` -> ``gpcd monitor`` on the real UR10e logs
+reproduces the detection figures of ``benchmarks/real_ur10e.py`` (skips without the data).
+
+``test_cli_reproduces_the_benchmark_figures`` runs the benchmark itself (``--quick
+--n-support 100``) and the three commands with the benchmark's settings on the
+benchmark's recordings, and compares margin, thresholds, nested false alarms and
+per-push detections and delays exactly (SP_C +R and SP_P);
+``test_cli_reproduces_the_published_full_run`` does the same against the full run
+published in ``docs/_static/results/real_ur10e.json`` (SP_C +R).
+``test_cli_workflow_matches_the_benchmark_rule_on_real_logs`` is the quicker check of
+the calibration rule on part of the logs.
+"""
 
 import importlib.util
 import json
@@ -12,10 +21,12 @@ import pytest
 from sklearn_gpcd.cli import main
 from sklearn_gpcd.cli_monitor import load_detector
 from sklearn_gpcd.detection import stack_currents
-from sklearn_gpcd.features import CausalFeatures
-from sklearn_gpcd.persistence import load
+from sklearn_gpcd.workflow import load_model
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "real_ur10e.py"
+PUBLISHED = Path(__file__).resolve().parents[1] / "docs" / "_static" / "results" / \
+    "real_ur10e.json"
+N_SUPPORT, SEED, N_JOBS = 100, 0, 2
 
 
 @pytest.fixture(scope="module")
@@ -24,6 +35,91 @@ def bench():
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def _cli_alarms(events, name, rec):
+    """Alarm samples (any joint) of ``rec`` from ``gpcd monitor``'s events: each event
+    runs from its first to its last alarm sample."""
+    t = rec.time - rec.time[0]
+    alarm = np.zeros(len(t), dtype=bool)
+    for e in events:
+        if e["recording"] == name:
+            alarm |= (t >= e["start_s"]) & (t <= e["end_s"])
+    return alarm, t
+
+
+def _assert_cli_reproduces(bench, root, tmp_path, published, monitor, model, calibrate=()):
+    """``gpcd train`` (the benchmark's settings, from ``published``) -> ``gpcd calibrate``
+    (its unseen collision-free recordings, in its order) -> ``gpcd monitor`` (its push
+    recordings) give ``published["monitors"][monitor]``: equal, not close."""
+    settings = bench.train_settings(published["n_support"], published["seed"], N_JOBS)
+    options = ["--inputs", settings["inputs"], "--n-support", str(settings["n_support"]),
+               "--optimizer", settings["optimizer"], "--seed", str(settings["seed"]),
+               "--n-jobs", str(settings["n_jobs"])]
+    train = [str(root / bench.IDENTIFICATION / name) for name in published["train_files"]]
+    unseen = [str(root / key) for key in published["unseen_collision_free"]]
+    expected = published["monitors"][monitor]
+    model_file, det_file = tmp_path / f"{model}.skops", tmp_path / f"{model}_det.skops"
+    events_file = tmp_path / f"{model}_events.json"
+    assert main(["train", *train, "--model", model, *options, "-q",
+                 "-o", str(model_file)]) == 0
+    assert main(["calibrate", str(model_file), *unseen, *calibrate, "-q",
+                 "-o", str(det_file)]) == 0
+    assert main(["monitor", str(det_file), *(str(root / k) for k in bench.PUSHES), "-q",
+                 "--json", str(events_file)]) == 0
+    trained = load_model(model_file)
+    assert trained.training["recordings"] == published["train_files"]
+    assert (trained.training["inputs"], trained.training["optimizer"]) == ("causal", "adam")
+    detector, _, calibration = load_detector(det_file)
+    # margin, thresholds per regime and joint
+    assert calibration["margin"] == np.max(expected["margin"]), monitor
+    assert np.array_equal(calibration["thresholds_A"], expected["thresholds"]), monitor
+    assert np.array_equal(np.atleast_2d(detector.thresholds_), expected["thresholds"])
+    # nested false alarms: the count, and each onset on each left-out recording
+    assert calibration["n_false_alarms_nested"] == expected["onsets"], monitor
+    assert calibration["nested_onsets_s"] == {
+        Path(k).name: f["onsets"] for k, f in expected["folds"].items()}, monitor
+    assert calibration["hours"] * 60 == pytest.approx(published["unseen_minutes"], rel=1e-12)
+    # every labelled push: detected or not, delay; alarm onsets outside the pushes
+    labels = json.loads(bench.LABELS.read_text())["files"]
+    saved = json.loads(events_file.read_text())["events"]
+    detected = 0
+    for key in bench.PUSHES:
+        rec = bench.load(root / key)
+        alarm, t = _cli_alarms(saved, Path(key).name, rec)
+        scored, outside = bench.score_alarms(alarm, t, labels[key]["events"])
+        assert [(e["detected"], e["delay_s"]) for e in scored] == \
+            [(e["detected"], e["delay_s"]) for e in expected["events"][key]], (monitor, key)
+        assert outside == expected["outside"][key], (monitor, key)
+        detected += sum(e["detected"] for e in scored)
+    assert detected == expected["n_detected"]
+
+
+@pytest.mark.slow
+def test_cli_reproduces_the_benchmark_figures(bench, ur10e_dir, tmp_path, capsys):
+    """The benchmark run here (--quick --n-support 100) and the CLI with its settings."""
+    bench.main(["--quick", "--n-support", str(N_SUPPORT), "--seed", str(SEED),
+                "--n-jobs", str(N_JOBS), "--data", str(ur10e_dir),
+                "--output", str(tmp_path / "bench")])
+    published = json.loads((tmp_path / "bench" / "real_ur10e.json").read_text())
+    train, unseen, _ = bench.split_recordings(ur10e_dir, quick=True)
+    assert [r.name for r in train] == published["train_files"]
+    assert list(unseen) == list(published["unseen_collision_free"])
+    # the operating point (SP_C +R) and the paper's SP_P (no rest reference)
+    _assert_cli_reproduces(bench, ur10e_dir, tmp_path, published, "SP_C +R", "sp_c")
+    _assert_cli_reproduces(bench, ur10e_dir, tmp_path, published, "SP_P", "sp_p",
+                           ["--rest-reference", "0"])
+    capsys.readouterr()
+
+
+@pytest.mark.slow
+def test_cli_reproduces_the_published_full_run(bench, ur10e_dir, tmp_path, capsys):
+    """The figures published in docs/_static/results (the full run: 12 training runs,
+    1,000 support rows) at the operating point, SP_C +R."""
+    published = json.loads(PUBLISHED.read_text())
+    assert published["mode"] == "full"
+    _assert_cli_reproduces(bench, ur10e_dir, tmp_path, published, "SP_C +R", "sp_c")
+    capsys.readouterr()
 
 
 def test_cli_workflow_matches_the_benchmark_rule_on_real_logs(bench, ur10e_dir, tmp_path,
@@ -47,13 +143,13 @@ def test_cli_workflow_matches_the_benchmark_rule_on_real_logs(bench, ur10e_dir, 
 
     # the benchmark's functions on the same model and recordings
     unseen = {k: bench.load(ur10e_dir / k) for k in cal_keys}
-    reference = CausalFeatures().fit([bench.load(f) for f in train])
-    assert features.signals_ == reference.signals_  # same inputs as the benchmark builds
-    blocks = {k: stack_currents(reference.transform(r), r.current) for k, r in unseen.items()}
+    trained = load_model(model)
+    assert features.signals_ == trained.features.signals_  # the model's own inputs
+    blocks = {k: stack_currents(features.transform(r), r.current) for k, r in unseen.items()}
     Z = np.concatenate(list(blocks.values()))
     groups = np.repeat(np.arange(len(unseen)), [r.n_samples for r in unseen.values()])
     time = np.concatenate([r.time for r in unseen.values()])
-    regressor = load(model)
+    regressor = trained.regressor
     base = bench.detector(regressor, bench.REST_TAU).fit(Z, groups=groups, time=time)
     series = bench.excursions(base, blocks)
     margin = bench.loro_margin({k: v[2] for k, v in series.items()}, list(series))
@@ -66,7 +162,7 @@ def test_cli_workflow_matches_the_benchmark_rule_on_real_logs(bench, ur10e_dir, 
     saved = json.loads(events_json.read_text())["events"]
     for key in bench.PUSHES:
         rec = bench.load(ur10e_dir / key)
-        block = stack_currents(reference.transform(rec), rec.current)
+        block = stack_currents(features.transform(rec), rec.current)
         _, _, mon = bench.score_events(det, block, rec, [])
         t = rec.time - rec.time[0]
         expected = bench.alarm_onsets(mon.alarms.any(axis=1), t)

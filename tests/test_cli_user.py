@@ -252,26 +252,74 @@ def test_recording_repr_is_a_short_summary():
 
 # ------------------------------------------------------------------ gpcd train
 def test_train_p_f_with_robot_from_metadata(sims, tmp_path, capsys):
-    from sklearn_gpcd import load
+    from sklearn_gpcd.workflow import load_model
 
     out = tmp_path / "pf.joblib"
     assert main(["train", str(sims["rtde"]), "--model", "p_f", "-o", str(out)]) == 0
     captured = capsys.readouterr()
     assert "trained P_F for robot ur10e (6 joints) on 1 recording(s)" in captured.out
-    assert "GP support 2000 rows per joint" in captured.out
+    assert "causal inputs" in captured.out and "GP support 2000 rows per joint" in captured.out
     assert "fitting P_F (6 joints)" in captured.err and "done in" in captured.err
-    model = load(out)
-    rec = sims["rec"]
-    from sklearn_gpcd.features import make_inputs
+    trained = load_model(out)
+    model, rec = trained.regressor, sims["rec"]
+    X = trained.features.transform(load_recording(sims["rtde"]))
+    assert model.predict(X).shape == rec.current.shape
+    assert len(model.support_indices_[0]) == 2000 < len(X)
+    assert {k: trained.training[k] for k in ("model", "inputs", "n_support", "optimizer",
+                                             "seed", "robot", "signals")} == {
+        "model": "p_f", "inputs": "causal", "n_support": 2000, "optimizer": "auto",
+        "seed": 0, "robot": "ur10e", "signals": ["target_q", "target_qd", "target_current"]}
 
-    X, y = make_inputs([rec], augmented=True)
-    assert model.predict(X).shape == y.shape
-    assert len(model.support_indices_[0]) == 2000 < len(y)
+
+def test_train_inputs_optimizer_and_seed_options(sims, tmp_path, capsys):
+    """--inputs zero-phase fits on make_inputs' rows; the default fits on the causal rows the
+    detector computes; --optimizer and --seed reach the regressor; all are recorded."""
+    from sklearn_gpcd.features import make_inputs
+    from sklearn_gpcd.gp import make_sp_c
+    from sklearn_gpcd.workflow import load_model, train_model
+
+    rec = load_recording(sims["rtde"])
+    paths = {}
+    for inputs in ("causal", "zero-phase"):
+        paths[inputs] = tmp_path / f"{inputs}.joblib"
+        assert main(["train", str(sims["rtde"]), "--model", "sp_c", "--inputs", inputs,
+                     "--n-support", "60", "--optimizer", "adam", "--seed", "3", "-q",
+                     "--n-jobs", "1", "-o", str(paths[inputs])]) == 0
+    assert "zero-phase inputs" in capsys.readouterr().out
+    causal, zero = load_model(paths["causal"]), load_model(paths["zero-phase"])
+    assert (causal.training["inputs"], zero.training["inputs"]) == ("causal", "zero-phase")
+    for trained in (causal, zero):
+        assert trained.regressor.optimizer_ == "adam" == trained.training["optimizer"]
+        assert trained.regressor.random_state == 3 == trained.training["seed"]
+    # each is the factory fitted on its rows: causal rows (those the detector computes)
+    # or make_inputs' zero-phase rows
+    X_causal, (X_zero, y) = causal.features.transform(rec), make_inputs([rec])
+    for trained, X in ((causal, X_causal), (zero, X_zero)):
+        expected = make_sp_c(6, n_support=60, optimizer="adam", batch_size=60,
+                             random_state=3, n_jobs=1).fit(X, y)
+        np.testing.assert_array_equal(trained.regressor.predict(X_causal),
+                                      expected.predict(X_causal))
+    assert not np.array_equal(causal.regressor.predict(X_causal),
+                              zero.regressor.predict(X_causal))
+    # gpcd train is train_model with the same options
+    direct = train_model([rec], model="sp_c", n_support=60, optimizer="adam", seed=3,
+                         n_jobs=1)
+    np.testing.assert_array_equal(direct.regressor.predict(X_causal),
+                                  causal.regressor.predict(X_causal))
+
+
+def test_train_sp_c_needs_the_target_current(sims, tmp_path, capsys):
+    rec = load_recording(sims["rtde"]).replace(target_current=None)
+    path = write_rtde_csv(rec, tmp_path / "no_ic.csv", robot_comment=True)
+    assert main(["train", str(path), "--model", "sp_c", "-q",
+                 "-o", str(tmp_path / "m.joblib")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs the target current" in err[0]
 
 
 def test_train_sp_s_with_column_map_and_n_support(sims, tmp_path, capsys):
     pytest.importorskip("skops")
-    from sklearn_gpcd import load
+    from sklearn_gpcd.workflow import load_model
 
     out = tmp_path / "sps.skops"
     assert main(["train", str(sims["custom"]), "--column-map", json.dumps(CUSTOM_MAP),
@@ -280,7 +328,7 @@ def test_train_sp_s_with_column_map_and_n_support(sims, tmp_path, capsys):
     captured = capsys.readouterr()
     assert "GP support 150 rows per joint, optimizer fmin_l_bfgs_b" in captured.out
     assert "fitting" not in captured.err and "ETA" not in captured.err  # -q: no bars
-    assert len(load(out).support_indices_[0]) == 150
+    assert len(load_model(out).regressor.support_indices_[0]) == 150
 
 
 def test_train_progress_bar_has_an_eta(sims, tmp_path, capsys):

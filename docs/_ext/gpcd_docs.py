@@ -38,6 +38,7 @@ PUBLIC_MODULES = {
     "diagnosis": "Sim-to-real diagnosis",
     "experiments": "The paper's experiments",
     "persistence": "Saving and loading models",
+    "workflow": "Training a detection model (gpcd train)",
     "cli": "The gpcd command",
     "cli_monitor": "gpcd calibrate and gpcd monitor",
 }
