@@ -34,6 +34,7 @@ import hashlib
 import numpy as np
 import pinocchio as pin
 
+from .._gate import quasi_static
 from ..robots.loading import resolve_robot
 from ..robots.robot import as_joint_batch
 
@@ -219,7 +220,7 @@ def friction_features(qd, term, sigma_v=None):
     """
     values = np.sign(qd) if term == "coulomb" else np.array(qd, dtype=float)
     if sigma_v is not None:
-        values = np.where(np.abs(qd) < sigma_v, 0.0, values)
+        values = np.where(quasi_static(np.asarray(qd), sigma_v), 0.0, values)
     return values
 
 

@@ -8,6 +8,7 @@ from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._gate import check_sigma_v
 from .._layout import block_columns
 from .._persistence import VersionedStateMixin
 from ..robots.loading import resolve_robot
@@ -209,8 +210,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
                 raise TypeError(f"joint must be an int or None, got {self.joint!r}")
             if not 0 <= self.joint < n:
                 raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
-        if self.sigma_v is not None and not (np.isfinite(self.sigma_v) and self.sigma_v >= 0):
-            raise ValueError(f"sigma_v must be a non-negative number or None, got {self.sigma_v!r}")
+        check_sigma_v(self.sigma_v, type(self).__name__, allow_none=True)
         if self.rank_tol is not None and not (np.isfinite(self.rank_tol) and self.rank_tol > 0):
             raise ValueError(f"rank_tol must be a positive number or None, got {self.rank_tol!r}")
         if self.currents and robot.torque_constants is None:

@@ -13,6 +13,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._gate import check_sigma_v
 from .._persistence import VersionedStateMixin
 from ..kernels import resolve_columns
 from ._likelihood import _log_marginal_likelihood, single_threaded_blas
@@ -422,10 +423,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
                 f"support_selection must be one of {SUPPORT_SELECTIONS}, "
                 f"got {self.support_selection!r}."
             )
-        if self.sigma_v is not None and not (
-            isinstance(self.sigma_v, numbers.Real) and self.sigma_v > 0
-        ):
-            raise ValueError(f"sigma_v must be a float > 0 or None, got {self.sigma_v!r}.")
+        check_sigma_v(self.sigma_v, "SemiParametricGPRegressor", allow_none=True)
 
     def _check_alpha(self, n_samples):
         alpha = np.asarray(self.alpha, dtype=float)

@@ -15,6 +15,8 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Kernel
 
+from .._gate import check_sigma_v
+
 __all__ = ["resolve_columns"]
 
 
@@ -245,29 +247,6 @@ def check_length_scale(length_scale, n_columns, owner="ARDRBF"):
             "selected column or a scalar"
         )
     return length_scale
-
-
-def check_sigma_v(sigma_v, owner="QuasiStaticGate"):
-    """Raise ValueError unless ``sigma_v`` is a finite float > 0.
-
-    Examples
-    --------
-    >>> check_sigma_v(0.0)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    ValueError: QuasiStaticGate: sigma_v must be a finite velocity threshold > 0, ...
-    """
-    valid = (
-        isinstance(sigma_v, numbers.Real)
-        and not isinstance(sigma_v, bool)
-        and np.isfinite(sigma_v)
-        and sigma_v > 0
-    )
-    if not valid:
-        raise ValueError(
-            f"{owner}: sigma_v must be a finite velocity threshold > 0, got "
-            f"{sigma_v!r}"
-        )
 
 
 def _take_rows(X, rows):

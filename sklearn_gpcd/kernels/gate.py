@@ -5,10 +5,10 @@ import numbers
 import numpy as np
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
+from .._gate import check_sigma_v, quasi_static
 from .columns import (
     _n_samples,
     _take_rows,
-    check_sigma_v,
     column_index,
     feature_names_of,
 )
@@ -168,7 +168,7 @@ class QuasiStaticGate(Kernel):
         column = column_index(
             self.velocity_column, names, X.shape[1], "QuasiStaticGate (velocity_column)"
         )
-        return (np.abs(X[:, column]) < self.sigma_v).astype(float)
+        return quasi_static(X[:, column], self.sigma_v).astype(float)
 
     def __call__(self, X, Y=None, eval_gradient=False):
         """Return the kernel k(X, Y) and optionally its gradient.
