@@ -5,7 +5,7 @@ from collections import OrderedDict
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
-from sklearn.utils import check_random_state
+from sklearn.utils import Bunch, check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._gate import check_sigma_v
@@ -13,7 +13,13 @@ from .._layout import block_columns
 from .._persistence import VersionedStateMixin
 from ..robots.loading import resolve_robot
 from .base_parameters import base_parameters
-from .regressor import FRICTION_TERMS, check_friction, full_regressor, parameter_names
+from .regressor import (
+    FRICTION_TERMS,
+    SampleRegressor,
+    check_friction,
+    full_regressor,
+    parameter_names,
+)
 
 #: Random states stacked in ``fit`` to find the structural parameter
 #: dependencies: at least this many, and enough for 3 rows per parameter.
@@ -307,6 +313,50 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
             return Phi[:, 0, :]
         return Phi.transpose(1, 0, 2).reshape(-1, Phi.shape[2])
 
+    def sample_features(self):
+        """The per-tick path of :meth:`transform`: one sample, no validation.
+
+        Returns
+        -------
+        features : Bunch
+            ``full``, a :class:`~sklearn_gpcd.dynamics.regressor.SampleRegressor`
+            mapping ``(q, qd, qdd)`` of one sample to the regressor of every
+            joint and parameter; ``key``, equal for estimators whose ``full``
+            agree (several joints of one robot share one evaluation per tick);
+            ``rows``, ``columns`` and ``scale``, this estimator's selection:
+            ``transform(x[None])`` equals
+            ``full(q, qd, qdd)[rows][:, columns] * scale[:, None]``;
+            ``q``, ``qd``, ``qdd``, the input columns of the state (slices).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn_gpcd.dynamics import RigidBodyRegressor
+        >>> X = np.random.default_rng(0).normal(size=(4, 18))
+        >>> est = RigidBodyRegressor("ur10", joint=2, sigma_v=0.01).fit(X)
+        >>> f = est.sample_features()
+        >>> x = X[0]
+        >>> one = f.full(x[f.q], x[f.qd], x[f.qdd])[f.rows][:, f.columns] * f.scale[:, None]
+        >>> bool(np.allclose(one, est.transform(X[:1])))
+        True
+        """
+        check_is_fitted(self)
+        n = self.n_joints_
+        rows = np.arange(n) if self.joint is None else np.array([self.joint])
+        scale = np.ones(len(rows))
+        if self.currents:
+            scale = 1.0 / np.asarray(self.robot_.torque_constants, dtype=float)[rows]
+        options = (bool(self.rotor_inertia), tuple(self.friction_), bool(self.offset),
+                   self.sigma_v)
+        return Bunch(
+            full=SampleRegressor(self.robot_, *options),
+            key=(_robot_key(self.robot_),) + options,
+            rows=rows,
+            columns=np.asarray(self.columns_),
+            scale=scale,
+            **{name: _as_slice(block_columns(name, n)) for name in ("q", "qd", "qdd")},
+        )
+
     def get_feature_names_out(self, input_features=None):
         """Names of the output columns (full-parameter names, e.g. ``link2_mx``).
 
@@ -363,3 +413,8 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         tags = super().__sklearn_tags__()
         tags.target_tags.required = False
         return tags
+
+
+def _as_slice(columns):
+    """Consecutive column indices as a slice (a view when indexing a row)."""
+    return slice(columns[0], columns[-1] + 1)

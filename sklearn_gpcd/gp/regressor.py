@@ -29,7 +29,7 @@ from ._optimize import (
     resolve_optimizer,
 )
 from .mean import ParametricMean
-from ._posterior import _Posterior, target_scaling
+from ._posterior import GPPosterior, _Posterior, target_scaling
 from ._support import SUPPORT_SELECTIONS, resolve_n_support, select_support
 
 
@@ -309,6 +309,35 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         if not (return_std or return_cov):
             return self._stack(preds)
         return self._stack([p[0] for p in preds]), self._stack([p[1] for p in preds])
+
+    @property
+    def posteriors_(self):
+        """list of :class:`~sklearn_gpcd.gp.GPPosterior`: the fitted model of each output.
+
+        Kernel, support inputs, weights (in target units), target offset and
+        parametric mean of every output, so that
+        ``predict(X)[:, j] == posteriors_[j].predict_mean(X)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn_gpcd.gp import SemiParametricGPRegressor
+        >>> X = np.linspace(0, 1, 10)[:, None]
+        >>> gp = SemiParametricGPRegressor(optimizer=None).fit(X, np.c_[X, -X])
+        >>> len(gp.posteriors_)
+        2
+        """
+        check_is_fitted(self)
+        return [
+            GPPosterior(
+                kernel=fit.posterior.kernel,
+                X_train=fit.posterior.X,
+                alpha=fit.posterior.y_std * fit.posterior.weights,
+                y_mean=fit.posterior.y_mean,
+                mean=fit.mean,
+            )
+            for fit in self._outputs
+        ]
 
     def log_marginal_likelihood(self, theta=None, eval_gradient=False, output=0):
         """Log marginal likelihood of the residual GP of one output.
