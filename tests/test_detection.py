@@ -12,7 +12,7 @@ from sklearn.model_selection import GridSearchCV, GroupKFold
 from sklearn.neighbors import KNeighborsRegressor
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from sklearn_gpcd._layout import column_index
+from sklearn_gpcd.layout import column_index
 from sklearn_gpcd.detection import (
     CollisionDetector,
     CollisionThresholdCV,

@@ -29,7 +29,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.linear_model import Ridge
 from sklearn.preprocessing import PolynomialFeatures
 
-from sklearn_gpcd._layout import block_columns, column_names
+from sklearn_gpcd.layout import block_columns, column_names
 from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor
 from sklearn_gpcd.features import (
     InverseDynamicsFeatures,

@@ -10,7 +10,7 @@ from sklearn.utils import Bunch
 from sklearn.utils.validation import _num_samples, check_is_fitted, validate_data
 
 from .._gate import check_sigma_v
-from .._layout import block_columns
+from ..layout import block_columns
 from .._persistence import VersionedStateMixin
 from ._regimes import REGIME_NAMES, regime_pass
 from ._signal import (
@@ -221,7 +221,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     velocity_columns : list of int or None, default=None
         Columns of the regressor inputs holding the joint velocities, for
         ``regimes``. None takes the ``qd`` block of the paper's layout
-        (:mod:`sklearn_gpcd._layout`) when the inputs have ``3 * n_joints``
+        (:mod:`sklearn_gpcd.layout`) when the inputs have ``3 * n_joints``
         or ``6 * n_joints`` columns.
 
     Attributes

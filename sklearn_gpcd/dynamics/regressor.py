@@ -25,7 +25,7 @@ The full parameter vector is ordered
 coulomb_0..coulomb_{n-1}, viscous_0..viscous_{n-1}, offset_0..offset_{n-1}]``
 
 keeping only the blocks that are switched on. Joints and links are 0-based
-like the columns of :mod:`sklearn_gpcd._layout` (link ``k`` is moved by
+like the columns of :mod:`sklearn_gpcd.layout` (link ``k`` is moved by
 joint ``k``).
 """
 

@@ -9,7 +9,7 @@ from sklearn.utils import Bunch, check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._gate import check_sigma_v
-from .._layout import block_columns
+from ..layout import block_columns
 from .._persistence import VersionedStateMixin
 from ..robots.loading import resolve_robot
 from .base_parameters import base_parameters
@@ -180,7 +180,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     Notes
     -----
     The estimator needs at least ``3 * n_joints`` (18 for UR arms) input
-    columns in the :mod:`sklearn_gpcd._layout` order.
+    columns in the :mod:`sklearn_gpcd.layout` order.
 
     Examples
     --------
@@ -230,7 +230,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         if X.shape[1] < 3 * n:
             raise ValueError(
                 f"X has {X.shape[1]} columns, but robot {self.robot_.name!r} needs at least "
-                f"{3 * n}: [q, qd, qdd] of {n} joints (see sklearn_gpcd._layout)"
+                f"{3 * n}: [q, qd, qdd] of {n} joints (see sklearn_gpcd.layout)"
             )
 
     def _split(self, X):
@@ -250,7 +250,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
-            Joint states in the :mod:`sklearn_gpcd._layout` order (only used
+            Joint states in the :mod:`sklearn_gpcd.layout` order (only used
             for validation; the column selection uses random states).
         y : None
             Ignored.

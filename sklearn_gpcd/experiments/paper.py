@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import datasets
 from .._gate import quasi_static
-from .._layout import block_columns
+from ..layout import block_columns
 from sklearn.frozen import FrozenEstimator
 
 from ..detection import CollisionDetector, stack_currents

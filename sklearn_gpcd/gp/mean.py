@@ -114,7 +114,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
-            Inputs, e.g. in the :mod:`sklearn_gpcd._layout` column layout.
+            Inputs, e.g. in the :mod:`sklearn_gpcd.layout` column layout.
         y : array-like of shape (n_samples,) or (n_samples, n_outputs)
             Targets.
 

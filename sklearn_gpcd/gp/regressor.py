@@ -228,7 +228,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         Parameters
         ----------
         X : array-like or DataFrame of shape (n_samples, n_features)
-            Inputs, e.g. the augmented layout of :mod:`sklearn_gpcd._layout`.
+            Inputs, e.g. the augmented layout of :mod:`sklearn_gpcd.layout`.
         y : array-like of shape (n_samples,) or (n_samples, n_outputs)
             Targets; one independent GP per column.
 

@@ -9,7 +9,7 @@ from .._gate import check_sigma_v, quasi_static
 from .columns import (
     _n_samples,
     _take_rows,
-    column_index,
+    column_position,
     feature_names_of,
 )
 
@@ -165,7 +165,7 @@ class QuasiStaticGate(Kernel):
         check_sigma_v(self.sigma_v, "QuasiStaticGate")
         names = feature_names_of(X)
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        column = column_index(
+        column = column_position(
             self.velocity_column, names, X.shape[1], "QuasiStaticGate (velocity_column)"
         )
         return quasi_static(X[:, column], self.sigma_v).astype(float)
