@@ -191,3 +191,14 @@ def test_kernel_given_by_column_names_is_opaque_not_wrong():
     kernel = QuasiStaticGate(ARDRBF(1.0, columns=["q_0"]), "qd_0", sigma_v=0.5)
     plan = compile_kernel(kernel)
     assert isinstance(plan, kernel_plan._Opaque)
+
+
+def test_constant_times_a_product_fits():
+    """Found by the parity test: C * (C * ARDRBF) crashed the gradient contraction."""
+    X = np.random.default_rng(0).normal(size=(30, 2))
+    kernel = ConstantKernel(1.0) * (ConstantKernel(2.0) * ARDRBF(1.0, columns=[0])) + WhiteKernel()
+    W = np.random.default_rng(1).normal(size=(30, 30))
+    _close(contract_gradient(kernel, X, W),
+           np.einsum("ij,ijk->k", W, kernel(X, eval_gradient=True)[1]))
+    gp = SemiParametricGPRegressor(kernel, random_state=0).fit(X, X[:, 0])
+    assert np.isfinite(gp.log_marginal_likelihood_value_)

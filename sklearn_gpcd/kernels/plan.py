@@ -654,7 +654,7 @@ class _Product(_Pair):
     def _weighted_sum(self, W, K):
         r""":math:`\sum_{ij} W_{ij} K_{ij}`, from the other child's contraction if it has it."""
         for child in (self.k1, self.k2):
-            total = getattr(child, "_weighted_sum", None)
+            total = getattr(child, "_W_dot_K", None)
             if total is not None and total[0] is W and child._K is K:
                 return total[1]
         return _weighted_total(W, K, self.lower)
@@ -809,7 +809,7 @@ class _SquaredExponential(_Node):
             K = _se_gram(Z, np.empty((n, n)), scaled)
         else:  # while optimising, K lives until the next evaluation: its memory is reused
             K = _se_gram(Z, _kept_array(self, "_K_buffer", (n, n)), scaled, self.lower)
-            self._Z, self._K, self._weighted_sum = Z, K, None
+            self._Z, self._K, self._W_dot_K = Z, K, None
         return K
 
     def contract(self, W, scale):
@@ -840,13 +840,13 @@ class _SquaredExponential(_Node):
             MZ_1[rows] += block @ Z_1[cols]
             MZ_1[cols] += block.T @ Z_1[rows]
         per_dim = (Z * Z).T @ (2.0 * MZ_1[:, -1]) - 2.0 * np.einsum("id,id->d", Z, MZ_1[:, :-1])
-        self._weighted_sum = (W, float(MZ_1[:, -1].sum()))  # sum(W o K), for a constant factor
+        self._W_dot_K = (W, float(MZ_1[:, -1].sum()))  # sum(W o K), for a constant factor
         per_dim *= scale
         return per_dim if self.anisotropic else np.array([per_dim.sum()])
 
     def prepare(self, S, weights):
         # the arrays of the fit are not needed for prediction
-        self._K_buffer = self._K = self._Z = self._weighted_sum = None
+        self._K_buffer = self._K = self._Z = self._W_dot_K = None
         Z = self._scaled(S)
         self._center = Z.mean(axis=0) if len(Z) else 0.0
         self._S_T = np.ascontiguousarray((Z - self._center).T)
