@@ -202,3 +202,14 @@ def test_constant_times_a_product_fits():
            np.einsum("ij,ijk->k", W, kernel(X, eval_gradient=True)[1]))
     gp = SemiParametricGPRegressor(kernel, random_state=0).fit(X, X[:, 0])
     assert np.isfinite(gp.log_marginal_likelihood_value_)
+
+
+def test_product_of_gates():
+    """Found by the parity test: the product of two gated blocks crashed the Gram matrix."""
+    X = np.random.default_rng(0).normal(size=(20, 2))
+    X[::2, 0] *= 1e-3
+    gate = QuasiStaticGate(ConstantKernel(2.0) * ARDRBF(1.0, columns=[1]), 0, sigma_v=0.1)
+    kernel = gate * QuasiStaticGate(ARDRBF(0.5, columns=[1]), 0, sigma_v=0.1) + WhiteKernel()
+    _close(gram_matrix(compile_kernel(kernel), X), kernel(X), rtol=1e-12)
+    gp = SemiParametricGPRegressor(kernel, optimizer=None).fit(X, X[:, 1])
+    _close(gp.predict(X), gp.posteriors_[0].predict_mean(X), rtol=1e-8)

@@ -339,6 +339,8 @@ def _multiply(a, b, inplace):
     if isinstance(a, _RowBlock) or isinstance(b, _RowBlock):
         if isinstance(a, _RowBlock):
             a, b = b, a
+        if isinstance(a, _RowBlock):  # two gated blocks: new dense arrays
+            return _multiply(_dense(a, a.n, a.n), _dense(b, b.n, b.n), inplace=True)
         if np.ndim(a) == 0 and not isinstance(a, _Diagonal):  # c * gated block
             block = b.block if inplace else b.block.copy()
             block *= float(a)
