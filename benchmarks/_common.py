@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from sklearn_gpcd import datasets
-from sklearn_gpcd._layout import state_columns
+from sklearn_gpcd.layout import state_columns
 from sklearn_gpcd.features import make_inputs
 
 

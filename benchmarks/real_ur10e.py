@@ -78,7 +78,7 @@ from _common import real_data_path, require_data, rst_table, write_json  # noqa:
 
 from sklearn.frozen import FrozenEstimator  # noqa: E402
 
-from sklearn_gpcd._layout import block_columns  # noqa: E402
+from sklearn_gpcd.layout import block_columns  # noqa: E402
 from sklearn_gpcd.detection import (  # noqa: E402
     MARGIN_RULES,
     REGIME_NAMES,

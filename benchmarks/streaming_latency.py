@@ -17,9 +17,15 @@ UR e-Series (2 ms, 500 Hz) and a 1 kHz loop. Hyperparameters are not
 optimised (``optimizer=None``): latency depends on the model's shape, not on
 its fitted values.
 
+With ``--model sp_p`` each joint also has the rigid-body parametric mean of
+SP_P (:class:`~sklearn_gpcd.dynamics.RigidBodyRegressor` of the built-in
+``ur10e``, friction columns zeroed at rest, Eq. 17), whose per-tick path
+computes pinocchio's regressor once per tick for all joints; the default
+``--model gp`` has no parametric mean.
+
 Run::
 
-    python benchmarks/streaming_latency.py [--n-support 5000] [--n-ticks 5000]
+    python benchmarks/streaming_latency.py [--n-support 5000] [--n-ticks 5000] [--model sp_p]
 """
 
 import argparse
@@ -31,6 +37,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor, stack_currents
+from sklearn_gpcd.dynamics import RigidBodyRegressor
 from sklearn_gpcd.gp import make_sp_p
 
 N_JOINTS = 6
@@ -93,12 +100,18 @@ def main(argv=None):
     parser.add_argument("--n-ticks", type=int, default=5000)
     parser.add_argument("--n-peer", type=int, default=500, help="peer calls to time")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--model", choices=("gp", "sp_p"), default="gp",
+                        help="gp: kernels only; sp_p: plus the ur10e rigid-body mean")
     args = parser.parse_args(argv)
     rng = np.random.default_rng(args.seed)
 
     X = synthetic_inputs(args.n_support, rng)
     y = synthetic_currents(X, rng)
-    regressor = make_sp_p(None, N_JOINTS, sigma_v=SIGMA_V, optimizer=None, n_jobs=2)
+    features = None
+    if args.model == "sp_p":
+        features = [RigidBodyRegressor("ur10e", joint=joint, sigma_v=SIGMA_V)
+                    for joint in range(N_JOINTS)]
+    regressor = make_sp_p(features, N_JOINTS, sigma_v=SIGMA_V, optimizer=None, n_jobs=2)
     detector = CollisionDetector(
         regressor, n_joints=N_JOINTS, filter_cutoff=10.0, filter_order=2, min_duration=3
     )
@@ -127,7 +140,8 @@ def main(argv=None):
           f"{platform.machine()}, {os.cpu_count()} cpus, "
           f"load average {os.getloadavg()[0]:.2f} (other processes add jitter)")
     print(f"model: {N_JOINTS} joints, {args.n_support} support points, kernels per joint: "
-          f"ARD RBF on 18 state columns + gated ARD RBF on 36 augmented columns")
+          f"ARD RBF on 18 state columns + gated ARD RBF on 36 augmented columns"
+          + (", mean: ur10e rigid-body regressor" if args.model == "sp_p" else ""))
     print("samples (support and ticks): " + ", ".join(f"{v:.0%} {k}" for k, v in REGIMES.items()))
     print(f"fit {fit_seconds:.1f} s, compile {compile_seconds * 1e3:.0f} ms, "
           f"path: {monitor.predictor_kind}")

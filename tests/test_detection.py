@@ -12,7 +12,7 @@ from sklearn.model_selection import GridSearchCV, GroupKFold
 from sklearn.neighbors import KNeighborsRegressor
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
-from sklearn_gpcd._layout import column_index
+from sklearn_gpcd.layout import column_index
 from sklearn_gpcd.detection import (
     CollisionDetector,
     CollisionThresholdCV,
@@ -319,10 +319,17 @@ def test_compiled_gp_matches_predict_with_mean_gates_and_products(rng):
 
 
 def test_compiled_predictor_falls_back_when_it_disagrees(rng, monkeypatch):
+    from sklearn_gpcd.kernels import plan
+
     X, current = augmented_run(100, 1, rng)
     gp = GaussianProcessRegressor(RBF(np.ones(6))).fit(X, current[:, 0])
-    monkeypatch.setattr(gp, "alpha_", gp.alpha_ * 2.0)  # compiled path reads alpha_
-    monkeypatch.setattr(gp, "predict", lambda Z: np.zeros(len(Z)))
+    terms = plan._SquaredExponential.terms
+
+    def broken(self, n_features):  # a node that disagrees with its kernel object
+        return [plan.Term(t.scale, t.columns, 4.0 * t.inv_sq) for t in terms(self, n_features)]
+
+    # the check compares the compiled path with the Kernel objects (K(x, X) @ alpha)
+    monkeypatch.setattr(plan._SquaredExponential, "terms", broken)
     with pytest.warns(RuntimeWarning, match="falls back"):
         predictor = compile_predictor(gp, 6, 1)
     assert predictor.kind == "generic"
@@ -526,3 +533,24 @@ def test_frozen_sp_p_gets_the_compiled_path(rng):
     assert monitor.predictor_kind == "gaussian_process"
     assert np.allclose(out.residual, test_current - sp_p.predict(X), rtol=1e-7, atol=1e-7)
     assert (out.prediction[100:140] == -1).any()
+
+
+def test_compiled_rigid_body_mean_shares_one_regressor_per_tick(rng):
+    """SP_P with RigidBodyRegressor means: one pinocchio evaluation per tick, same numbers."""
+    from sklearn_gpcd.dynamics import RigidBodyRegressor
+    from sklearn_gpcd.gp import make_sp_p
+
+    n_joints = 6
+    X = rng.normal(size=(120, 6 * n_joints))
+    X[::3, n_joints : 2 * n_joints] *= 1e-3  # quasi-static rows: phi-bar zeroes friction
+    y = np.sin(X[:, :n_joints]) + 0.1 * np.sign(X[:, n_joints : 2 * n_joints])
+    features = [RigidBodyRegressor("ur10e", joint=j, sigma_v=SIGMA_V, currents=True)
+                for j in range(n_joints)]
+    gp = make_sp_p(features, n_joints, sigma_v=SIGMA_V, optimizer=None).fit(X, y)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no fallback
+        predictor = compile_predictor(gp, 6 * n_joints, n_joints)
+    assert predictor.kind == "gaussian_process"
+    assert len(predictor.states) == 1  # every joint reads the same per-tick regressor
+    got = np.array([predictor.predict_one(x, np.empty(n_joints)) for x in X[:40]])
+    assert np.allclose(got, gp.predict(X[:40]), rtol=1e-9, atol=1e-9)

@@ -7,7 +7,7 @@ import pytest
 from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
 
-from sklearn_gpcd._layout import column_names
+from sklearn_gpcd.layout import column_names
 from sklearn_gpcd.dynamics import (
     RigidBodyRegressor,
     base_parameters,

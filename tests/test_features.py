@@ -17,7 +17,7 @@ from sklearn.utils.estimator_checks import (
     check_set_params,
 )
 
-from sklearn_gpcd._layout import block_columns, column_names
+from sklearn_gpcd.layout import block_columns, column_names
 from sklearn_gpcd.features import (
     InverseDynamicsFeatures,
     MissingSignalWarning,

@@ -20,7 +20,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 
 from sklearn_gpcd.gp._optimize import lbfgs_b  # the exact path's L-BFGS-B, for sklearn
-from sklearn_gpcd._layout import column_index, column_names
+from sklearn_gpcd.layout import column_index, column_names
 from sklearn_gpcd.gp import (
     ParametricMean,
     SemiParametricGPRegressor,

@@ -13,7 +13,7 @@ from sklearn.gaussian_process.kernels import RBF, Matern, WhiteKernel
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 
 from sklearn_gpcd.gp import SemiParametricGPRegressor
-from sklearn_gpcd.gp._kernel_plan import _Gate, _Product, compile_kernel, gram_matrix
+from sklearn_gpcd.kernels.plan import _Gate, _Product, compile_kernel, gram_matrix
 from sklearn_gpcd.gp._likelihood import _log_marginal_likelihood, single_threaded_blas
 from sklearn_gpcd.gp._optimize import (
     AdamSettings,
@@ -259,7 +259,7 @@ def test_lower_triangle_plans_give_the_full_plans_lml_and_gradient(kernel, lower
 def test_squared_exponential_gram_in_row_blocks(n, monkeypatch):
     from scipy.spatial.distance import cdist
 
-    from sklearn_gpcd.gp import _kernel_plan
+    from sklearn_gpcd.kernels import plan as _kernel_plan
 
     monkeypatch.setattr(_kernel_plan, "_BLOCK_BYTES", 8 * 32 * max(n, 1))  # 32-row blocks
     Z = np.random.RandomState(n).normal(size=(n, 4))
@@ -382,7 +382,7 @@ def test_large_factor_is_rebuilt_on_demand_with_identical_results(monkeypatch):
 def test_weight_matrix_is_the_symmetric_inverse_minus_a_a_t(n):
     from scipy.linalg.lapack import dpotrf
 
-    from sklearn_gpcd.gp._kernel_plan import _mirror_upper
+    from sklearn_gpcd.kernels.plan import _mirror_upper
     from sklearn_gpcd.gp._likelihood import _negated_weight_matrix
 
     A = np.random.RandomState(n).normal(size=(n, n))

@@ -208,6 +208,28 @@ def test_contract_gradient_memory_is_quadratic(rng):
     assert peak < 5 * n * n * 8
 
 
+@pytest.mark.parametrize("gated", [False, True], ids=["c-ard-white", "with-gate"])
+def test_fit_likelihood_gradient_memory_is_quadratic(gated, rng):
+    # the path the regressor's fit runs: the compiled plan, evaluation after evaluation
+    from sklearn_gpcd.gp._likelihood import _log_marginal_likelihood
+    from sklearn_gpcd.kernels.plan import compile_kernel
+
+    n, d = 1000, 18
+    X, y = rng.normal(size=(n, d)), rng.normal(size=n)
+    kernel = C(1.5) * ARDRBF(np.linspace(1.0, 4.0, d)) + WhiteKernel(0.1)
+    if gated:
+        kernel = kernel + C(0.5) * QuasiStaticGate(ARDRBF(np.ones(d)), 0, sigma_v=0.5)
+    plan = compile_kernel(kernel)
+    _log_marginal_likelihood(kernel.theta, kernel, X, y, 1e-10, True, plan)  # arrays kept
+    tracemalloc.start()
+    _, gradient = _log_marginal_likelihood(kernel.theta, kernel, X, y, 1e-10, True, plan)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert gradient.shape == kernel.theta.shape
+    # a few (n, n) float arrays at most; the (n, n, n_theta) gradient would be 20 or 39
+    assert peak < 4 * n * n * 8
+
+
 @pytest.mark.slow
 def test_contract_gradient_memory_at_n3000(rng):
     n, d = 3000, 18

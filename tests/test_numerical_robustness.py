@@ -19,7 +19,7 @@ from sklearn.gaussian_process.kernels import RBF, WhiteKernel
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 from sklearn.linear_model import Ridge
 
-from sklearn_gpcd._layout import block_columns
+from sklearn_gpcd.layout import block_columns
 from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor, stack_currents
 from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor, make_sp_p, make_sp_s
 from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate

@@ -27,7 +27,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.linear_model import Ridge
 from sklearn.preprocessing import PolynomialFeatures
 
-from sklearn_gpcd._layout import block_columns, column_names
+from sklearn_gpcd.layout import block_columns, column_names
 from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor
 from sklearn_gpcd.features import (
     InverseDynamicsFeatures,
@@ -663,7 +663,7 @@ def test_interpolation_accurate_far_from_support_centre():
     """Inputs spread over 2e5 length scales still interpolate to 1e-9, as sklearn's GPR.
 
     Found by the properties above: a cross kernel computed as |z|^2 + |s|^2 - 2 z.s
-    lost ~eps |z|^2 in the exponent, 2e-6 here (fixed in gp/_kernel_plan.py).
+    lost ~eps |z|^2 in the exponent, 2e-6 here (fixed in kernels/plan.py).
     """
     rng = np.random.default_rng(0)
     X = rng.uniform(-1e4, 1e4, size=(5, 3))

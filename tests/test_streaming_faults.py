@@ -19,7 +19,7 @@ from sklearn.gaussian_process.kernels import RBF, WhiteKernel
 from sklearn.gaussian_process.kernels import ConstantKernel as C
 from sklearn.linear_model import Ridge
 
-from sklearn_gpcd._layout import column_index
+from sklearn_gpcd.layout import column_index
 from sklearn_gpcd.detection import (
     CollisionDetector,
     MonitorStatus,

@@ -25,6 +25,7 @@ from pathlib import Path
 
 #: Public submodules of ``sklearn_gpcd``, in reference order, with page titles.
 PUBLIC_MODULES = {
+    "layout": "Column layout of the inputs",
     "io": "Recordings and loaders",
     "robots": "Robot models",
     "dynamics": "Rigid-body regressor features",

@@ -9,8 +9,10 @@ buffers allocated once:
 * linear models (``coef_`` / ``intercept_``): one matrix-vector product;
 * Gaussian processes (:class:`~sklearn_gpcd.gp.SemiParametricGPRegressor`
   and :class:`sklearn.gaussian_process.GaussianProcessRegressor`): the
-  kernel is flattened into summands ``c * gates * exp(-0.5 d^2)`` (sums,
-  products with constants, :class:`~sklearn_gpcd.kernels.ARDRBF`, ``RBF``,
+  kernel is flattened by its compiled nodes
+  (:func:`sklearn_gpcd.kernels.plan.compile_kernel`, ``terms``) into summands
+  ``c * gates * exp(-0.5 d^2)`` (sums, products with constants,
+  :class:`~sklearn_gpcd.kernels.ARDRBF`, ``RBF``,
   :class:`~sklearn_gpcd.kernels.QuasiStaticGate`; ``WhiteKernel`` has no
   cross-covariance and drops out). For one summand and support points
   ``s_i`` with weights ``w_i`` (the GP's ``alpha``),
@@ -30,6 +32,11 @@ buffers allocated once:
   are dropped) and a gated group is skipped when no gate is open at ``x``
   (Eq. 15-16: the static component vanishes while the joint moves).
   Summands of any other kernel type are evaluated with the kernel object.
+  The GP is read through its public posteriors
+  (:attr:`SemiParametricGPRegressor.posteriors_
+  <sklearn_gpcd.gp.SemiParametricGPRegressor.posteriors_>`), and the compiled
+  path is checked against :meth:`~sklearn_gpcd.gp.GPPosterior.predict_mean`,
+  which evaluates the Kernel objects.
 
 Anything else falls back to ``regressor.predict`` on a one-row array.
 """
@@ -37,91 +44,10 @@ Anything else falls back to ``regressor.predict`` on a one-row array.
 import warnings
 
 import numpy as np
-from sklearn.gaussian_process.kernels import (
-    RBF,
-    ConstantKernel,
-    Product,
-    Sum,
-    WhiteKernel,
-)
+
+from .._gate import quasi_static
 
 __all__ = ["compile_predictor"]
-
-
-class _Unsupported(Exception):
-    """Raised by the kernel parser for a node it cannot flatten."""
-
-
-class _Summand:
-    """``scale * prod(gates) * exp(-0.5 sum_d inv_sq[d] (x_d - s_d)^2)`` or a kernel."""
-
-    def __init__(self, scale=1.0, columns=None, inv_sq=None, gates=(), kernel=None):
-        self.scale = scale
-        self.columns = columns  # ndarray of int, or None for no exponential factor
-        self.inv_sq = inv_sq
-        self.gates = tuple(gates)  # (velocity column, sigma_v)
-        self.kernel = kernel  # generic kernel object (other fields unused)
-
-
-def _parse_summand(kernel, n_features):
-    """Summands of ``kernel``; an unsupported node becomes one generic summand."""
-    try:
-        return _parse(kernel, n_features)
-    except _Unsupported:
-        return [_Summand(kernel=kernel)]
-
-
-def _parse(kernel, n_features):
-    from ..kernels import ARDRBF, QuasiStaticGate  # layer 4, lazily
-
-    if isinstance(kernel, Sum):
-        return _parse_summand(kernel.k1, n_features) + _parse_summand(kernel.k2, n_features)
-    if isinstance(kernel, WhiteKernel):
-        return []  # k(x, s) = 0 between a new point and the support points
-    if isinstance(kernel, ConstantKernel):
-        return [_Summand(scale=float(kernel.constant_value))]
-    if isinstance(kernel, Product):
-        left, right = _parse(kernel.k1, n_features), _parse(kernel.k2, n_features)
-        return [_multiply(a, b) for a in left for b in right]
-    if isinstance(kernel, (RBF, ARDRBF)) and type(kernel) in (RBF, ARDRBF):
-        columns = getattr(kernel, "columns", None)
-        columns = np.arange(n_features) if columns is None else np.asarray(columns)
-        if columns.dtype.kind not in "iu":
-            raise _Unsupported
-        length = np.broadcast_to(np.asarray(kernel.length_scale, float), columns.shape)
-        return [_Summand(columns=columns, inv_sq=1.0 / length**2)]
-    if type(kernel) is QuasiStaticGate:
-        if not isinstance(kernel.velocity_column, (int, np.integer)):
-            raise _Unsupported
-        gate = (int(kernel.velocity_column), float(kernel.sigma_v))
-        inner = _parse(kernel.kernel, n_features)
-        if any(s.kernel is not None for s in inner):
-            raise _Unsupported
-        return [
-            _Summand(s.scale, s.columns, s.inv_sq, s.gates + (gate,)) for s in inner
-        ]
-    raise _Unsupported
-
-
-def _multiply(a, b):
-    if a.kernel is not None or b.kernel is not None:
-        raise _Unsupported
-    if a.columns is None or b.columns is None:
-        columns, inv_sq = (a.columns, a.inv_sq) if b.columns is None else (b.columns, b.inv_sq)
-    else:  # exp(-0.5 A) exp(-0.5 B) = exp(-0.5 (A + B))
-        columns = np.union1d(a.columns, b.columns)
-        inv_sq = np.zeros(columns.shape)
-        for s in (a, b):
-            np.add.at(inv_sq, np.searchsorted(columns, s.columns), s.inv_sq)
-    return _Summand(a.scale * b.scale, columns, inv_sq, a.gates + b.gates)
-
-
-def _gate_values(X, gates):
-    """prod_g 1[|X[:, col_g]| < sigma_g] per row."""
-    a = np.ones(X.shape[0])
-    for column, sigma_v in gates:
-        a *= np.abs(X[:, column]) < sigma_v
-    return a
 
 
 class _ExpGroup:
@@ -131,13 +57,13 @@ class _ExpGroup:
         self.support = support
         self.columns = columns
         self.n_outputs = n_outputs
-        self.inv_sq, self.weights, self.outputs, self.gates = [], [], [], []
+        self.inv_sq, self.weights, self.outputs, self.terms = [], [], [], []
 
-    def add(self, summand, weights, output):
-        self.inv_sq.append(summand.inv_sq)
-        self.weights.append(weights * summand.scale * _gate_values(self.support, summand.gates))
+    def add(self, term, weights, output):
+        self.inv_sq.append(term.inv_sq)
+        self.weights.append(weights * term.scale * term.gate_values(self.support))
         self.outputs.append(output)
-        self.gates.append(summand.gates)
+        self.terms.append(term)
 
     def finalize(self):
         A = np.column_stack(self.weights)
@@ -155,7 +81,7 @@ class _ExpGroup:
         self.A = np.ascontiguousarray(A[rows])
         self.scatter = np.zeros((n_terms, self.n_outputs))
         self.scatter[np.arange(n_terms), self.outputs] = 1.0
-        self.gated = any(self.gates)
+        self.gated = any(term.gates for term in self.terms)
         self.on = np.ones(n_terms)
         # per-tick buffers
         self.xs = np.empty(d)
@@ -175,13 +101,8 @@ class _ExpGroup:
 
     def add_to(self, x, out):
         if self.gated:
-            for t, gates in enumerate(self.gates):
-                on = 1.0
-                for column, sigma_v in gates:
-                    if not abs(x[column]) < sigma_v:
-                        on = 0.0
-                        break
-                self.on[t] = on
+            for t, term in enumerate(self.terms):
+                self.on[t] = term.gates_open(x)
             if not self.on.any():
                 return  # Eq. 15: every gate closed, the group contributes 0
         np.take(x, self.columns, out=self.xs)
@@ -202,68 +123,111 @@ class _ExpGroup:
 class _GaussianProcessPredictor:
     """Fast mean of a GP with per-output supports, weights and parametric means."""
 
-    def __init__(self, outputs, n_features, wrap):
-        # outputs: list of dicts(kernel, support, weights, offset, mean)
-        n_outputs = len(outputs)
+    def __init__(self, posteriors, n_features, wrap):
+        from ..kernels.plan import compile_kernel, flatten  # layer 4, lazily
+
+        n_outputs = len(posteriors)
         self.n_outputs = n_outputs
-        self.offset = np.array([o["offset"] for o in outputs], dtype=float)
+        self.offset = np.array([post.y_mean for post in posteriors], dtype=float)
         self.generic, self.constants = [], []
         groups, supports = {}, []
-        for j, o in enumerate(outputs):
-            key_support = next(
-                (i for i, s in enumerate(supports) if _same(s, o["support"])), None
-            )
+        for j, post in enumerate(posteriors):
+            support, weights = post.X_train, post.alpha
+            key_support = next((i for i, s in enumerate(supports) if _same(s, support)), None)
             if key_support is None:
-                supports.append(o["support"])
+                supports.append(support)
                 key_support = len(supports) - 1
-            for summand in _parse_summand(o["kernel"], n_features):
-                if summand.kernel is not None:
-                    self.generic.append((j, summand.kernel, o["support"], o["weights"]))
-                elif summand.columns is None:
-                    value = summand.scale * float(
-                        o["weights"] @ _gate_values(o["support"], summand.gates)
-                    )
-                    self.constants.append((j, value, summand.gates))
+            for term in flatten(compile_kernel(post.kernel, lower=False), n_features):
+                if term.kernel is not None:
+                    self.generic.append((j, term.kernel, support, weights))
+                elif term.columns is None:
+                    value = term.scale * float(weights @ term.gate_values(support))
+                    self.constants.append((j, value, term))
                 else:
-                    key = (key_support, tuple(summand.columns.tolist()))
+                    key = (key_support, tuple(term.columns.tolist()))
                     group = groups.get(key)
                     if group is None:
                         group = groups[key] = _ExpGroup(
-                            supports[key_support], summand.columns, n_outputs
+                            supports[key_support], term.columns, n_outputs
                         )
-                    group.add(summand, o["weights"], j)
+                    group.add(term, weights, j)
         self.groups = [g.finalize() for g in groups.values()]
-        self.means = [_compile_mean(o["mean"], wrap) for o in outputs]
+        self.states = {}  # rigid-body regressors shared by the means of one robot
+        self.means = [_compile_mean(post.mean, wrap, self.states) for post in posteriors]
         self.row = np.empty((1, n_features))
 
     def predict_one(self, x, out):
         out[:] = self.offset
         for group in self.groups:
             group.add_to(x, out)
-        for j, value, gates in self.constants:
-            if all(abs(x[c]) < s for c, s in gates):
+        for j, value, term in self.constants:
+            if term.gates_open(x):
                 out[j] += value
         if self.generic:
             self.row[0] = x
             for j, kernel, support, weights in self.generic:
                 out[j] += float(kernel(self.row, support)[0] @ weights)
+        for state in self.states.values():  # one pinocchio call per robot and tick
+            state.update(x)
         for j, mean in enumerate(self.means):
             if mean is not None:
                 out[j] += mean(x, self.row)
         return out
 
 
+def _rigid_body_mean(mean, states):
+    """``phi-bar(x) @ coef + intercept`` with the rigid-body row of this tick (Eq. 17)."""
+    features = mean.features_.sample_features()
+    state = states.setdefault(features.key, _SampleState(features))
+    row, columns, scale = int(features.rows[0]), features.columns, float(features.scale[0])
+    coef = np.asarray(mean.coef_, dtype=float) * scale
+    intercept = float(mean.intercept_)
+    velocity, sigma_v = mean.velocity_column_, mean.sigma_v
+    friction = np.asarray(mean.friction_columns_, dtype=int)
+
+    def rigid_body(x, _row):
+        phi = state.value[row, columns]
+        if velocity is not None and quasi_static(x[velocity], sigma_v):  # phi-bar, Eq. 17
+            phi[friction] = 0.0
+        return float(phi @ coef) + intercept
+
+    return rigid_body
+
+
 def _same(a, b):
     return a is b or (a.shape == b.shape and np.array_equal(a, b))
 
 
-def _compile_mean(mean, wrap):
-    """``x -> m(x)`` of one output; a linear fast path for plain ParametricMean."""
+class _SampleState:
+    """The full rigid-body regressor at the current tick, shared by several means."""
+
+    def __init__(self, features):
+        self.features = features
+        self.value = None
+
+    def update(self, x):
+        f = self.features
+        self.value = f.full(x[f.q], x[f.qd], x[f.qdd])
+
+
+def _compile_mean(mean, wrap, states):
+    """``x -> m(x)`` of one output: fast paths for plain ParametricMean.
+
+    A linear mean on the inputs is one dot product; a rigid-body mean
+    (:class:`~sklearn_gpcd.dynamics.RigidBodyRegressor` features, Eq. 10 and
+    17) reads the regressor row of its joint from a per-tick evaluation
+    (``states``) shared by every mean of the same robot; the controller
+    mean of SP_C is one product. Anything else calls ``mean.predict``.
+    """
     if mean is None:
         return None
+    from ..dynamics import ControllerFeatures, RigidBodyRegressor  # layer 2, lazily
     from ..gp import ParametricMean  # layer 4, lazily
 
     coef = getattr(mean, "coef_", None)
+    plain = type(mean) is ParametricMean and np.ndim(coef) == 1
+    if plain and type(mean.features_) is RigidBodyRegressor and mean.features_.joint is not None:
+        return _rigid_body_mean(mean, states)
     if type(mean) is ParametricMean and mean.features_ is None and np.ndim(coef) == 1:
         coef = np.asarray(coef, dtype=float)
         intercept = float(mean.intercept_)
@@ -275,14 +239,12 @@ def _compile_mean(mean, wrap):
 
         def linear(x, row):
             value = float(coef @ x) + intercept
-            if velocity is not None and abs(x[velocity]) < sigma_v:  # phi-bar, Eq. 17
+            if velocity is not None and quasi_static(x[velocity], sigma_v):  # phi-bar, Eq. 17
                 np.take(x, friction, out=xf)
                 value -= float(friction_coef @ xf)
             return value
 
         return linear
-
-    from ..dynamics import ControllerFeatures  # layer 2, lazily
 
     if (type(mean) is ParametricMean and type(mean.features_) is ControllerFeatures
             and np.ndim(coef) == 1 and not len(mean.friction_columns_)):
@@ -329,41 +291,34 @@ class _GenericPredictor:
         return out
 
 
-def _gp_outputs(regressor):
-    """Per-output kernel, support, weights, offset and mean of a fitted GP, or None."""
+def _gp_posteriors(regressor):
+    """The per-output :class:`~sklearn_gpcd.gp.GPPosterior` of a fitted GP, or None."""
     from sklearn.gaussian_process import GaussianProcessRegressor
 
-    from ..gp import SemiParametricGPRegressor  # layer 4, lazily
+    from ..gp import GPPosterior, SemiParametricGPRegressor  # layer 4, lazily
 
     if isinstance(regressor, SemiParametricGPRegressor):
-        outputs = []
-        for fit in regressor._outputs:
-            post = fit.posterior
-            outputs.append(
-                dict(
-                    kernel=post.kernel,
-                    support=post.X,
-                    weights=post.y_std * post.weights,
-                    offset=post.y_mean,
-                    mean=fit.mean,
-                )
-            )
-        return outputs
-    if type(regressor) is GaussianProcessRegressor:
-        alpha = regressor.alpha_.reshape(regressor.alpha_.shape[0], -1)
-        y_mean = np.broadcast_to(regressor._y_train_mean, (alpha.shape[1],))
-        y_std = np.broadcast_to(regressor._y_train_std, (alpha.shape[1],))
-        return [
-            dict(
-                kernel=regressor.kernel_,
-                support=regressor.X_train_,
-                weights=y_std[j] * alpha[:, j],
-                offset=y_mean[j],
-                mean=None,
-            )
-            for j in range(alpha.shape[1])
-        ]
-    return None
+        return regressor.posteriors_
+    if type(regressor) is not GaussianProcessRegressor:
+        return None
+    alpha = regressor.alpha_.reshape(regressor.alpha_.shape[0], -1)
+    K = regressor.kernel_(regressor.X_train_)
+    if not regressor.normalize_y:
+        offset, scale = np.zeros(alpha.shape[1]), np.ones(alpha.shape[1])
+    else:
+        # predict(X) = scale * K(X, X_train) alpha_ + offset: both from
+        # predictions at a few support rows (sklearn keeps them private)
+        rows = slice(None, None, max(1, len(K) // 8))
+        predicted = np.reshape(regressor.predict(regressor.X_train_[rows]), (-1, alpha.shape[1]))
+        standard = K[rows] @ alpha
+        offset, scale = np.empty(alpha.shape[1]), np.empty(alpha.shape[1])
+        for j in range(alpha.shape[1]):
+            design = np.column_stack([standard[:, j], np.ones(len(standard))])
+            (scale[j], offset[j]), *_ = np.linalg.lstsq(design, predicted[:, j], rcond=None)
+    return [
+        GPPosterior(regressor.kernel_, regressor.X_train_, scale[j] * alpha[:, j], offset[j])
+        for j in range(alpha.shape[1])
+    ]
 
 
 def _identity(X):
@@ -397,7 +352,9 @@ def compile_predictor(regressor, n_features, n_outputs, check_rows=None, wrap=No
     n_outputs : int
         Number of predicted currents.
     check_rows : ndarray of shape (n_rows, n_features), default=None
-        Inputs on which the compiled path is compared with
+        Inputs on which the compiled path is compared with the reference:
+        for a GP, :meth:`~sklearn_gpcd.gp.GPPosterior.predict_mean` of each
+        output (the Kernel objects, ``K(x, X_train) @ alpha``), else
         ``regressor.predict``; on a mismatch the generic path is used (with a
         warning). GP supports are always checked too.
     wrap : callable, default=None
@@ -424,18 +381,25 @@ def compile_predictor(regressor, n_features, n_outputs, check_rows=None, wrap=No
     wrap = _identity if wrap is None else wrap
     predictor, kind = None, "generic"
     inner = _unwrap(regressor)
-    outputs = _gp_outputs(inner)
-    if outputs is not None and len(outputs) == n_outputs:
-        predictor = _GaussianProcessPredictor(outputs, n_features, wrap)
+    posteriors = _gp_posteriors(inner)
+    reference = regressor.predict
+    if posteriors is not None and len(posteriors) == n_outputs:
+        predictor = _GaussianProcessPredictor(posteriors, n_features, wrap)
         kind = "gaussian_process"
-        rows = outputs[0]["support"][:: max(1, len(outputs[0]["support"]) // 8)]
+        support = posteriors[0].X_train
+        rows = support[:: max(1, len(support) // 8)]
         check_rows = rows if check_rows is None else np.vstack([check_rows, rows])
+
+        def reference(X_mean):  # the Kernel objects, not another compiled copy
+            X = np.asarray(X_mean, dtype=float)
+            return np.column_stack([post.predict_mean(X, X_mean) for post in posteriors])
+
     elif hasattr(inner, "coef_") and hasattr(inner, "intercept_"):
         coef = np.asarray(inner.coef_)
         if coef.size == n_features * n_outputs:
             predictor, kind = _LinearPredictor(coef, inner.intercept_, n_outputs), "linear"
     if predictor is not None and check_rows is not None and len(check_rows):
-        expected = regressor.predict(wrap(check_rows))
+        expected = reference(wrap(check_rows))
         expected = np.reshape(expected, (len(check_rows), n_outputs))
         got = np.array([predictor.predict_one(x, np.empty(n_outputs)) for x in check_rows])
         # the GP mean sums large weights of both signs: compare at the
@@ -444,7 +408,8 @@ def compile_predictor(regressor, n_features, n_outputs, check_rows=None, wrap=No
         if not np.allclose(got, expected, rtol=1e-6, atol=1e-6 * scale):
             warnings.warn(
                 f"the fast single-sample path for {type(regressor).__name__} disagrees "
-                "with its predict(); StreamingMonitor falls back to predict() per tick",
+                "with its kernel and mean objects; StreamingMonitor falls back to "
+                "predict() per tick",
                 RuntimeWarning,
             )
             predictor, kind = None, "generic"

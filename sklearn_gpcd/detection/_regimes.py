@@ -43,6 +43,8 @@ re-reference, documented in the user guide.
 
 import numpy as np
 
+from .._gate import quasi_static
+
 #: Regime names, indexed by the codes of :func:`regime_pass`.
 REGIME_NAMES = ("moving", "settling", "rest")
 MOVING, SETTLING, REST = 0, 1, 2
@@ -92,7 +94,7 @@ class RegimeState:
 
     def regime(self, qd):
         """Advance the still-counter with one velocity row; the regime code."""
-        if np.max(np.abs(qd)) < self.sigma_v:
+        if np.all(quasi_static(qd, self.sigma_v)):
             self._still_for += 1
             if not self._moved or self._still_for > self.settle:
                 return REST

@@ -9,7 +9,8 @@ from sklearn.base import BaseEstimator, OutlierMixin, clone
 from sklearn.utils import Bunch
 from sklearn.utils.validation import _num_samples, check_is_fitted, validate_data
 
-from .._layout import block_columns
+from .._gate import check_sigma_v
+from ..layout import block_columns
 from .._persistence import VersionedStateMixin
 from ._regimes import REGIME_NAMES, regime_pass
 from ._signal import (
@@ -234,7 +235,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     velocity_columns : list of int or None, default=None
         Columns of the regressor inputs holding the joint velocities, for
         ``regimes``. None takes the ``qd`` block of the paper's layout
-        (:mod:`sklearn_gpcd._layout`) when the inputs have ``3 * n_joints``
+        (:mod:`sklearn_gpcd.layout`) when the inputs have ``3 * n_joints``
         or ``6 * n_joints`` columns.
 
     Attributes
@@ -495,8 +496,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "min_duration": isinstance(self.min_duration, Integral) and self.min_duration >= 1,
             "sample_time": self.sample_time == "auto"
             or (isinstance(self.sample_time, Real) and self.sample_time > 0.0),
-            "sigma_v": self.sigma_v is None
-            or (isinstance(self.sigma_v, Real) and self.sigma_v > 0.0),
+            "sigma_v": _valid_sigma_v(self.sigma_v),
             "regimes": isinstance(self.regimes, (bool, np.bool_))
             and not (self.regimes and self.threshold == "std"),
             "settle_time": isinstance(self.settle_time, Real) and self.settle_time >= 0.0,
@@ -904,3 +904,12 @@ def default_regressor(n_joints):
     from ..gp import make_sp_p
 
     return make_sp_p(None, n_joints, n_support=5000, random_state=0)
+
+
+def _valid_sigma_v(sigma_v):
+    """Whether ``sigma_v`` passes :func:`~sklearn_gpcd._gate.check_sigma_v` (None allowed)."""
+    try:
+        check_sigma_v(sigma_v, allow_none=True)
+    except ValueError:
+        return False
+    return True

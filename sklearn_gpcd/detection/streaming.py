@@ -7,7 +7,7 @@ from scipy.signal import lfilter_zi
 from sklearn.utils import Bunch
 from sklearn.utils.validation import check_is_fitted
 
-from .._layout import column_names
+from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ._compiled import compile_predictor
 from ._regimes import RegimeState

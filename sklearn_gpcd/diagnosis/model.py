@@ -191,7 +191,7 @@ class DiagnosedModel(VersionedStateMixin):
         return out[0] if single else out
 
     def predict_states(self, X):
-        """Refined current from states ``X = [q, qd, qdd, ...]`` (:mod:`sklearn_gpcd._layout`).
+        """Refined current from states ``X = [q, qd, qdd, ...]`` (:mod:`sklearn_gpcd.layout`).
 
         Parameters
         ----------

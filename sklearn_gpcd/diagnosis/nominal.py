@@ -308,7 +308,7 @@ class Signals:
 
     @classmethod
     def from_states(cls, nominal, X, units="A"):
-        """Signals of bare states ``X = [q, qd, qdd, ...]`` (layout of :mod:`sklearn_gpcd._layout`).
+        """Signals of bare states ``X = [q, qd, qdd, ...]`` (layout of :mod:`sklearn_gpcd.layout`).
 
         There is no time, so time-dependent effects (``time_delay``,
         ``friction_drift``) cannot be evaluated on them.

@@ -20,7 +20,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._layout import AUGMENTED_BLOCKS, column_index
+from ..layout import AUGMENTED_BLOCKS, column_index
 from .._persistence import VersionedStateMixin
 
 
@@ -32,7 +32,7 @@ class ControllerFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
     joint : int
         Joint (0-based).
     n_joints : int
-        Number of joints of the input layout (:mod:`sklearn_gpcd._layout`).
+        Number of joints of the input layout (:mod:`sklearn_gpcd.layout`).
     block : str, default="i_c"
         Block of the augmented layout to select (``"i_c"``: the controller's
         target current).

@@ -25,7 +25,7 @@ The full parameter vector is ordered
 coulomb_0..coulomb_{n-1}, viscous_0..viscous_{n-1}, offset_0..offset_{n-1}]``
 
 keeping only the blocks that are switched on. Joints and links are 0-based
-like the columns of :mod:`sklearn_gpcd._layout` (link ``k`` is moved by
+like the columns of :mod:`sklearn_gpcd.layout` (link ``k`` is moved by
 joint ``k``).
 """
 
@@ -34,6 +34,7 @@ import hashlib
 import numpy as np
 import pinocchio as pin
 
+from .._gate import quasi_static
 from ..robots.loading import resolve_robot
 from ..robots.robot import as_joint_batch
 
@@ -219,7 +220,7 @@ def friction_features(qd, term, sigma_v=None):
     """
     values = np.sign(qd) if term == "coulomb" else np.array(qd, dtype=float)
     if sigma_v is not None:
-        values = np.where(np.abs(qd) < sigma_v, 0.0, values)
+        values = np.where(quasi_static(np.asarray(qd), sigma_v), 0.0, values)
     return values
 
 
@@ -261,13 +262,19 @@ def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERM
     qd, _ = as_joint_batch(qd, n, "qd")
     qdd, _ = as_joint_batch(qdd, n, "qdd")
     rows = np.arange(n) if joints is None else np.atleast_1d(np.asarray(joints, dtype=int))
-    blocks = [_joint_torque_rows(robot.model, q, qd, qdd, rows)]
+    return _assemble(_joint_torque_rows(robot.model, q, qd, qdd, rows), qd, qdd, rows,
+                     rotor_inertia, friction, offset, sigma_v)
+
+
+def _assemble(torque_rows, qd, qdd, rows, rotor_inertia, friction, offset, sigma_v):
+    """The blocks of :func:`full_regressor` after pinocchio's rows ``torque_rows``."""
+    blocks = [torque_rows]
     if rotor_inertia:
         blocks.append(_diagonal_block(qdd, rows))
     for term in check_friction(friction):
         blocks.append(_diagonal_block(friction_features(qd, term, sigma_v), rows))
     if offset:
-        blocks.append(_diagonal_block(np.ones_like(q), rows))
+        blocks.append(_diagonal_block(np.ones_like(qd), rows))
     return np.concatenate(blocks, axis=2)
 
 
@@ -317,3 +324,42 @@ def parameter_vector(robot, friction=None, rotor_inertia=True, offset=None):
             raise ValueError(f"offset needs {n} values, got shape {values.shape}")
         parts.append(values)
     return np.concatenate(parts)
+
+
+class SampleRegressor:
+    """:func:`full_regressor` of one state at a time, for per-tick use.
+
+    Keeps one pinocchio ``Data`` and skips the batch validation, so one call
+    costs one ``computeJointTorqueRegressor`` plus the rotor-inertia,
+    friction and offset columns (the per-tick rigid-body mean of the
+    streaming monitor, Eq. 10 and 17).
+
+    Parameters
+    ----------
+    robot : Robot or str
+    rotor_inertia, friction, offset, sigma_v
+        As in :func:`full_regressor`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> q, qd, qdd = np.random.default_rng(0).normal(size=(3, 6))
+    >>> one = SampleRegressor("ur10", sigma_v=0.01)(q, qd, qdd)
+    >>> one.shape
+    (6, 78)
+    >>> bool(np.allclose(one, full_regressor("ur10", q, qd, qdd, sigma_v=0.01)[0]))
+    True
+    """
+
+    def __init__(self, robot, rotor_inertia=True, friction=FRICTION_TERMS, offset=False,
+                 sigma_v=None):
+        self.robot = resolve_robot(robot)
+        self.options = (bool(rotor_inertia), tuple(check_friction(friction)), bool(offset),
+                        sigma_v)
+        self._data = self.robot.model.createData()
+        self._rows = np.arange(self.robot.n_joints)
+
+    def __call__(self, q, qd, qdd):
+        """The ``(n_joints, n_parameters)`` regressor at the state ``(q, qd, qdd)``."""
+        Y = pin.computeJointTorqueRegressor(self.robot.model, self._data, q, qd, qdd)
+        return _assemble(Y[None], qd[None], qdd[None], self._rows, *self.options)[0]

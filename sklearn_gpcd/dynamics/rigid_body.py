@@ -5,14 +5,21 @@ from collections import OrderedDict
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
-from sklearn.utils import check_random_state
+from sklearn.utils import Bunch, check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._layout import block_columns
+from .._gate import check_sigma_v
+from ..layout import block_columns
 from .._persistence import VersionedStateMixin
 from ..robots.loading import resolve_robot
 from .base_parameters import base_parameters
-from .regressor import FRICTION_TERMS, check_friction, full_regressor, parameter_names
+from .regressor import (
+    FRICTION_TERMS,
+    SampleRegressor,
+    check_friction,
+    full_regressor,
+    parameter_names,
+)
 
 #: Random states stacked in ``fit`` to find the structural parameter
 #: dependencies: at least this many, and enough for 3 rows per parameter.
@@ -173,7 +180,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     Notes
     -----
     The estimator needs at least ``3 * n_joints`` (18 for UR arms) input
-    columns in the :mod:`sklearn_gpcd._layout` order.
+    columns in the :mod:`sklearn_gpcd.layout` order.
 
     Examples
     --------
@@ -209,8 +216,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
                 raise TypeError(f"joint must be an int or None, got {self.joint!r}")
             if not 0 <= self.joint < n:
                 raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
-        if self.sigma_v is not None and not (np.isfinite(self.sigma_v) and self.sigma_v >= 0):
-            raise ValueError(f"sigma_v must be a non-negative number or None, got {self.sigma_v!r}")
+        check_sigma_v(self.sigma_v, type(self).__name__, allow_none=True)
         if self.rank_tol is not None and not (np.isfinite(self.rank_tol) and self.rank_tol > 0):
             raise ValueError(f"rank_tol must be a positive number or None, got {self.rank_tol!r}")
         if self.currents and robot.torque_constants is None:
@@ -224,7 +230,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         if X.shape[1] < 3 * n:
             raise ValueError(
                 f"X has {X.shape[1]} columns, but robot {self.robot_.name!r} needs at least "
-                f"{3 * n}: [q, qd, qdd] of {n} joints (see sklearn_gpcd._layout)"
+                f"{3 * n}: [q, qd, qdd] of {n} joints (see sklearn_gpcd.layout)"
             )
 
     def _split(self, X):
@@ -244,7 +250,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
-            Joint states in the :mod:`sklearn_gpcd._layout` order (only used
+            Joint states in the :mod:`sklearn_gpcd.layout` order (only used
             for validation; the column selection uses random states).
         y : None
             Ignored.
@@ -307,6 +313,50 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
             return Phi[:, 0, :]
         return Phi.transpose(1, 0, 2).reshape(-1, Phi.shape[2])
 
+    def sample_features(self):
+        """The per-tick path of :meth:`transform`: one sample, no validation.
+
+        Returns
+        -------
+        features : Bunch
+            ``full``, a :class:`~sklearn_gpcd.dynamics.regressor.SampleRegressor`
+            mapping ``(q, qd, qdd)`` of one sample to the regressor of every
+            joint and parameter; ``key``, equal for estimators whose ``full``
+            agree (several joints of one robot share one evaluation per tick);
+            ``rows``, ``columns`` and ``scale``, this estimator's selection:
+            ``transform(x[None])`` equals
+            ``full(q, qd, qdd)[rows][:, columns] * scale[:, None]``;
+            ``q``, ``qd``, ``qdd``, the input columns of the state (slices).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn_gpcd.dynamics import RigidBodyRegressor
+        >>> X = np.random.default_rng(0).normal(size=(4, 18))
+        >>> est = RigidBodyRegressor("ur10", joint=2, sigma_v=0.01).fit(X)
+        >>> f = est.sample_features()
+        >>> x = X[0]
+        >>> one = f.full(x[f.q], x[f.qd], x[f.qdd])[f.rows][:, f.columns] * f.scale[:, None]
+        >>> bool(np.allclose(one, est.transform(X[:1])))
+        True
+        """
+        check_is_fitted(self)
+        n = self.n_joints_
+        rows = np.arange(n) if self.joint is None else np.array([self.joint])
+        scale = np.ones(len(rows))
+        if self.currents:
+            scale = 1.0 / np.asarray(self.robot_.torque_constants, dtype=float)[rows]
+        options = (bool(self.rotor_inertia), tuple(self.friction_), bool(self.offset),
+                   self.sigma_v)
+        return Bunch(
+            full=SampleRegressor(self.robot_, *options),
+            key=(_robot_key(self.robot_),) + options,
+            rows=rows,
+            columns=np.asarray(self.columns_),
+            scale=scale,
+            **{name: _as_slice(block_columns(name, n)) for name in ("q", "qd", "qdd")},
+        )
+
     def get_feature_names_out(self, input_features=None):
         """Names of the output columns (full-parameter names, e.g. ``link2_mx``).
 
@@ -363,3 +413,8 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         tags = super().__sklearn_tags__()
         tags.target_tags.required = False
         return tags
+
+
+def _as_slice(columns):
+    """Consecutive column indices as a slice (a view when indexing a row)."""
+    return slice(columns[0], columns[-1] + 1)

@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import datasets
-from .._layout import block_columns
+from .._gate import quasi_static
+from ..layout import block_columns
 from sklearn.frozen import FrozenEstimator
 
 from ..detection import CollisionDetector, stack_currents
@@ -166,7 +167,7 @@ def split_nmse(y, y_pred, qd, sigma_v, rows=None):
     rows = np.ones(y.shape, dtype=bool) if rows is None else rows
     out = {"dynamic": [], "quasi_static": [], "n_dynamic": [], "n_quasi_static": []}
     for j in range(y.shape[1]):
-        still = np.abs(qd[:, j]) < sigma_v
+        still = quasi_static(qd[:, j], sigma_v)
         for name, mask in (("dynamic", ~still & rows[:, j]), ("quasi_static", still & rows[:, j])):
             out[f"n_{name}"].append(int(mask.sum()))
             value = nmse(y[mask, j], y_pred[mask, j]) if mask.sum() >= 10 else np.nan
@@ -196,7 +197,7 @@ def cyclic_signals(models, X, y):
 def rest_phase_stats(recording, signal, joint=0, sigma_v=1e-2, min_samples=25):
     """Mean |s| of ``joint`` in each rest phase (all joints below ``sigma_v``)."""
     n = recording.n_joints
-    still = np.all(np.abs(recording.qd) < sigma_v, axis=1)
+    still = np.all(quasi_static(recording.qd, sigma_v), axis=1)
     phases = [(a, b) for a, b in contiguous_segments(still) if b - a >= min_samples]
     return [
         {"start_s": float(recording.time[a] - recording.time[0]),
@@ -234,7 +235,7 @@ def _commanded_rest(recording, sigma_v):
     slip a little, yet the robot is still "at rest" in the experiment's sense.
     """
     qd = recording.target_qd if recording.target_qd is not None else recording.qd
-    return np.all(np.abs(qd) < sigma_v, axis=1)
+    return np.all(quasi_static(qd, sigma_v), axis=1)
 
 
 def interaction_outcome(detector, X, y, recording, sigma_v):

@@ -9,7 +9,7 @@ or, for the quasi-static component, of the augmented inputs (Eq. 13)
 
 .. math:: x^a_k = [q, \\dot q, \\ddot q, e_q, \\dot e_q, i_c](t_k),
 
-with the column layout fixed by :mod:`sklearn_gpcd._layout`.
+with the column layout fixed by :mod:`sklearn_gpcd.layout`.
 """
 
 import warnings
@@ -18,7 +18,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils.validation import check_is_fitted
 
-from .._layout import column_names
+from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..io import Recording
 from .differentiation import METHODS, _check_options, differentiate
@@ -171,7 +171,7 @@ class _RecordingFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         Returns
         -------
         feature_names_out : ndarray of str objects
-            :func:`sklearn_gpcd._layout.column_names` of the fitted layout.
+            :func:`sklearn_gpcd.layout.column_names` of the fitted layout.
         """
         check_is_fitted(self)
         return np.asarray(column_names(self.n_joints_, self.augmented), dtype=object)
@@ -192,7 +192,7 @@ class InverseDynamicsFeatures(_RecordingFeatures):
 
     .. math:: x^a = [q, \\dot q, \\ddot q, e_q, \\dot e_q, i_c],
 
-    in the joint-major layout of :func:`sklearn_gpcd._layout.column_names`.
+    in the joint-major layout of :func:`sklearn_gpcd.layout.column_names`.
     Like a text vectorizer accepts strings, it accepts one
     :class:`~sklearn_gpcd.io.Recording` or a list of them; recordings are
     processed one by one (numerical differentiation never crosses a recording
@@ -484,7 +484,7 @@ def make_inputs(
     Returns
     -------
     X : ndarray of shape (n_samples_total, 3 * n_joints or 6 * n_joints)
-        GP inputs, columns as :func:`sklearn_gpcd._layout.column_names`.
+        GP inputs, columns as :func:`sklearn_gpcd.layout.column_names`.
     y : ndarray of shape (n_samples_total, n_joints)
         Motor currents, row-aligned with ``X``.
 

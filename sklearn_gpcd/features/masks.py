@@ -13,6 +13,8 @@ nulls the friction columns of :math:`\\bar\\phi_\\ell` (Eq. 17).
 
 import numpy as np
 
+from .._gate import check_sigma_v, quasi_static
+
 #: Labels returned by :func:`regimes`, from lowest to highest precedence.
 REGIMES = ("moving", "creep", "rest", "high_acceleration", "reversal")
 
@@ -61,8 +63,8 @@ def quasi_static_mask(qd, sigma_v=1e-2):
     [[True, False], [True, False]]
     """
     qd = _as_float_array(qd, "qd")
-    _check_positive(sigma_v, "sigma_v")
-    return np.abs(qd) < sigma_v
+    check_sigma_v(sigma_v, "quasi_static_mask")
+    return quasi_static(qd, sigma_v)
 
 
 def contiguous_segments(mask):
@@ -97,7 +99,7 @@ def contiguous_segments(mask):
 def _reversal_mask(qd, sigma_v, window):
     """True around direction reversals of a single joint's velocity ``qd``."""
     out = np.zeros(qd.shape, dtype=bool)
-    moving = np.flatnonzero(np.abs(qd) >= sigma_v)
+    moving = np.flatnonzero(~quasi_static(qd, sigma_v))
     if moving.size < 2:
         return out
     signs = np.sign(qd[moving])
@@ -171,7 +173,7 @@ def regimes(
     ['rest', 'creep', 'moving', 'reversal', 'reversal', 'reversal', 'reversal']
     """
     qd = _as_float_array(qd, "qd")
-    _check_positive(sigma_v, "sigma_v")
+    check_sigma_v(sigma_v, "regimes")
     sigma_rest = sigma_v / 10 if sigma_rest is None else sigma_rest
     _check_positive(sigma_rest, "sigma_rest")
     if sigma_rest > sigma_v:
@@ -182,7 +184,7 @@ def regimes(
         )
     speed = np.abs(qd)
     labels = np.full(qd.shape, "moving", dtype=f"<U{max(map(len, REGIMES))}")
-    labels[speed < sigma_v] = "creep"
+    labels[quasi_static(qd, sigma_v)] = "creep"
     labels[speed < sigma_rest] = "rest"
     if qdd is not None:
         qdd = _as_float_array(qdd, "qdd")

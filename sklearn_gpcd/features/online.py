@@ -5,7 +5,7 @@ zero-phase filters (Savitzky-Golay, ``filtfilt``): every row then depends on
 samples that come *after* it, which no robot controller has. Detection
 figures that claim online behaviour must come from inputs that can be
 computed on the robot, sample by sample, with bounded state. This module
-builds the same column layout (:mod:`sklearn_gpcd._layout`)
+builds the same column layout (:mod:`sklearn_gpcd.layout`)
 
 .. math:: x^a_k = [q_k,\\ \\dot q_k,\\ \\hat{\\ddot q}_k,\\ e_{q,k},\\
           \\dot e_{q,k},\\ i_{c,k}]

@@ -11,12 +11,14 @@
 """
 
 from .factories import make_p_f, make_sp_c, make_sp_p, make_sp_s
+from ._posterior import GPPosterior
 from .mean import ParametricMean
 from .regressor import SemiParametricGPRegressor
 
 __all__ = [
     "SemiParametricGPRegressor",
     "ParametricMean",
+    "GPPosterior",
     "make_p_f",
     "make_sp_s",
     "make_sp_p",

@@ -3,7 +3,7 @@
 Both follow Rasmussen & Williams (2006), Algorithm 2.1 and Eq. 5.9, the same
 formulas as :class:`sklearn.gaussian_process.GaussianProcessRegressor`, so the
 two give equal numbers on equal inputs. The kernel is evaluated through its
-compiled tree (:mod:`._kernel_plan`): no ``(n, n, n_theta)`` gradient array
+compiled tree (:mod:`sklearn_gpcd.kernels.plan`): no ``(n, n, n_theta)`` gradient array
 is formed, and the Cholesky factorisation and inverse run in place.
 """
 
@@ -17,7 +17,7 @@ from scipy.linalg.blas import dsyr
 from scipy.linalg.lapack import dpotrf, dpotri
 from threadpoolctl import ThreadpoolController
 
-from ._kernel_plan import _mirror_upper, compile_kernel, gram_matrix
+from ..kernels.plan import _mirror_upper, compile_kernel, gram_matrix
 
 # jitter tried, relative to the mean of diag(K), when K is not numerically PD
 _JITTER_LADDER = 10.0 ** np.arange(-10, -1)

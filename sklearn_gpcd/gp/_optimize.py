@@ -29,10 +29,8 @@ import numpy as np
 import scipy.optimize
 from sklearn.base import clone
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process.kernels import RBF, Product, Sum
 
-from ..kernels import ARDRBF, QuasiStaticGate
-from ._kernel_plan import compile_kernel
+from ..kernels.plan import compile_kernel
 from ._likelihood import _log_marginal_likelihood
 
 OPTIMIZERS = ("auto", "fmin_l_bfgs_b", "adam")
@@ -429,35 +427,9 @@ def data_driven_init(kernel, X, rng, max_rows=1000):
     array([ 1.3, 15.4])
     """
     kernel = clone(kernel)
-    _init_node(kernel, X, rng, max_rows)
+    # each node sets its kernel's initial hyperparameters (kernels/plan.py)
+    compile_kernel(kernel).init_hyperparameters(X, rng, max_rows)
     return kernel
-
-
-def _init_node(node, X, rng, max_rows):
-    kind = type(node)
-    if kind in (Sum, Product):
-        _init_node(node.k1, X, rng, max_rows)
-        _init_node(node.k2, X, rng, max_rows)
-    elif kind is QuasiStaticGate:
-        rows = np.flatnonzero(np.abs(X[:, int(node.velocity_column)]) < node.sigma_v)
-        _init_node(node.kernel, X[rows], rng, max_rows)
-    elif kind in (RBF, ARDRBF) and not node.hyperparameter_length_scale.fixed:
-        columns = getattr(node, "columns", None)
-        Xc = X if columns is None else X[:, list(columns)]
-        length_scale = np.atleast_1d(np.asarray(node.length_scale, dtype=float)).copy()
-        default = length_scale == 1.0
-        if len(Xc) < 2 or not default.any():
-            return
-        rows = rng.choice(len(Xc), size=min(len(Xc), max_rows), replace=False)
-        half = len(rows) // 2
-        spread = np.median(np.abs(Xc[rows[:half]] - Xc[rows[half : 2 * half]]), axis=0)
-        if len(length_scale) == 1:  # isotropic: one scale for all columns
-            spread = np.atleast_1d(np.sqrt(np.mean(spread**2)))
-        heuristic = np.sqrt(Xc.shape[1] if len(length_scale) == 1 else len(spread)) * spread
-        new = np.where(default & (heuristic > 0), heuristic, length_scale)
-        low, high = node.length_scale_bounds
-        new = np.clip(new, low, high)
-        node.set_params(length_scale=new if len(new) > 1 else float(new[0]))
 
 
 def _check_positive_int(value, name):

@@ -7,12 +7,83 @@ from scipy.linalg import cho_solve, solve_triangular
 from sklearn import get_config
 from sklearn.utils import gen_batches
 
-from ._kernel_plan import compile_kernel, gram_matrix
+from ..kernels.plan import compile_kernel, gram_matrix
 from ._likelihood import _LOG_2PI, _cholesky, _upper_factor_inplace
 
 #: Largest Cholesky factor (bytes) kept in memory after the fit: 2,048 support
 #: rows (32 MiB). Larger factors are rebuilt on demand (:attr:`_Posterior.L`).
 FACTOR_KEEP_BYTES = 32 * 2**20
+
+
+class GPPosterior:
+    r"""The fitted model of one output, in original units: a documented seam.
+
+    The posterior mean at a query :math:`x_*` is
+
+    .. math::
+
+        \mathbb E[y_*] = m(x_*) + \mu_y + k(x_*, X_{train})\, \alpha,
+
+    with :math:`m` the fitted parametric mean (or 0), :math:`k` the fitted
+    kernel and :math:`\alpha` the GP weights already multiplied by the
+    target scale. :attr:`SemiParametricGPRegressor.posteriors_
+    <sklearn_gpcd.gp.SemiParametricGPRegressor.posteriors_>` holds one per
+    output; the streaming monitor compiles its one-sample path from them and
+    checks it against :meth:`predict_mean`, which uses the Kernel objects.
+
+    Parameters
+    ----------
+    kernel : Kernel
+        Fitted kernel (integer columns).
+    X_train : ndarray of shape (n_support, n_features)
+        Support inputs.
+    alpha : ndarray of shape (n_support,)
+        Weights of :math:`k(x_*, X_{train})` in target units.
+    y_mean : float
+        Target offset :math:`\mu_y` (0 unless ``normalize_y``).
+    mean : estimator or None
+        The fitted parametric mean (with ``predict``), or None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import RBF
+    >>> from sklearn_gpcd.gp import SemiParametricGPRegressor
+    >>> X = np.linspace(0, 1, 20)[:, None]
+    >>> gp = SemiParametricGPRegressor(RBF(0.3), optimizer=None).fit(X, np.sin(6 * X[:, 0]))
+    >>> post = gp.posteriors_[0]
+    >>> post.X_train.shape, post.alpha.shape
+    ((20, 1), (20,))
+    >>> bool(np.allclose(post.predict_mean(X[:3]), gp.predict(X[:3])))
+    True
+    """
+
+    def __init__(self, kernel, X_train, alpha, y_mean=0.0, mean=None):
+        self.kernel = kernel
+        self.X_train = X_train
+        self.alpha = alpha
+        self.y_mean = y_mean
+        self.mean = mean
+
+    def predict_mean(self, X, X_mean=None):
+        """``m(X_mean) + y_mean + kernel(X, X_train) @ alpha``, by the Kernel objects.
+
+        Parameters
+        ----------
+        X : ndarray of shape (n_samples, n_features)
+            Queries of the kernel.
+        X_mean : array-like or DataFrame, default=None
+            The same queries as the parametric mean expects them (e.g. a
+            DataFrame); defaults to ``X``.
+
+        Returns
+        -------
+        y_mean : ndarray of shape (n_samples,)
+        """
+        value = self.kernel(X, self.X_train) @ self.alpha + self.y_mean
+        if self.mean is not None:
+            value = value + np.ravel(self.mean.predict(X if X_mean is None else X_mean))
+        return value
 
 
 class _Posterior:
@@ -26,7 +97,7 @@ class _Posterior:
         \mathbb E[f_*] = \mu_y + s_y\, k_*^T w, \qquad
         \mathbb V[f_*] = s_y^2 \big(k(x_*, x_*) - \|L^{-1} k_*\|^2\big).
 
-    The kernel is compiled once (:mod:`._kernel_plan`) with the support
+    The kernel is compiled once (:mod:`sklearn_gpcd.kernels.plan`) with the support
     points of every squared-exponential block already scaled, so a mean
     prediction evaluates only :math:`k_*^T w`, block by block, and skips the
     gated block of Eq. 16 for queries whose gate is 0.

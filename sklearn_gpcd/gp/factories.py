@@ -1,7 +1,7 @@
 """The paper's three estimators P_f, SP_S and SP_P, built from a feature layout.
 
 All three take the same input ``X`` in the column layout of
-:mod:`sklearn_gpcd._layout` (joint-major blocks ``[q, qd, qdd, e_q, de_q,
+:mod:`sklearn_gpcd.layout` (joint-major blocks ``[q, qd, qdd, e_q, de_q,
 i_c]``, Eq. 13) and predict the currents of all ``n_joints`` joints, one GP
 per joint. P_f and SP_S only read the state columns ``[q, qd, qdd]``, so they
 also accept the 3 n-column layout. Velocities must stay in their physical
@@ -17,7 +17,7 @@ tens of thousands of rows; pass ``n_support=None`` for the exact GP.
 import numpy as np
 from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
 
-from .._layout import column_index, state_columns
+from ..layout import column_index, state_columns
 from ..kernels import ARDRBF, QuasiStaticGate
 from .mean import ParametricMean
 from .regressor import SemiParametricGPRegressor

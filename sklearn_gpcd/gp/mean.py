@@ -7,6 +7,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, clone
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._gate import check_sigma_v, quasi_static
 from .._persistence import VersionedStateMixin
 
 
@@ -113,7 +114,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
         Parameters
         ----------
         X : array-like of shape (n_samples, n_features)
-            Inputs, e.g. in the :mod:`sklearn_gpcd._layout` column layout.
+            Inputs, e.g. in the :mod:`sklearn_gpcd.layout` column layout.
         y : array-like of shape (n_samples,) or (n_samples, n_outputs)
             Targets.
 
@@ -178,7 +179,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
     def _mask_friction(self, X, Phi):
         """phi-bar (Eq. 17): zero the friction columns where |qd| < sigma_v."""
         if self.velocity_column_ is not None:
-            at_rest = np.abs(X[:, self.velocity_column_]) < self.sigma_v
+            at_rest = quasi_static(X[:, self.velocity_column_], self.sigma_v)
             Phi[np.ix_(at_rest, self.friction_columns_)] = 0.0
         return Phi
 
@@ -200,8 +201,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
             )
         if self.sigma_v is None:
             return cols, None
-        if not (isinstance(self.sigma_v, numbers.Real) and self.sigma_v > 0):
-            raise ValueError(f"sigma_v must be a float > 0 or None, got {self.sigma_v!r}.")
+        check_sigma_v(self.sigma_v, "ParametricMean", allow_none=True)
         if len(cols) == 0:
             return cols, None
         if self.velocity_column is None:

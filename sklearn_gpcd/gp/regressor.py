@@ -13,6 +13,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._gate import check_sigma_v
 from .._persistence import VersionedStateMixin
 from ..kernels import resolve_columns
 from ._likelihood import _log_marginal_likelihood, single_threaded_blas
@@ -28,7 +29,7 @@ from ._optimize import (
     resolve_optimizer,
 )
 from .mean import ParametricMean
-from ._posterior import _Posterior, target_scaling
+from ._posterior import GPPosterior, _Posterior, target_scaling
 from ._support import SUPPORT_SELECTIONS, resolve_n_support, select_support
 
 
@@ -227,7 +228,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         Parameters
         ----------
         X : array-like or DataFrame of shape (n_samples, n_features)
-            Inputs, e.g. the augmented layout of :mod:`sklearn_gpcd._layout`.
+            Inputs, e.g. the augmented layout of :mod:`sklearn_gpcd.layout`.
         y : array-like of shape (n_samples,) or (n_samples, n_outputs)
             Targets; one independent GP per column.
 
@@ -308,6 +309,35 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         if not (return_std or return_cov):
             return self._stack(preds)
         return self._stack([p[0] for p in preds]), self._stack([p[1] for p in preds])
+
+    @property
+    def posteriors_(self):
+        """list of :class:`~sklearn_gpcd.gp.GPPosterior`: the fitted model of each output.
+
+        Kernel, support inputs, weights (in target units), target offset and
+        parametric mean of every output, so that
+        ``predict(X)[:, j] == posteriors_[j].predict_mean(X)``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn_gpcd.gp import SemiParametricGPRegressor
+        >>> X = np.linspace(0, 1, 10)[:, None]
+        >>> gp = SemiParametricGPRegressor(optimizer=None).fit(X, np.c_[X, -X])
+        >>> len(gp.posteriors_)
+        2
+        """
+        check_is_fitted(self)
+        return [
+            GPPosterior(
+                kernel=fit.posterior.kernel,
+                X_train=fit.posterior.X,
+                alpha=fit.posterior.y_std * fit.posterior.weights,
+                y_mean=fit.posterior.y_mean,
+                mean=fit.mean,
+            )
+            for fit in self._outputs
+        ]
 
     def log_marginal_likelihood(self, theta=None, eval_gradient=False, output=0):
         """Log marginal likelihood of the residual GP of one output.
@@ -422,10 +452,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
                 f"support_selection must be one of {SUPPORT_SELECTIONS}, "
                 f"got {self.support_selection!r}."
             )
-        if self.sigma_v is not None and not (
-            isinstance(self.sigma_v, numbers.Real) and self.sigma_v > 0
-        ):
-            raise ValueError(f"sigma_v must be a float > 0 or None, got {self.sigma_v!r}.")
+        check_sigma_v(self.sigma_v, "SemiParametricGPRegressor", allow_none=True)
 
     def _check_alpha(self, n_samples):
         alpha = np.asarray(self.alpha, dtype=float)

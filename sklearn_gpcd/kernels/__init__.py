@@ -9,7 +9,11 @@ with sklearn's ``+``, ``*``, ``ConstantKernel`` and ``WhiteKernel``:
   with Gaussian weights (Sec. III-A);
 * :func:`resolve_columns` -- column names to indices in a kernel tree;
 * :func:`contract_gradient` -- the log-marginal-likelihood gradient
-  contraction in O(n^2) memory.
+  contraction in O(n^2) memory;
+* :mod:`sklearn_gpcd.kernels.plan` -- the compiled kernel algebra: one
+  registry from kernel type to node (Gram matrix, gradient contraction,
+  one-row prediction, gated blocks, initial hyperparameters) used by the
+  fit, ``predict``, the optimizer and the streaming monitor.
 
 Examples
 --------

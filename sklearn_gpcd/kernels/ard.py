@@ -41,7 +41,7 @@ class ARDRBF(StationaryKernelMixin, NormalizedKernelMixin, Kernel):
         ``len(columns)``, or ``n_features`` when ``columns`` is None).
     columns : list of int or str, default=None
         Columns of X the kernel acts on, as indices or feature names (e.g.
-        ``"qd_0"``, see ``sklearn_gpcd._layout``). None selects all columns.
+        ``"qd_0"``, see ``sklearn_gpcd.layout``). None selects all columns.
         Names are resolved against ``X.columns`` when the kernel is called on
         a DataFrame, or beforehand with
         :func:`~sklearn_gpcd.kernels.resolve_columns`.

@@ -1,7 +1,7 @@
 """Input columns of the kernels: names, indices and their validation.
 
 The kernels of this package act on chosen columns of the input layout
-(``sklearn_gpcd._layout``): :class:`~sklearn_gpcd.kernels.ARDRBF` on
+(``sklearn_gpcd.layout``): :class:`~sklearn_gpcd.kernels.ARDRBF` on
 ``columns``, :class:`~sklearn_gpcd.kernels.QuasiStaticGate` on
 ``velocity_column``. Both accept integer indices or feature names such as
 ``"qd_0"``. Names are resolved against the feature names of a pandas
@@ -14,6 +14,8 @@ import numbers
 import numpy as np
 from sklearn.base import clone
 from sklearn.gaussian_process.kernels import Kernel
+
+from .._gate import check_sigma_v
 
 __all__ = ["resolve_columns"]
 
@@ -37,7 +39,7 @@ def resolve_columns(kernel, feature_names=None, n_features=None):
         The kernel tree; it is not modified.
     feature_names : array-like of str, default=None
         Names of the input columns, e.g. ``X.columns`` of a DataFrame or
-        ``sklearn_gpcd._layout.column_names(n_joints)``. Required when the
+        ``sklearn_gpcd.layout.column_names(n_joints)``. Required when the
         tree refers to a column by name.
     n_features : int, default=None
         Number of input columns. Defaults to ``len(feature_names)``; when both
@@ -110,7 +112,7 @@ def _resolve_node(node, path, feature_names, n_features):
             check_length_scale(params["length_scale"], len(columns), where)
         node.set_params(columns=columns)
     if "velocity_column" in params:
-        index = column_index(
+        index = column_position(
             params["velocity_column"],
             feature_names,
             n_features,
@@ -139,8 +141,11 @@ def feature_names_of(X):
     return names
 
 
-def column_index(column, feature_names=None, n_features=None, owner="kernel"):
+def column_position(column, feature_names=None, n_features=None, owner="kernel"):
     """Integer position of one column given by index or by name.
+
+    (Not :func:`sklearn_gpcd.layout.column_index`, which places a signal of
+    a joint in the input layout.)
 
     Parameters
     ----------
@@ -159,9 +164,9 @@ def column_index(column, feature_names=None, n_features=None, owner="kernel"):
 
     Examples
     --------
-    >>> column_index("qd_0", ["q_0", "qd_0"])
+    >>> column_position("qd_0", ["q_0", "qd_0"])
     1
-    >>> column_index(5, n_features=2, owner="QuasiStaticGate")  # doctest: +ELLIPSIS
+    >>> column_position(5, n_features=2, owner="QuasiStaticGate")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
     ValueError: QuasiStaticGate: column index 5 is outside X with 2 features ...
@@ -213,7 +218,7 @@ def column_indices(columns, feature_names=None, n_features=None, owner="kernel")
     columns = list(columns)
     if not columns:
         raise ValueError(f"{owner}: columns selects no column; use None for all")
-    indices = [column_index(c, feature_names, n_features, owner) for c in columns]
+    indices = [column_position(c, feature_names, n_features, owner) for c in columns]
     if len(set(indices)) != len(indices):
         repeated = sorted({c for c in indices if indices.count(c) > 1})
         raise ValueError(f"{owner}: columns selects column(s) {repeated} twice")
@@ -245,29 +250,6 @@ def check_length_scale(length_scale, n_columns, owner="ARDRBF"):
             "selected column or a scalar"
         )
     return length_scale
-
-
-def check_sigma_v(sigma_v, owner="QuasiStaticGate"):
-    """Raise ValueError unless ``sigma_v`` is a finite float > 0.
-
-    Examples
-    --------
-    >>> check_sigma_v(0.0)  # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    ValueError: QuasiStaticGate: sigma_v must be a finite velocity threshold > 0, ...
-    """
-    valid = (
-        isinstance(sigma_v, numbers.Real)
-        and not isinstance(sigma_v, bool)
-        and np.isfinite(sigma_v)
-        and sigma_v > 0
-    )
-    if not valid:
-        raise ValueError(
-            f"{owner}: sigma_v must be a finite velocity threshold > 0, got "
-            f"{sigma_v!r}"
-        )
 
 
 def _take_rows(X, rows):

@@ -11,24 +11,14 @@ Eq. 5.9) is
 scikit-learn builds the (n, n, n_theta) array :math:`\partial K / \partial
 \theta` first; for the 36-dimensional ARD kernels of the paper and n = 5000
 samples that is 7 GB. :func:`contract_gradient` computes the contraction
-directly by recursion over the kernel tree.
+with the compiled kernel (:mod:`sklearn_gpcd.kernels.plan`), node by node,
+the code the regressor's fit runs.
 """
 
 import numpy as np
-from scipy.spatial.distance import pdist, squareform
-from sklearn.gaussian_process.kernels import (
-    RBF,
-    ConstantKernel,
-    Exponentiation,
-    Product,
-    Sum,
-    WhiteKernel,
-)
 
-from .ard import ARDRBF
-from .columns import _n_samples, _take_rows, check_length_scale
-from .gate import QuasiStaticGate
-from .parametric import ParametricKernel
+from .columns import _n_samples, feature_names_of, resolve_columns
+from .plan import compile_kernel
 
 __all__ = ["contract_gradient"]
 
@@ -41,35 +31,30 @@ def contract_gradient(kernel, X, W):
     .. math::
         g_k = \sum_{ij} W_{ij} \, \frac{\partial k(x_i, x_j)}{\partial \theta_k},
 
-    i.e. ``np.einsum("ij,ijk->k", W, kernel(X, eval_gradient=True)[1])``, by
-    recursion over the kernel tree:
-
-    * ``Sum`` :math:`k_1 + k_2`: concatenate the children's contractions;
-    * ``Product`` :math:`k_1 k_2`: contract :math:`k_1` with :math:`W \circ K_2`
-      and :math:`k_2` with :math:`W \circ K_1`;
-    * ``Exponentiation`` :math:`k^p`: contract :math:`k` with
-      :math:`W \circ p K^{p-1}`;
-    * ``ConstantKernel`` :math:`c`: :math:`c \sum_{ij} W_{ij}`;
-      ``WhiteKernel`` :math:`s`: :math:`s \, \mathrm{tr}(W)`;
-    * ``RBF`` / :class:`ARDRBF` (Eq. 11): per dimension
-      :math:`\sum_{ij} W_{ij} K_{ij} (x_{id} - x_{jd})^2 / l_d^2`, summed
-      over the pairs :math:`i < j` of ``pdist`` (the direct sum, as accurate
-      as the einsum);
-    * :class:`QuasiStaticGate` (Eq. 16): contract the inner kernel with W
-      restricted to the gated rows and columns;
-    * :class:`ParametricKernel`:
-      :math:`\sigma^2_j \sum_{i} (W \Phi)_{ij} \Phi_{ij}`.
+    i.e. ``np.einsum("ij,ijk->k", W, kernel(X, eval_gradient=True)[1])``,
+    with the nodes of the compiled kernel
+    (:func:`sklearn_gpcd.kernels.plan.compile_kernel`), the contraction the
+    fit of :class:`~sklearn_gpcd.gp.SemiParametricGPRegressor` uses:
+    per node, ``Sum`` concatenates, ``Product`` contracts each factor with
+    :math:`W` times the other factor, ``ConstantKernel`` gives
+    :math:`c \sum_{ij} W_{ij}`, ``WhiteKernel`` :math:`s\,\mathrm{tr}(W)`,
+    a squared exponential (Eq. 11) one matrix product per row block,
+    :class:`~sklearn_gpcd.kernels.QuasiStaticGate` (Eq. 16) its inner
+    kernel on the gated rows and columns, and
+    :class:`~sklearn_gpcd.kernels.ParametricKernel` its design matrix.
+    Since :math:`\partial K / \partial \theta_k` is symmetric, only the
+    symmetric part of ``W`` matters.
 
     Fixed hyperparameters contribute nothing, matching the layout of
-    ``kernel.theta``. Any other kernel (or a subclass of the above) falls
-    back to the einsum over its full gradient. Memory is O(n^2) for trees of
-    supported kernels.
+    ``kernel.theta``. A kernel without a compiled node (or a subclass of a
+    registered kernel) falls back to the einsum over its full gradient.
+    Memory is O(n^2) for trees of registered kernels.
 
     Parameters
     ----------
     kernel : Kernel
         The kernel tree.
-    X : array-like of shape (n_samples, n_features)
+    X : array-like or DataFrame of shape (n_samples, n_features)
         Inputs at which k(X, X) is differentiated.
     W : array-like of shape (n_samples, n_samples)
         Weights, e.g. :math:`\alpha\alpha^T - K^{-1}`.
@@ -91,111 +76,20 @@ def contract_gradient(kernel, X, W):
     >>> bool(np.allclose(contract_gradient(kernel, X, W), reference, rtol=1e-10))
     True
     """
-    if not hasattr(X, "iloc"):
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-    W = np.asarray(W, dtype=float)
+    names = feature_names_of(X)
+    if names is not None:  # columns given by name become indices
+        kernel = resolve_columns(kernel, feature_names=names)
     n_samples = _n_samples(X)
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    W = np.asarray(W, dtype=float)
     if W.shape != (n_samples, n_samples):
         raise ValueError(
             f"contract_gradient: W must have shape (n_samples, n_samples) = "
             f"{(n_samples, n_samples)}, got {W.shape}"
         )
-    return _contract(kernel, X, W)
-
-
-def _contract(kernel, X, W):
-    """Dispatch on the exact kernel type (subclasses may change __call__)."""
     if kernel.n_dims == 0:
         return np.empty(0)
-    handler = _HANDLERS.get(type(kernel), _contract_dense)
-    return handler(kernel, X, W)
-
-
-def _contract_dense(kernel, X, W):
-    """Fallback: the full (n, n, n_theta) gradient, then einsum."""
-    _, K_gradient = kernel(X, eval_gradient=True)
-    return np.einsum("ij,ijk->k", W, K_gradient)
-
-
-def _contract_sum(kernel, X, W):
-    return np.concatenate([_contract(kernel.k1, X, W), _contract(kernel.k2, X, W)])
-
-
-def _contract_product(kernel, X, W):
-    k1, k2 = kernel.k1, kernel.k2
-    g1 = _contract(k1, X, W * k2(X)) if k1.n_dims else np.empty(0)
-    g2 = _contract(k2, X, W * k1(X)) if k2.n_dims else np.empty(0)
-    return np.concatenate([g1, g2])
-
-
-def _contract_exponentiation(kernel, X, W):
-    p = kernel.exponent
-    return _contract(kernel.kernel, X, W * p * kernel.kernel(X) ** (p - 1))
-
-
-def _contract_constant(kernel, X, W):
-    return np.array([kernel.constant_value * W.sum()])
-
-
-def _contract_white(kernel, X, W):
-    return np.array([kernel.noise_level * np.trace(W)])
-
-
-def _contract_rbf(kernel, X, W):
-    X = np.atleast_2d(np.asarray(X, dtype=float))
-    X_scaled = X / check_length_scale(kernel.length_scale, X.shape[1], "RBF")
-    return _squared_exponential(X_scaled, W, kernel.anisotropic)
-
-
-def _contract_ardrbf(kernel, X, W):
-    return _squared_exponential(kernel.scaled(X), W, kernel.anisotropic)
-
-
-def _squared_exponential(X_scaled, W, anisotropic):
-    r"""Contraction of :math:`K \circ (x_d - x'_d)^2 / l_d^2` for scaled X.
-
-    Works on condensed (upper-triangle) vectors: the diagonal has zero
-    distance, and :math:`\sum_{ij} W_{ij} K_{ij} D_{ij} = \sum_{i<j}
-    (W_{ij} + W_{ji}) K_{ij} D_{ij}` for the symmetric K and D. Each
-    dimension costs one ``pdist`` and one dot product; peak memory is a few
-    n(n-1)/2 vectors, never n^2 d.
-    """
-    sq_dists = pdist(X_scaled, metric="sqeuclidean")
-    weights = squareform(W + W.T, checks=False)
-    weights *= np.exp(-0.5 * sq_dists)  # (W_ij + W_ji) K_ij, i < j
-    if not anisotropic:
-        return np.array([weights @ sq_dists])
-    del sq_dists
-    return np.array(
-        [weights @ pdist(column[:, np.newaxis], metric="sqeuclidean")
-         for column in X_scaled.T]
-    )
-
-
-def _contract_gate(kernel, X, W):
-    rows = np.flatnonzero(kernel.gate(X))
-    if rows.size == 0:
-        return np.zeros(kernel.n_dims)
-    return _contract(kernel.kernel, _take_rows(X, rows), W[np.ix_(rows, rows)])
-
-
-def _contract_parametric(kernel, X, W):
-    Phi = kernel.design_matrix(X)
-    prior_cov = kernel.weight_variances(Phi.shape[1])
-    per_feature = prior_cov * np.einsum("ij,ij->j", W @ Phi, Phi)
-    if kernel.anisotropic:
-        return per_feature
-    return np.array([per_feature.sum()])
-
-
-_HANDLERS = {
-    Sum: _contract_sum,
-    Product: _contract_product,
-    Exponentiation: _contract_exponentiation,
-    ConstantKernel: _contract_constant,
-    WhiteKernel: _contract_white,
-    RBF: _contract_rbf,
-    ARDRBF: _contract_ardrbf,
-    QuasiStaticGate: _contract_gate,
-    ParametricKernel: _contract_parametric,
-}
+    W = 0.5 * (W + W.T)  # the node contractions assume a symmetric W
+    plan = compile_kernel(kernel, lower=False)
+    plan.gram(X, keep=True)
+    return plan.contract(W, 1.0)

@@ -5,11 +5,11 @@ import numbers
 import numpy as np
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
+from .._gate import check_sigma_v, quasi_static
 from .columns import (
     _n_samples,
     _take_rows,
-    check_sigma_v,
-    column_index,
+    column_position,
     feature_names_of,
 )
 
@@ -165,10 +165,10 @@ class QuasiStaticGate(Kernel):
         check_sigma_v(self.sigma_v, "QuasiStaticGate")
         names = feature_names_of(X)
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        column = column_index(
+        column = column_position(
             self.velocity_column, names, X.shape[1], "QuasiStaticGate (velocity_column)"
         )
-        return (np.abs(X[:, column]) < self.sigma_v).astype(float)
+        return quasi_static(X[:, column], self.sigma_v).astype(float)
 
     def __call__(self, X, Y=None, eval_gradient=False):
         """Return the kernel k(X, Y) and optionally its gradient.

@@ -1,11 +1,38 @@
-r"""A kernel tree compiled for the regressor's hot loops.
+r"""The compiled kernel algebra: one registry from kernel type to node.
 
-:func:`compile_kernel` mirrors a kernel tree built from scikit-learn's
-``Sum``, ``Product``, ``ConstantKernel``, ``WhiteKernel`` and ``RBF`` and
-this package's :class:`~sklearn_gpcd.kernels.ARDRBF` and
-:class:`~sklearn_gpcd.kernels.QuasiStaticGate` (any other kernel is kept as an
-opaque leaf that is called as usual). The compiled tree computes exactly what
-the kernel computes, but
+:func:`compile_kernel` turns a kernel tree into a tree of *nodes*, one per
+kernel, looked up in one registry (:func:`register_node`). Every fast path
+of the package evaluates a kernel through its node:
+
+* the fit (:mod:`sklearn_gpcd.gp`): the Gram matrix (:func:`gram_matrix`)
+  and the log-marginal-likelihood gradient contracted per node
+  (:meth:`_Node.contract`, also behind :func:`~sklearn_gpcd.kernels.contract_gradient`);
+* the data-driven initial hyperparameters of the optimizer
+  (:meth:`_Node.init_hyperparameters`);
+* ``predict``: cross-covariances and :math:`k_*^T w` (:meth:`_Node.prepare`,
+  :meth:`_Node.cross`, :meth:`_Node.cross_dot`, with a one-row path);
+* the streaming monitor (:mod:`sklearn_gpcd.detection`): the kernel
+  flattened into terms ``c * gates * exp(-0.5 d^2)`` (:meth:`_Node.terms`,
+  :class:`Term`) that it batches across outputs.
+
+**Registry and dispatch.** The registry maps an *exact* kernel type to its
+node class and to the kernel parameters the node understands. A subclass of
+a registered kernel is not matched (it may override ``__call__``): it is
+evaluated as an opaque node, through the Kernel object itself, unless it is
+registered too (:func:`register_node` is the explicit opt-in). A registered
+kernel whose parameters differ from those declared (e.g. a parameter added
+to :class:`~sklearn_gpcd.kernels.ARDRBF` but not to its node) is opaque too.
+An opaque node without an explicit registration emits one
+:class:`OpaqueKernelWarning` per kernel type. Nodes read the structure of
+their kernel (columns, gate column and threshold) from the Kernel object at
+compile time; hyperparameter values come from ``theta``
+(:meth:`_Node.set_theta`, laid out like ``kernel.theta``), so optimizers do
+not rebuild kernel objects at every step. The gate of Eq. 15 is
+:func:`sklearn_gpcd._gate.quasi_static`, the function
+:meth:`QuasiStaticGate.gate <sklearn_gpcd.kernels.QuasiStaticGate.gate>` uses.
+
+The nodes compute exactly what the kernels compute (the parity property
+test checks it on random trees), but
 
 * **without copies of constants**: a ``ConstantKernel`` stays a scalar and a
   ``WhiteKernel`` a diagonal, so ``C * ARDRBF + White`` costs one ``n x n``
@@ -18,9 +45,9 @@ the kernel computes, but
       \partial_{\theta_k} \log p = \tfrac12 \sum_{ij} W_{ij}
       \frac{\partial K_{ij}}{\partial \theta_k}, \qquad W = a a^T - K_y^{-1},
 
-  is contracted per node (:meth:`_Node.contract`) with the node values
-  already computed for :math:`K`, never forming the ``(n, n, n_theta)``
-  array. For a squared-exponential block (Eq. 11) with scaled inputs
+  is contracted per node with the node values already computed for
+  :math:`K`, never forming the ``(n, n, n_theta)`` array. For a
+  squared-exponential block (Eq. 11) with scaled inputs
   :math:`z_{id} = x_{id} / l_d` and :math:`M = W \circ K`, all length scales
   come from one matrix product, as
 
@@ -38,25 +65,55 @@ the kernel computes, but
   :math:`c\,K_{SE}`, constants and noise, only the lower triangles are
   computed while optimising (LAPACK reads and returns those), and arrays are
   reused from one likelihood evaluation to the next;
-* **evaluating only what a prediction needs** (:meth:`_Node.prepare` then
-  :meth:`_Node.cross_dot`): the posterior mean :math:`k_*^T w` is a sum over
-  blocks, each with its support points scaled once; a
-  :class:`~sklearn_gpcd.kernels.QuasiStaticGate` block (Eq. 16) is evaluated
-  only for the queries whose gate :math:`a_\ell(x_*)` is 1, against the
-  gated support points only.
+* **evaluating only what a prediction needs**: the posterior mean
+  :math:`k_*^T w` is a sum over blocks, each with its support points scaled
+  once; a :class:`~sklearn_gpcd.kernels.QuasiStaticGate` block (Eq. 16) is
+  evaluated only for the queries whose gate :math:`a_\ell(x_*)` is 1,
+  against the gated support points only.
 
-Hyperparameters are set from a ``theta`` vector laid out like
-``kernel.theta`` (:meth:`_Node.set_theta`), so optimizers do not rebuild
-kernel objects at every step.
+Examples
+--------
+>>> import numpy as np
+>>> from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
+>>> from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate
+>>> from sklearn_gpcd.kernels.plan import compile_kernel, gram_matrix
+>>> kernel = ConstantKernel(2.0) * QuasiStaticGate(ARDRBF(1.0, columns=[0]), 1) + WhiteKernel()
+>>> X = np.array([[0.0, 0.0], [1.0, 0.005], [2.0, 0.5]])
+>>> plan = compile_kernel(kernel)
+>>> bool(np.allclose(gram_matrix(plan, X), kernel(X)))
+True
+>>> [(t.scale, t.gates) for t in plan.terms(n_features=2)]
+[(2.0, ((1, 0.01),))]
 """
 
+import inspect
 import math
+import warnings
 
 import numpy as np
 from scipy.spatial.distance import cdist, pdist, squareform
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Product, Sum, WhiteKernel
+from sklearn.gaussian_process.kernels import (
+    RBF,
+    ConstantKernel,
+    Exponentiation,
+    Product,
+    Sum,
+    WhiteKernel,
+)
 
-from ..kernels import ARDRBF, QuasiStaticGate
+from .._gate import quasi_static
+from .ard import ARDRBF
+from .gate import QuasiStaticGate
+from .parametric import ParametricKernel
+
+__all__ = [
+    "compile_kernel",
+    "gram_matrix",
+    "register_node",
+    "registered_node",
+    "OpaqueKernelWarning",
+    "Term",
+]
 
 #: Largest half squared norm of scaled, centred coordinates for which cross
 #: kernels use the expansion |z - s|^2 = |z|^2 + |s|^2 - 2 z.s (one matrix
@@ -67,43 +124,123 @@ _EXPANSION_MAX = 1e6
 _ROW_MAX_HALF_NORM = 700.0
 
 
-def compile_kernel(kernel):
+class OpaqueKernelWarning(UserWarning):
+    """A kernel has no compiled node and is evaluated through its own object.
+
+    Emitted once per kernel type. The results are the same, but the fit
+    forms the kernel's full ``(n, n, n_theta)`` gradient and predictions
+    call the kernel object. Register a node with :func:`register_node`, or
+    register the type as opaque (``register_node(kind, None)``) to silence it.
+    """
+
+
+#: exact kernel type -> (node class, names of the kernel parameters it reads)
+_REGISTRY = {}
+#: kernel types already warned about (OpaqueKernelWarning once per type)
+_WARNED = set()
+
+
+def register_node(kernel_type, node_class, params=None):
+    """Register the compiled node of a kernel type (exact type; no subclasses).
+
+    Parameters
+    ----------
+    kernel_type : type
+        A :class:`sklearn.gaussian_process.kernels.Kernel` class.
+    node_class : type or None
+        The node class, constructed as ``node_class(kernel)``; None marks
+        the type as known to be opaque (evaluated through the Kernel object,
+        no :class:`OpaqueKernelWarning`).
+    params : iterable of str, default=None
+        The kernel parameters (``get_params(deep=False)``) the node reads. A
+        kernel with other parameters falls back to the opaque node, so a
+        parameter added to the kernel class cannot silently be ignored.
+        None: those of the class today.
+
+    Examples
+    --------
+    How :class:`~sklearn_gpcd.kernels.ARDRBF` is registered (a kernel
+    without a node would be ``register_node(MyKernel, None)``):
+
+    >>> from sklearn_gpcd.kernels import ARDRBF
+    >>> node, params = registered_node(ARDRBF)
+    >>> node.__name__, sorted(params)
+    ('_SquaredExponential', ['columns', 'length_scale', 'length_scale_bounds'])
+    """
+    if params is None:  # the constructor's parameters, as get_params reads them
+        signature = inspect.signature(kernel_type.__init__).parameters.values()
+        params = [p.name for p in signature if p.name != "self" and p.kind != p.VAR_KEYWORD]
+    _REGISTRY[kernel_type] = (node_class, frozenset(params))
+
+
+def registered_node(kernel_type):
+    """``(node class or None, params)`` registered for ``kernel_type``, else None.
+
+    Examples
+    --------
+    >>> from sklearn.gaussian_process.kernels import Matern
+    >>> registered_node(Matern) is None  # evaluated through Matern itself, with a warning
+    True
+    """
+    return _REGISTRY.get(kernel_type)
+
+
+def compile_kernel(kernel, lower=True):
     """Compiled mirror of ``kernel`` (with its current hyperparameters).
 
     Parameters
     ----------
     kernel : Kernel
         A kernel whose columns are integer indices (see
-        :func:`~sklearn_gpcd.kernels.resolve_columns`).
+        :func:`~sklearn_gpcd.kernels.resolve_columns`); a node given by
+        name is opaque.
+    lower : bool, default=True
+        Let trees that allow it work on lower triangles while optimising
+        (see :func:`gram_matrix`); False when the gradient weights ``W``
+        passed to ``contract`` are full matrices.
 
     Returns
     -------
     plan : _Node
         Root of the compiled tree; ``plan.n_dims == kernel.n_dims``.
         ``plan.lower`` tells whether, while optimising, it works on lower
-        triangles only (see :func:`gram_matrix`).
+        triangles only.
     """
     plan = _compile(kernel)
-    if _lower_ready(plan):
+    if lower and _lower_ready(plan):
         _set_lower(plan)
     return plan
 
 
+class _NotCompilable(Exception):
+    """Raised by a node constructor for a kernel it cannot mirror (e.g. str columns)."""
+
+
 def _compile(kernel):
-    kind = type(kernel)
-    if kind is Sum:
-        return _Sum(_compile(kernel.k1), _compile(kernel.k2))
-    if kind is Product:
-        return _Product(_compile(kernel.k1), _compile(kernel.k2))
-    if kind is ConstantKernel:
-        return _Constant(kernel)
-    if kind is WhiteKernel:
-        return _White(kernel)
-    if kind is RBF or kind is ARDRBF:
-        return _SquaredExponential(kernel)
-    if kind is QuasiStaticGate:
-        return _Gate(kernel)
+    entry = _REGISTRY.get(type(kernel))
+    node_class, params = entry if entry is not None else (None, frozenset())
+    if node_class is not None and set(kernel.get_params(deep=False)) == params:
+        try:
+            return node_class(kernel)
+        except _NotCompilable:
+            return _Opaque(kernel)
+    if entry is None or node_class is not None:
+        _warn_opaque(kernel)
     return _Opaque(kernel)
+
+
+def _warn_opaque(kernel):
+    kind = type(kernel)
+    if kind in _WARNED:
+        return
+    _WARNED.add(kind)
+    warnings.warn(
+        f"{kind.__name__} has no compiled node (sklearn_gpcd.kernels.plan); it is "
+        "evaluated through the kernel object, with its full gradient array while "
+        "fitting. Register a node, or register_node(kind, None) to silence this.",
+        OpaqueKernelWarning,
+        stacklevel=3,
+    )
 
 
 def _lower_ready(node):
@@ -202,6 +339,8 @@ def _multiply(a, b, inplace):
     if isinstance(a, _RowBlock) or isinstance(b, _RowBlock):
         if isinstance(a, _RowBlock):
             a, b = b, a
+        if isinstance(a, _RowBlock):  # two gated blocks: new dense arrays
+            return _multiply(_dense(a, a.n, a.n), _dense(b, b.n, b.n), inplace=True)
         if np.ndim(a) == 0 and not isinstance(a, _Diagonal):  # c * gated block
             block = b.block if inplace else b.block.copy()
             block *= float(a)
@@ -332,11 +471,6 @@ def _weighted_total(W, K, lower):
     return 2.0 * total - diagonal
 
 
-def _rows_of(value, rows):
-    """A diagonal restricted to some rows (arrays pass through)."""
-    return _Diagonal(value.values[rows]) if isinstance(value, _Diagonal) else value
-
-
 # -- nodes -----------------------------------------------------------------
 
 
@@ -360,6 +494,17 @@ class _Node:
         ``k(Q, S) @ weights``, shape (n_queries,).
     diag(Q)
         Diagonal of ``k(Q, Q)``, a float or an array.
+    terms(n_features)
+        The node as a list of :class:`Term` for the streaming monitor, or
+        None when it cannot be flattened.
+    init_hyperparameters(X, rng, max_rows)
+        Data-driven initial hyperparameters, set on the wrapped Kernel
+        objects (the optimizer's starting point).
+
+    Attributes
+    ----------
+    kernel : Kernel
+        The kernel this node mirrors.
     """
 
     n_dims = 0
@@ -385,13 +530,28 @@ class _Node:
         """The node whose ``cross_dot`` equals this one's, fewest calls down (after prepare)."""
         return self
 
+    def children(self):
+        """The child nodes (sum, product and gate nodes have some)."""
+        return ()
+
+    def terms(self, n_features):
+        return None
+
+    def init_hyperparameters(self, X, rng, max_rows):
+        for child in self.children():
+            child.init_hyperparameters(X, rng, max_rows)
+
 
 class _Pair(_Node):
     """A node of two children whose theta is ``k1``'s followed by ``k2``'s."""
 
-    def __init__(self, k1, k2):
-        self.k1, self.k2 = k1, k2
+    def __init__(self, kernel):
+        self.kernel = kernel
+        self.k1, self.k2 = k1, k2 = _compile(kernel.k1), _compile(kernel.k2)
         self.n_dims = k1.n_dims + k2.n_dims
+
+    def children(self):
+        return (self.k1, self.k2)
 
     def set_theta(self, theta):
         self.k1.set_theta(theta[: self.k1.n_dims])
@@ -399,6 +559,8 @@ class _Pair(_Node):
 
 
 class _Sum(_Pair):
+    """:math:`k_1 + k_2`."""
+
     def gram(self, X, keep):
         v1, v2 = self.k1.gram(X, keep), self.k2.gram(X, keep)
         # an array may be updated in place unless a child keeps it for
@@ -438,8 +600,14 @@ class _Sum(_Pair):
     def diag(self, Q):
         return self.k1.diag(Q) + self.k2.diag(Q)
 
+    def terms(self, n_features):
+        # a child that cannot be flattened is one term evaluated by its kernel
+        return [t for k in (self.k1, self.k2) for t in flatten(k, n_features)]
+
 
 class _Product(_Pair):
+    r""":math:`k_1 k_2`; :math:`c\,K_{SE}` is computed in one pass while optimising."""
+
     def gram(self, X, keep):
         if keep and self._scaled_exponential() is not None:
             return self._scaled_exponential_gram(X)
@@ -488,7 +656,7 @@ class _Product(_Pair):
     def _weighted_sum(self, W, K):
         r""":math:`\sum_{ij} W_{ij} K_{ij}`, from the other child's contraction if it has it."""
         for child in (self.k1, self.k2):
-            total = getattr(child, "_weighted_sum", None)
+            total = getattr(child, "_W_dot_K", None)
             if total is not None and total[0] is W and child._K is K:
                 return total[1]
         return _weighted_total(W, K, self.lower)
@@ -527,16 +695,34 @@ class _Product(_Pair):
     def diag(self, Q):
         return self.k1.diag(Q) * self.k2.diag(Q)
 
+    def terms(self, n_features):
+        left, right = self.k1.terms(n_features), self.k2.terms(n_features)
+        if left is None or right is None:
+            return None
+        products = [a * b for a in left for b in right]
+        return None if any(t is None for t in products) else products
 
 
-class _Constant(_Node):
+class _ScalarParameter(_Node):
+    """A kernel of one positive hyperparameter, ``value`` (log-scale in theta)."""
+
+    #: name of the kernel parameter held as ``value``
+    parameter = None
+
     def __init__(self, kernel):
-        self.value = float(kernel.constant_value)
+        self.kernel = kernel
+        self.value = float(getattr(kernel, self.parameter))
         self.n_dims = kernel.n_dims
 
     def set_theta(self, theta):
         if self.n_dims:
             self.value = float(np.exp(theta[0]))
+
+
+class _Constant(_ScalarParameter):
+    """``ConstantKernel``: one float, never an array."""
+
+    parameter = "constant_value"
 
     def gram(self, X, keep):
         return self.value
@@ -560,15 +746,14 @@ class _Constant(_Node):
     def is_scalar(self):
         return True
 
+    def terms(self, n_features):
+        return [Term(scale=self.value)]
 
-class _White(_Node):
-    def __init__(self, kernel):
-        self.value = float(kernel.noise_level)
-        self.n_dims = kernel.n_dims
 
-    def set_theta(self, theta):
-        if self.n_dims:
-            self.value = float(np.exp(theta[0]))
+class _White(_ScalarParameter):
+    """``WhiteKernel``: a diagonal; no covariance between distinct arguments."""
+
+    parameter = "noise_level"
 
     def gram(self, X, keep):
         return _Diagonal(np.full(X.shape[0], self.value))
@@ -591,14 +776,21 @@ class _White(_Node):
     def diag(self, Q):
         return self.value
 
+    def terms(self, n_features):
+        return []  # k(x, s) = 0 between a new point and the support points
 
 
 class _SquaredExponential(_Node):
     r""":math:`\exp(-\tfrac12 \sum_d (x_d - x'_d)^2 / l_d^2)` on some columns (Eq. 11)."""
 
     def __init__(self, kernel):
+        self.kernel = kernel
         columns = getattr(kernel, "columns", None)
-        self.columns = None if columns is None else np.asarray(columns, dtype=np.intp)
+        if columns is not None:
+            columns = np.atleast_1d(np.asarray(columns))
+            if columns.dtype.kind not in "iu":  # names: resolve_columns first
+                raise _NotCompilable
+        self.columns = None if columns is None else columns.astype(np.intp)
         self.length_scale = np.asarray(kernel.length_scale, dtype=float)
         self.anisotropic = bool(np.iterable(kernel.length_scale) and len(kernel.length_scale) > 1)
         self.n_dims = kernel.n_dims
@@ -619,7 +811,7 @@ class _SquaredExponential(_Node):
             K = _se_gram(Z, np.empty((n, n)), scaled)
         else:  # while optimising, K lives until the next evaluation: its memory is reused
             K = _se_gram(Z, _kept_array(self, "_K_buffer", (n, n)), scaled, self.lower)
-            self._Z, self._K, self._weighted_sum = Z, K, None
+            self._Z, self._K, self._W_dot_K = Z, K, None
         return K
 
     def contract(self, W, scale):
@@ -650,13 +842,13 @@ class _SquaredExponential(_Node):
             MZ_1[rows] += block @ Z_1[cols]
             MZ_1[cols] += block.T @ Z_1[rows]
         per_dim = (Z * Z).T @ (2.0 * MZ_1[:, -1]) - 2.0 * np.einsum("id,id->d", Z, MZ_1[:, :-1])
-        self._weighted_sum = (W, float(MZ_1[:, -1].sum()))  # sum(W o K), for a constant factor
+        self._W_dot_K = (W, float(MZ_1[:, -1].sum()))  # sum(W o K), for a constant factor
         per_dim *= scale
         return per_dim if self.anisotropic else np.array([per_dim.sum()])
 
     def prepare(self, S, weights):
         # the arrays of the fit are not needed for prediction
-        self._K_buffer = self._K = self._Z = self._weighted_sum = None
+        self._K_buffer = self._K = self._Z = self._W_dot_K = None
         Z = self._scaled(S)
         self._center = Z.mean(axis=0) if len(Z) else 0.0
         self._S_T = np.ascontiguousarray((Z - self._center).T)
@@ -718,23 +910,71 @@ class _SquaredExponential(_Node):
     def diag(self, Q):
         return 1.0
 
+    def terms(self, n_features):
+        columns = np.arange(n_features) if self.columns is None else self.columns
+        length = np.broadcast_to(np.asarray(self.length_scale, dtype=float), columns.shape)
+        return [Term(columns=columns, inv_sq=1.0 / length**2)]
+
+    def init_hyperparameters(self, X, rng, max_rows):
+        """Default length scales (1.0) from the spread of the data.
+
+        Each column's scale becomes ``sqrt(n_columns)`` times the median
+        absolute difference of random pairs of rows (their RMS for an
+        isotropic kernel), clipped to the bounds; other values are kept.
+        """
+        kernel = self.kernel
+        if kernel.hyperparameter_length_scale.fixed:
+            return
+        Xc = X if self.columns is None else X[:, self.columns]
+        length_scale = np.atleast_1d(np.asarray(kernel.length_scale, dtype=float)).copy()
+        default = length_scale == 1.0
+        if len(Xc) < 2 or not default.any():
+            return
+        rows = rng.choice(len(Xc), size=min(len(Xc), max_rows), replace=False)
+        half = len(rows) // 2
+        spread = np.median(np.abs(Xc[rows[:half]] - Xc[rows[half : 2 * half]]), axis=0)
+        if len(length_scale) == 1:  # isotropic: one scale for all columns
+            spread = np.atleast_1d(np.sqrt(np.mean(spread**2)))
+        heuristic = np.sqrt(Xc.shape[1] if len(length_scale) == 1 else len(spread)) * spread
+        new = np.where(default & (heuristic > 0), heuristic, length_scale)
+        low, high = kernel.length_scale_bounds
+        new = np.clip(new, low, high)
+        kernel.set_params(length_scale=new if len(new) > 1 else float(new[0]))
+        self.length_scale = np.asarray(kernel.length_scale, dtype=float)
 
 
 class _Gate(_Node):
     r""":math:`a(x) k(x, x') a(x')` (Eq. 16): the inner kernel on gated rows only."""
 
     def __init__(self, kernel):
+        self.kernel = kernel
+        column = kernel.velocity_column
+        if not isinstance(column, (int, np.integer)) or isinstance(column, bool):
+            raise _NotCompilable  # a name: resolve_columns first
         self.inner = _compile(kernel.kernel)
-        self.column = int(kernel.velocity_column)
+        self.column = int(column)
         self.sigma_v = float(kernel.sigma_v)
         self.n_dims = self.inner.n_dims
+
+    def children(self):
+        return (self.inner,)
+
+    def terms(self, n_features):
+        inner = self.inner.terms(n_features)
+        if inner is None or any(t.kernel is not None for t in inner):
+            return None
+        gate = (self.column, self.sigma_v)
+        return [Term(t.scale, t.columns, t.inv_sq, t.gates + (gate,)) for t in inner]
+
+    def init_hyperparameters(self, X, rng, max_rows):
+        self.inner.init_hyperparameters(X[self.rows(X)], rng, max_rows)
 
     def set_theta(self, theta):
         self.inner.set_theta(theta)
 
     def rows(self, X):
         """Indices of the rows with :math:`|\\dot q_\\ell| < \\sigma_v` (Eq. 15)."""
-        return np.flatnonzero(np.abs(X[:, self.column]) < self.sigma_v)
+        return np.flatnonzero(quasi_static(X[:, self.column], self.sigma_v))
 
     def gram(self, X, keep):
         n = X.shape[0]
@@ -792,7 +1032,6 @@ class _Gate(_Node):
         return out
 
 
-
 class _Opaque(_Node):
     """Any other kernel: called as usual; gradient from its full array."""
 
@@ -805,12 +1044,13 @@ class _Opaque(_Node):
             self.kernel = self.kernel.clone_with_theta(theta)
 
     def gram(self, X, keep):
-        if keep and self.n_dims:
-            self._X = X
+        if keep and self.n_dims:  # one call for K and its gradient, for contract
+            K, self._K_gradient = self.kernel(X, eval_gradient=True)
+            return np.array(K, dtype=float)
         return np.array(self.kernel(X), dtype=float)
 
     def contract(self, W, scale):
-        _, K_gradient = self.kernel(self._X, eval_gradient=True)
+        K_gradient, self._K_gradient = self._K_gradient, None
         return scale * np.einsum("ij,ijk->k", W, K_gradient)
 
     def prepare(self, S, weights):
@@ -822,6 +1062,26 @@ class _Opaque(_Node):
     def diag(self, Q):
         return np.asarray(self.kernel.diag(Q), dtype=float)
 
+
+class _Parametric(_Opaque):
+    r""":class:`~sklearn_gpcd.kernels.ParametricKernel` :math:`\Phi \Sigma \Phi^T`.
+
+    Evaluated by its kernel object; its gradient is contracted from the
+    design matrix, :math:`\sigma^2_j \sum_i (W \Phi)_{ij} \Phi_{ij}`, in
+    O(n p) memory.
+    """
+
+    def gram(self, X, keep):
+        if keep and self.n_dims:
+            self._X = X
+        return np.array(self.kernel(X), dtype=float)
+
+    def contract(self, W, scale):
+        kernel = self.kernel
+        Phi = kernel.design_matrix(self._X)
+        per_feature = kernel.weight_variances(Phi.shape[1]) * np.einsum("ij,ij->j", W @ Phi, Phi)
+        per_feature *= scale
+        return per_feature if kernel.anisotropic else np.array([per_feature.sum()])
 
 
 def gram_matrix(plan, X, keep=False):
@@ -847,3 +1107,102 @@ def gram_matrix(plan, X, keep=False):
     if isinstance(K, np.ndarray):  # sums and products return arrays no other node keeps
         return K.copy() if keep and not isinstance(plan, _Pair) else K
     return _dense(K, n, n)
+
+
+# -- terms: the kernel flattened for the streaming monitor -----------------
+
+
+class Term:
+    r"""One summand ``scale * prod(gates) * exp(-0.5 sum_d inv_sq[d] (x_d - s_d)^2)``.
+
+    :meth:`_Node.terms` flattens a kernel into such summands (sums,
+    products with constants, squared exponentials and Eq. 15-16 gates), the
+    form in which the streaming monitor batches one prediction per tick over
+    outputs; a summand that cannot be flattened keeps its ``kernel``.
+
+    Parameters
+    ----------
+    scale : float, default=1.0
+        Constant factor.
+    columns : ndarray of int, default=None
+        Columns of the exponential factor; None: no exponential factor.
+    inv_sq : ndarray of shape (len(columns),), default=None
+        :math:`1 / l_d^2` per column.
+    gates : tuple of (int, float), default=()
+        ``(velocity column, sigma_v)`` of each gate factor
+        (:func:`sklearn_gpcd._gate.quasi_static`).
+    kernel : Kernel, default=None
+        A summand evaluated by its kernel object (the other fields unused).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Term(scale=2.0, gates=((1, 0.01),))
+    >>> b = Term(columns=np.array([0]), inv_sq=np.array([4.0]))
+    >>> product = a * b
+    >>> product.scale, product.columns.tolist(), product.gates
+    (2.0, [0], ((1, 0.01),))
+    """
+
+    def __init__(self, scale=1.0, columns=None, inv_sq=None, gates=(), kernel=None):
+        self.scale = scale
+        self.columns = columns
+        self.inv_sq = inv_sq
+        self.gates = tuple(gates)
+        self.kernel = kernel
+
+    def __mul__(self, other):
+        """The product of two flattened summands; None if either has a kernel."""
+        if self.kernel is not None or other.kernel is not None:
+            return None
+        if self.columns is None or other.columns is None:
+            source = self if other.columns is None else other
+            columns, inv_sq = source.columns, source.inv_sq
+        else:  # exp(-0.5 A) exp(-0.5 B) = exp(-0.5 (A + B))
+            columns = np.union1d(self.columns, other.columns)
+            inv_sq = np.zeros(columns.shape)
+            for t in (self, other):
+                np.add.at(inv_sq, np.searchsorted(columns, t.columns), t.inv_sq)
+        return Term(self.scale * other.scale, columns, inv_sq, self.gates + other.gates)
+
+    def gate_values(self, X):
+        """The product of this term's gates (Eq. 15) at each row of ``X``."""
+        a = np.ones(X.shape[0])
+        for column, sigma_v in self.gates:
+            a *= quasi_static(X[:, column], sigma_v)
+        return a
+
+    def gates_open(self, x):
+        """Whether every gate of this term is open at the one input row ``x``."""
+        return all(quasi_static(x[column], sigma_v) for column, sigma_v in self.gates)
+
+
+def flatten(plan, n_features):
+    """``plan.terms(n_features)``, or one term with the plan's kernel when it has none.
+
+    Parameters
+    ----------
+    plan : _Node
+        A compiled kernel (:func:`compile_kernel`).
+    n_features : int
+        Number of input columns (for kernels on all columns).
+
+    Returns
+    -------
+    terms : list of Term
+    """
+    terms = plan.terms(n_features)
+    return [Term(kernel=plan.kernel)] if terms is None else terms
+
+
+# -- the registry ------------------------------------------------------------
+
+register_node(Sum, _Sum)
+register_node(Product, _Product)
+register_node(ConstantKernel, _Constant)
+register_node(WhiteKernel, _White)
+register_node(RBF, _SquaredExponential)
+register_node(ARDRBF, _SquaredExponential, ("length_scale", "columns", "length_scale_bounds"))
+register_node(QuasiStaticGate, _Gate, ("kernel", "velocity_column", "sigma_v"))
+register_node(ParametricKernel, _Parametric, ("features", "prior_cov", "prior_cov_bounds"))
+register_node(Exponentiation, None)  # evaluated through the kernel object, by design

@@ -1,0 +1,103 @@
+r"""The quasi-static gate of the paper (Eq. 15) and its threshold, written once.
+
+The indicator of joint :math:`\ell`
+
+.. math::
+    a_\ell(x) = \begin{cases} 1 & |\dot q_\ell| < \sigma_v \\
+                              0 & |\dot q_\ell| \geq \sigma_v \end{cases}
+
+switches the static-friction kernel on (Eq. 16) and the friction columns of
+the parametric model off (:math:`\bar\phi`, Eq. 17). Every place of the
+package that evaluates it -- the kernel
+:class:`~sklearn_gpcd.kernels.QuasiStaticGate` and its compiled node, the
+parametric mean, the friction features of ``dynamics``, the public
+:func:`~sklearn_gpcd.features.quasi_static_mask`, the streaming monitor and
+the experiments -- calls :func:`quasi_static`, and every ``sigma_v``
+parameter is validated by :func:`check_sigma_v`.
+
+This module imports nothing of the package, so every layer may use it.
+"""
+
+import numbers
+
+import numpy as np
+
+__all__ = ["quasi_static", "check_sigma_v"]
+
+
+def quasi_static(velocity, sigma_v):
+    r"""The gate :math:`a_\ell` of Eq. 15: ``|velocity| < sigma_v``.
+
+    The one place the comparison is written. It takes either an array (a
+    boolean array of the same shape is returned) or a Python float (a
+    ``bool``, without numpy call overhead, for per-tick callers).
+
+    Parameters
+    ----------
+    velocity : float or ndarray
+        Joint velocities [rad/s].
+    sigma_v : float
+        Velocity threshold [rad/s] (finite and > 0, see :func:`check_sigma_v`).
+
+    Returns
+    -------
+    open : bool or ndarray of bool
+        True where the joint is quasi-static.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> quasi_static(np.array([0.0, -0.005, 0.01, 0.5]), 0.01).tolist()
+    [True, True, False, False]
+    >>> quasi_static(-0.02, 0.01)
+    False
+    """
+    return abs(velocity) < sigma_v
+
+
+def check_sigma_v(sigma_v, owner="sigma_v", allow_none=False):
+    """Validate a velocity threshold: a finite real number > 0.
+
+    Parameters
+    ----------
+    sigma_v : object
+        The value to check.
+    owner : str, default="sigma_v"
+        Prefix of the error message, naming the parameter's owner.
+    allow_none : bool, default=False
+        Accept None (meaning "no gate") as well.
+
+    Returns
+    -------
+    sigma_v : float or None
+
+    Raises
+    ------
+    ValueError
+        Unless ``sigma_v`` is a finite real > 0 (or None when allowed);
+        bools are rejected.
+
+    Examples
+    --------
+    >>> check_sigma_v(0.01)
+    0.01
+    >>> check_sigma_v(0.0, "QuasiStaticGate")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: QuasiStaticGate: sigma_v must be a finite velocity threshold > 0, ...
+    """
+    if sigma_v is None and allow_none:
+        return None
+    valid = (
+        isinstance(sigma_v, numbers.Real)
+        and not isinstance(sigma_v, bool)
+        and np.isfinite(sigma_v)
+        and sigma_v > 0
+    )
+    if not valid:
+        allowed = " (or None)" if allow_none else ""
+        raise ValueError(
+            f"{owner}: sigma_v must be a finite velocity threshold > 0{allowed}, "
+            f"got {sigma_v!r}"
+        )
+    return float(sigma_v)
