@@ -17,9 +17,19 @@
 All measured in one run on the same data. sklearn's fit takes ~11 min on an
 idle 2-core machine. Run::
 
-    python benchmarks/gp_fit.py
+    python benchmarks/gp_fit.py [--baseline /path/to/other/checkout]
+
+``--baseline`` also fits and times *our* models with the package of another
+checkout (e.g. the previous main), in a subprocess right after this run, and
+reports both against the same sklearn fit and latency: "no speed lost"
+measured in one run.
 """
 
+import argparse
+import json
+import os
+import subprocess
+import sys
 from contextlib import contextmanager
 
 import numpy as np
@@ -54,7 +64,39 @@ def count_evaluations():
         GaussianProcessRegressor.log_marginal_likelihood = theirs
 
 
-def main():
+def baseline_figures(path):
+    """Fit seconds, evaluations, LML and latency of our models with the package at ``path``."""
+    env = dict(os.environ, PYTHONPATH=os.path.abspath(path))
+    out = subprocess.run([sys.executable, __file__, "--ours-only"], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def ours_only():
+    """``--ours-only``: our two fits and latencies, one JSON line (for ``--baseline``)."""
+    X, y, X_test, _ = d1_state_problem()
+    kernel = ConstantKernel(1.0) * RBF(np.ones(X.shape[1])) + WhiteKernel(1.0)
+    figures = {"package": os.path.dirname(os.path.dirname(_optimize.__file__))}
+    queries = [X_test[i : i + 1] for i in range(2000)]
+    for name, optimizer in (("ours auto", "auto"), ("ours adam", "adam")):
+        model = SemiParametricGPRegressor(kernel, normalize_y=True, optimizer=optimizer,
+                                          random_state=0)
+        with count_evaluations() as count:
+            _, seconds = timed(model.fit, X, y)
+        figures[name] = {"seconds": seconds, "evaluations": count[0],
+                         "lml": float(model.log_marginal_likelihood_value_),
+                         "latency_s": latency(model.predict, queries)}
+    print(json.dumps(figures))
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", default=None,
+                        help="another checkout whose package is timed too (e.g. previous main)")
+    parser.add_argument("--ours-only", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.ours_only:
+        return ours_only()
     X, y, X_test, y_test = d1_state_problem()
     kernel = ConstantKernel(1.0) * RBF(np.ones(X.shape[1])) + WhiteKernel(1.0)
     print(f"(a) n = {len(X)}, {X.shape[1]}-dim ARD RBF + noise; nMSE on {len(X_test)} held-out rows")
@@ -94,6 +136,22 @@ def main():
         t = latency(model.predict, queries)
         rows.append([name, f"{1e6 * t:.1f}", f"{t_ref / t:.1f}x"])
     table(rows, ["model", "us per sample", "lower than sklearn"])
+    if args.baseline is None:
+        return None
+    base = baseline_figures(args.baseline)
+    print(f"\n(c) the same fits with the package of {base['package']} (run right after), "
+          "against the same sklearn figures")
+    rows = []
+    for name in ("ours auto", "ours adam"):
+        b = base[name]
+        rows.append([name, f"{b['seconds']:.1f}", f"{seconds['sklearn'] / b['seconds']:.1f}x",
+                     f"{seconds['sklearn'] / seconds[name]:.1f}x", str(b["evaluations"]),
+                     f"{b['lml']:.2f}", f"{1e6 * b['latency_s']:.1f}",
+                     f"{t_ref / b['latency_s']:.1f}x"])
+    table(rows, ["model", "baseline fit s", "baseline speed-up", "this speed-up",
+                 "baseline evals", "baseline LML", "baseline us per sample",
+                 "baseline lower than sklearn"])
+    return base
 
 
 if __name__ == "__main__":

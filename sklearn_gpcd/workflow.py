@@ -94,7 +94,7 @@ class TrainingSet:
     Attributes
     ----------
     X : ndarray of shape (n_rows_used, 6 * n_joints)
-        Inputs, in the layout of :mod:`sklearn_gpcd._layout` (Eq. 13).
+        Inputs, in the layout of :mod:`sklearn_gpcd.layout` (Eq. 13).
     y : ndarray of shape (n_rows_used, n_joints)
         Motor currents.
     features : CausalFeatures
