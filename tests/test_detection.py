@@ -318,6 +318,31 @@ def test_compiled_gp_matches_predict_with_mean_gates_and_products(rng):
     assert np.allclose(got, gp.predict(X), rtol=1e-8, atol=1e-8)
 
 
+@pytest.mark.parametrize("n_support, layout", [(120, "_StackedGroup"),
+                                              (None, "_SharedSupportGroup")])
+def test_compiled_groups_read_each_support_once(rng, n_support, layout):
+    """Outputs with their own support rows share one stacked product per column
+    set; outputs on one support share its matrix product. Both equal predict."""
+    X, current = augmented_run(200, 3, rng)
+    n = 3
+    kernels = [C(1.0) * ARDRBF(np.ones(3 * n), columns=list(range(3 * n)))
+               + QuasiStaticGate(C(0.5) * ARDRBF(np.ones(6 * n), columns=list(range(6 * n))),
+                                 velocity_column=column_index("qd", j, n), sigma_v=SIGMA_V)
+               + WhiteKernel(0.01) for j in range(n)]
+    # a RandomState draws one seed per output: each output its own support rows
+    gp = SemiParametricGPRegressor(kernels, optimizer=None, n_support=n_support,
+                                   random_state=np.random.RandomState(0)).fit(X, current)
+    if n_support is not None:
+        assert not np.array_equal(gp.support_indices_[0], gp.support_indices_[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no fallback
+        predictor = compile_predictor(gp, 6 * n, n)
+    assert [type(g).__name__ for g in predictor.groups] == [layout, layout]
+    assert [g.W.shape[1] for g in predictor.groups] == [n, n]  # every output in each
+    got = np.array([predictor.predict_one(x, np.empty(n)) for x in X])
+    assert np.allclose(got, gp.predict(X), rtol=1e-8, atol=1e-8)
+
+
 def test_compiled_predictor_falls_back_when_it_disagrees(rng, monkeypatch):
     from sklearn_gpcd.kernels import plan
 

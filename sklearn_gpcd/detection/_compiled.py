@@ -50,8 +50,29 @@ from .._gate import quasi_static
 __all__ = ["compile_predictor"]
 
 
-class _ExpGroup:
-    """Exponential summands sharing support points and columns, all outputs."""
+class _Summands:
+    """What the exponential groups share: gates of the tick, centred input."""
+
+    def _centred_input(self, x):
+        """Gates of each summand at ``x`` into ``on``; False when all are closed,
+        else the group's columns of ``x``, centred, into ``xs``."""
+        if self.gated:
+            for t, term in enumerate(self.terms):
+                self.on[t] = term.gates_open(x)
+            if not self.on.any():
+                return False
+        np.take(x, self.columns, out=self.xs)
+        self.xs -= self.center
+        return True
+
+
+class _SharedSupportGroup(_Summands):
+    """Exponential summands on the same support points and columns (one matrix product).
+
+    Several summands (e.g. the outputs of a regressor conditioned on one
+    support set) read the support once: kernels x rows exponents come from
+    one product ``[w_t * x; -0.5 (x * x) @ w_t] @ [S, 1]^T``.
+    """
 
     def __init__(self, support, columns, n_outputs):
         self.support = support
@@ -100,13 +121,8 @@ class _ExpGroup:
         return self.G.shape[1]
 
     def add_to(self, x, out):
-        if self.gated:
-            for t, term in enumerate(self.terms):
-                self.on[t] = term.gates_open(x)
-            if not self.on.any():
-                return  # Eq. 15: every gate closed, the group contributes 0
-        np.take(x, self.columns, out=self.xs)
-        self.xs -= self.center
+        if not self._centred_input(x):
+            return  # Eq. 15: every gate closed, the group contributes 0
         d = self.xs.shape[0]
         np.multiply(self.WT, self.xs, out=self.XW[:, :d])
         np.matmul(self.XW[:, :d], self.xs, out=self.XW[:, d])  # sum_d x_d^2 / l_d^2
@@ -120,6 +136,127 @@ class _ExpGroup:
         out += self.contribution
 
 
+class _StackedGroup(_Summands):
+    """Exponential summands on the same columns, each on its own support rows.
+
+    Summand ``t`` (output ``o_t``, inverse squared length scales ``w_t``,
+    weights ``a_t`` on its own support rows ``s_i``; the outputs of a
+    multi-output regressor each have their own support) adds
+
+    .. math::
+
+        f_t(x) = \\sum_i a_{ti} \\exp\\big(-\\tfrac12 \\sum_d w_{td} (x_d - s_{id})^2\\big)
+
+    to output ``o_t``. The rows of all summands are stacked, each pre-scaled
+    by its summand's ``w_t``, so one tick is one matrix-vector product over
+    every row of every output:
+
+    .. math::
+
+        -\\tfrac12 d^2_t(x, s_i) = x^\\top (w_t \\odot s_i)
+        - \\tfrac12 (x \\odot x)^\\top w_t - \\tfrac12 (s_i \\odot s_i)^\\top w_t
+
+    (inputs centred on the rows' mean for accuracy), then one ``exp`` and
+    one segmented sum per summand. Rows with a zero weight (gate closed at
+    the support point, Eq. 15) are dropped.
+    """
+
+    def __init__(self, columns, n_outputs):
+        self.columns = columns
+        self.n_outputs = n_outputs
+        self.supports, self.inv_sq, self.weights, self.outputs, self.terms = [], [], [], [], []
+
+    def add(self, term, support, weights, output):
+        self.supports.append(support)
+        self.inv_sq.append(term.inv_sq)
+        self.weights.append(weights * term.scale * term.gate_values(support))
+        self.outputs.append(output)
+        self.terms.append(term)
+
+    def finalize(self):
+        kept = [np.flatnonzero(a != 0.0) for a in self.weights]
+        live = [t for t, rows in enumerate(kept) if rows.size]  # others always add 0
+        d = len(self.columns)
+        S = [self.supports[t][np.ix_(kept[t], self.columns)] for t in live]
+        stacked = np.vstack(S) if S else np.zeros((0, d))
+        self.center = stacked.mean(axis=0) if stacked.shape[0] else np.zeros(d)
+        self.W = np.column_stack([self.inv_sq[t] for t in live]) if live else np.zeros((d, 0))
+        centred = [s - self.center for s in S]
+        self.S_hat = np.ascontiguousarray(np.vstack(
+            [c * self.inv_sq[t] for c, t in zip(centred, live)]) if live else stacked)
+        self.c = np.concatenate([-0.5 * (c**2) @ self.inv_sq[t]
+                                 for c, t in zip(centred, live)]) if live else np.zeros(0)
+        self.a = np.concatenate([self.weights[t][kept[t]] for t in live]) if live else np.zeros(0)
+        sizes = [kept[t].size for t in live]
+        self.term_of_row = np.repeat(np.arange(len(live)), sizes)
+        self.starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+        self.terms = [self.terms[t] for t in live]
+        self.scatter = np.zeros((len(live), self.n_outputs))
+        self.scatter[np.arange(len(live)), [self.outputs[t] for t in live]] = 1.0
+        self.gated = any(term.gates for term in self.terms)
+        self.on = np.ones(len(live))
+        # per-tick buffers
+        self.xs = np.empty(d)
+        self.x2 = np.empty(d)
+        self.q = np.empty(len(live))
+        self.v = np.empty(self.S_hat.shape[0])
+        self.per_row = np.empty(self.S_hat.shape[0])
+        self.contribution = np.empty(self.n_outputs)
+        del self.supports, self.weights  # the stacked rows are all a tick needs
+        return self
+
+    @property
+    def n_rows(self):
+        """Rows kept over all summands (those with a non-zero weight)."""
+        return self.S_hat.shape[0]
+
+    def add_to(self, x, out):
+        if not self.terms:
+            return
+        if not self._centred_input(x):
+            return  # Eq. 15: every gate closed, the group contributes 0
+        np.multiply(self.xs, self.xs, out=self.x2)
+        np.matmul(self.x2, self.W, out=self.q)
+        self.q *= -0.5  # -0.5 sum_d w_td x_d^2, one per summand
+        np.matmul(self.S_hat, self.xs, out=self.v)
+        self.v += self.c
+        np.take(self.q, self.term_of_row, out=self.per_row)
+        self.v += self.per_row  # exponent -0.5 d_t^2(x, s_i) of every row
+        np.exp(self.v, out=self.v)
+        self.v *= self.a
+        sums = np.add.reduceat(self.v, self.starts)  # f_t(x) per summand
+        if self.gated:
+            sums *= self.on
+        np.matmul(sums, self.scatter, out=self.contribution)
+        out += self.contribution
+
+
+def _groups(blocks, n_outputs):
+    """Groups of one column set: a support read by several summands is read once
+    (:class:`_SharedSupportGroup`); summands alone on their support (the outputs
+    of a multi-output GP each draw their own support rows) share one stacked
+    product (:class:`_StackedGroup`)."""
+    groups, stacked = [], None
+    for support, members in blocks:
+        columns = members[0][0].columns
+        if len(members) > 1:
+            group = _SharedSupportGroup(support, columns, n_outputs)
+            for term, weights, output in members:
+                group.add(term, weights, output)
+            groups.append(group)
+            continue
+        if stacked is None:
+            stacked = _StackedGroup(columns, n_outputs)
+            groups.append(stacked)
+        term, weights, output = members[0]
+        stacked.add(term, support, weights, output)
+    return groups
+
+
+def _same(a, b):
+    return a is b or (a.shape == b.shape and np.array_equal(a, b))
+
+
 class _GaussianProcessPredictor:
     """Fast mean of a GP with per-output supports, weights and parametric means."""
 
@@ -130,13 +267,9 @@ class _GaussianProcessPredictor:
         self.n_outputs = n_outputs
         self.offset = np.array([post.y_mean for post in posteriors], dtype=float)
         self.generic, self.constants = [], []
-        groups, supports = {}, []
+        by_columns = {}  # column set -> [(support, [(term, weights, output), ...]), ...]
         for j, post in enumerate(posteriors):
             support, weights = post.X_train, post.alpha
-            key_support = next((i for i, s in enumerate(supports) if _same(s, support)), None)
-            if key_support is None:
-                supports.append(support)
-                key_support = len(supports) - 1
             for term in flatten(compile_kernel(post.kernel, lower=False), n_features):
                 if term.kernel is not None:
                     self.generic.append((j, term.kernel, support, weights))
@@ -144,14 +277,13 @@ class _GaussianProcessPredictor:
                     value = term.scale * float(weights @ term.gate_values(support))
                     self.constants.append((j, value, term))
                 else:
-                    key = (key_support, tuple(term.columns.tolist()))
-                    group = groups.get(key)
-                    if group is None:
-                        group = groups[key] = _ExpGroup(
-                            supports[key_support], term.columns, n_outputs
-                        )
-                    group.add(term, weights, j)
-        self.groups = [g.finalize() for g in groups.values()]
+                    blocks = by_columns.setdefault(tuple(term.columns.tolist()), [])
+                    block = next((b for b in blocks if _same(b[0], support)), None)
+                    if block is None:
+                        blocks.append(block := (support, []))
+                    block[1].append((term, weights, j))
+        self.groups = [g.finalize() for blocks in by_columns.values()
+                       for g in _groups(blocks, n_outputs)]
         self.states = {}  # rigid-body regressors shared by the means of one robot
         self.means = [_compile_mean(post.mean, wrap, self.states) for post in posteriors]
         self.row = np.empty((1, n_features))
@@ -192,10 +324,6 @@ def _rigid_body_mean(mean, states):
         return float(phi @ coef) + intercept
 
     return rigid_body
-
-
-def _same(a, b):
-    return a is b or (a.shape == b.shape and np.array_equal(a, b))
 
 
 class _SampleState:
