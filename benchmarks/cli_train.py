@@ -24,20 +24,8 @@ Run::
 
 Timings depend on the load of the machine: say so when other jobs ran.
 
-Last runs (issue #15, 2 cores shared with other engineers' jobs, load average 3-4):
-
-=================================  ========  =======  =========
-log                                wall [s]  CPU [s]  peak [GB]
-=================================  ========  =======  =========
-real UR10e, 15 unloaded runs       31.8      50.7     1.48
-(same, heavier load, two runs)     75.3      54.0     1.48
-                                   77.8      57.4     1.52
-synthetic 1 h, 500 Hz, 1.8 M rows  149.9     146.6    2.21
-=================================  ========  =======  =========
-
-The real-data wall time meets the 60 s target only when the cores are not
-shared: the fit itself needs 51-57 s of CPU on two worker processes. The
-synthetic log was generated in 531 s (12 chunks, not part of the timing).
+It prints both logs' wall time, CPU time and peak memory against the
+targets; the issue notes hold the measured figures with the machine's load.
 """
 
 import argparse

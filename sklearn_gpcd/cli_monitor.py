@@ -486,7 +486,7 @@ def _cmd_monitor(args):
                        echo=live)
     plots = []
     if args.rtde is not None:
-        from .io._rtde_live import RTDEClient
+        from .io import RTDEClient
 
         if detector.n_joints != 6:
             raise ValueError(f"RTDE streams 6 joints; the detector has {detector.n_joints}")

@@ -303,7 +303,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
-    from .gp._support import resolve_n_support
+    from .gp import resolve_n_support
 
     data = recordings if isinstance(recordings, TrainingSet) else None
     if data is None:

@@ -10,7 +10,7 @@ from sklearn.utils.validation import check_is_fitted
 from scipy import stats as _stats
 
 from .._persistence import VersionedStateMixin
-from ..io._checks import degrees_note, units_note
+from ..io import degrees_note, units_note
 from ..metrics import nmse
 from .align import align_recordings
 from .effects import effect_library

@@ -76,9 +76,9 @@ def resolve_optimizer(optimizer, n_exact, n_theta):
     roughly proportionally more evaluations with more hyperparameters, so
     "auto" is exact while both are small: ``n_exact <= 3000`` and
     ``n_exact * n_theta <= 60000``. At the corner, 3,000 rows of an 18-dim
-    ARD RBF + noise (``benchmarks/gp_fit.py``), the exact fit took 28 s on
-    2 cores and reached scikit-learn's likelihood (scikit-learn: 734-745 s),
-    while Adam took 3.5 s but stopped at a clearly lower likelihood.
+    ARD RBF + noise, the exact fit reaches scikit-learn's likelihood while
+    Adam stops at a clearly lower one; ``benchmarks/gp_fit.py`` measures
+    both against scikit-learn.
 
     Parameters
     ----------

@@ -89,8 +89,8 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         noise variance), as in scikit-learn's GPR.
     optimizer : {"auto", "fmin_l_bfgs_b", "adam"}, callable or None, default="auto"
         Maximiser of the log marginal likelihood. "auto" is
-        "fmin_l_bfgs_b" when the support has at most 2,000 rows, else "adam"
-        (see above). "fmin_l_bfgs_b" and a callable maximise the exact LML of
+        "fmin_l_bfgs_b" when the support has at most 3,000 rows and at most
+        60,000 rows x hyperparameters, else "adam" (see above). "fmin_l_bfgs_b" and a callable maximise the exact LML of
         the support rows; a callable has signature
         ``optimizer(obj_func, initial_theta, bounds) -> (theta_opt, f_min)``
         where ``obj_func(theta, eval_gradient=True)`` returns the negative log
@@ -383,7 +383,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
 
         True for a fitted model (without feature names) and a finite 2-D
         float64 ndarray with ``n_features_in_`` columns: then validation
-        would neither change nor reject ``X``, and its ~0.1 ms are skipped.
+        would neither change nor reject ``X``, and the lean path skips it.
         """
         return (
             type(X) is np.ndarray
@@ -528,9 +528,7 @@ def _fit_output(kernel, mean, X, X_mean, y, alpha, seed, params, label=""):
 
     With several outputs BLAS runs single-threaded here: parallelism comes
     from ``n_jobs`` over outputs, and results do not depend on the number of
-    workers. A single output has the cores to itself: BLAS keeps its threads
-    (at n = 3,000, one likelihood evaluation takes 0.75 s with 2 threads
-    instead of 1.07 s with one).
+    workers. A single output has the cores to itself: BLAS keeps its threads.
     """
     rng = check_random_state(seed)
     with single_threaded_blas() if params["serial_blas"] else nullcontext():

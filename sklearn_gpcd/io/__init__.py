@@ -9,6 +9,10 @@
 :func:`read_npz`           ``.npz`` archives through a key map
 :func:`read_rosbag`        ROS 1 / ROS 2 ``sensor_msgs/JointState`` (optional
                            ``rosbags`` package)
+:class:`RTDEClient`        live UR controller data (RTDE protocol 2);
+                           :class:`LoopbackRTDEServer` replays a recording
+:func:`degrees_note`       unit sanity checks of a recording's signals,
+:func:`units_note`         as sentences for warnings
 =========================  ==================================================
 
 All readers keep the logged (irregular) sampling, drop malformed rows,
@@ -20,6 +24,8 @@ file, column and row for input that cannot be repaired. The user guide page
 "Reading UR RTDE, CSV and ROS bag logs" lists every error and warning.
 """
 
+from ._checks import degrees_note, units_note
+from ._rtde_live import LoopbackRTDEServer, RTDEClient
 from ._validation import RecordingWarning
 from .columns import COLUMN_PRESETS, ColumnPreset
 from .load import detect_format, load_recording, load_recordings
@@ -33,8 +39,11 @@ __all__ = [
     "COLUMN_PRESETS",
     "ColumnPreset",
     "JOINT_SIGNALS",
+    "LoopbackRTDEServer",
+    "RTDEClient",
     "Recording",
     "RecordingWarning",
+    "degrees_note",
     "detect_format",
     "load_recording",
     "load_recordings",
@@ -42,5 +51,6 @@ __all__ = [
     "read_npz",
     "read_rosbag",
     "read_rtde_csv",
+    "units_note",
     "write_rtde_csv",
 ]

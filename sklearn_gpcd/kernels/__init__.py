@@ -34,6 +34,7 @@ from .columns import resolve_columns
 from .contraction import contract_gradient
 from .gate import QuasiStaticGate
 from .parametric import ParametricKernel
+from .plan import OpaqueKernelWarning
 
 __all__ = [
     "ARDRBF",
@@ -41,4 +42,5 @@ __all__ = [
     "ParametricKernel",
     "resolve_columns",
     "contract_gradient",
+    "OpaqueKernelWarning",
 ]

@@ -131,6 +131,21 @@ class OpaqueKernelWarning(UserWarning):
     forms the kernel's full ``(n, n, n_theta)`` gradient and predictions
     call the kernel object. Register a node with :func:`register_node`, or
     register the type as opaque (``register_node(kind, None)``) to silence it.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> import numpy as np
+    >>> from sklearn.gaussian_process.kernels import RBF
+    >>> from sklearn_gpcd.kernels import OpaqueKernelWarning
+    >>> from sklearn_gpcd.kernels.plan import compile_kernel
+    >>> class MyRBF(RBF):                      # a subclass is not matched
+    ...     pass
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     _ = compile_kernel(MyRBF(1.0))
+    >>> any(issubclass(w.category, OpaqueKernelWarning) for w in caught)
+    True
     """
 
 
