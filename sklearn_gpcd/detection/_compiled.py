@@ -176,23 +176,24 @@ class _StackedGroup(_Summands):
     def finalize(self):
         kept = [np.flatnonzero(a != 0.0) for a in self.weights]
         live = [t for t, rows in enumerate(kept) if rows.size]  # others always add 0
-        d = len(self.columns)
-        S = [self.supports[t][np.ix_(kept[t], self.columns)] for t in live]
-        stacked = np.vstack(S) if S else np.zeros((0, d))
-        self.center = stacked.mean(axis=0) if stacked.shape[0] else np.zeros(d)
-        self.W = np.column_stack([self.inv_sq[t] for t in live]) if live else np.zeros((d, 0))
-        centred = [s - self.center for s in S]
-        self.S_hat = np.ascontiguousarray(np.vstack(
-            [c * self.inv_sq[t] for c, t in zip(centred, live)]) if live else stacked)
-        self.c = np.concatenate([-0.5 * (c**2) @ self.inv_sq[t]
-                                 for c, t in zip(centred, live)]) if live else np.zeros(0)
-        self.a = np.concatenate([self.weights[t][kept[t]] for t in live]) if live else np.zeros(0)
-        sizes = [kept[t].size for t in live]
-        self.term_of_row = np.repeat(np.arange(len(live)), sizes)
-        self.starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
         self.terms = [self.terms[t] for t in live]
-        self.scatter = np.zeros((len(live), self.n_outputs))
-        self.scatter[np.arange(len(live)), [self.outputs[t] for t in live]] = 1.0
+        d = len(self.columns)
+        self.S_hat = np.zeros((0, d))
+        if live:  # else n_rows == 0 and the predictor drops the group
+            centred = [self.supports[t][np.ix_(kept[t], self.columns)] for t in live]
+            self.center = np.vstack(centred).mean(axis=0)
+            centred = [s - self.center for s in centred]
+            self.W = np.column_stack([self.inv_sq[t] for t in live])
+            self.S_hat = np.ascontiguousarray(
+                np.vstack([c * self.inv_sq[t] for c, t in zip(centred, live)]))
+            self.c = np.concatenate([-0.5 * (c**2) @ self.inv_sq[t]
+                                     for c, t in zip(centred, live)])
+            self.a = np.concatenate([self.weights[t][kept[t]] for t in live])
+            sizes = [kept[t].size for t in live]
+            self.term_of_row = np.repeat(np.arange(len(live)), sizes)
+            self.starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+            self.scatter = np.zeros((len(live), self.n_outputs))
+            self.scatter[np.arange(len(live)), [self.outputs[t] for t in live]] = 1.0
         self.gated = any(term.gates for term in self.terms)
         self.on = np.ones(len(live))
         # per-tick buffers
@@ -211,8 +212,6 @@ class _StackedGroup(_Summands):
         return self.S_hat.shape[0]
 
     def add_to(self, x, out):
-        if not self.terms:
-            return
         if not self._centred_input(x):
             return  # Eq. 15: every gate closed, the group contributes 0
         np.multiply(self.xs, self.xs, out=self.x2)
@@ -282,8 +281,9 @@ class _GaussianProcessPredictor:
                     if block is None:
                         blocks.append(block := (support, []))
                     block[1].append((term, weights, j))
-        self.groups = [g.finalize() for blocks in by_columns.values()
-                       for g in _groups(blocks, n_outputs)]
+        groups = (g.finalize() for blocks in by_columns.values()
+                  for g in _groups(blocks, n_outputs))
+        self.groups = [g for g in groups if g.n_rows]  # no row, no contribution
         self.states = {}  # rigid-body regressors shared by the means of one robot
         self.means = [_compile_mean(post.mean, wrap, self.states) for post in posteriors]
         self.row = np.empty((1, n_features))

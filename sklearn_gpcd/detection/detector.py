@@ -633,12 +633,14 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             )
         self.regime_names_ = REGIME_NAMES if self.regimes else ("all",)
         signal, regimes, _ = self._signal(residual, std, starts, qd)
+        margin = 1.0
         if self.threshold == "std":
             self.scale_ = np.ones(self.n_joints) if self.normalize == "std" else rms_scale(std)
             gamma = float(self.k)
         elif self.threshold == "per_joint":
-            levels = self._joint_levels(signal, regimes, starts)
-            margin = self._margin(signal, regimes, starts, recordings, levels.shape)
+            debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
+            levels = self._joint_levels(debounced, regimes, starts)
+            margin = self._margin(debounced, regimes, recordings, levels.shape)
             self.scale_ = margin * levels
             gamma = 1.0
         else:
@@ -650,13 +652,11 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                 gamma = contamination_level(peak, self.contamination)
             else:
                 gamma = false_alarm_level(peak, starts, self.sample_time_, self.false_alarm_rate)
-        if self.threshold != "per_joint":
-            margin = np.ones(np.shape(self.scale_))
         self.margin_ = np.broadcast_to(margin, np.shape(self.scale_)).copy()
         self.offset_ = -gamma
         self.thresholds_ = gamma * self.scale_
 
-    def _margin(self, signal, regimes, starts, recordings, shape):
+    def _margin(self, debounced, regimes, recordings, shape):
         """The given margin, checked against the levels' shape, or the LORO one."""
         if not _is_loro(self.margin):
             margin = np.asarray(self.margin, dtype=float)
@@ -672,7 +672,6 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                 "margin='loro' leaves one recording out: pass groups= naming at least 2 "
                 f"recordings to fit, got {n_recordings}"
             )
-        debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
         n_rows = len(self.regime_names_)
         peaks = recording_peaks(debounced, regimes, recordings, n_rows)
         return loro_factors(peaks, "global").reshape(shape)
@@ -693,7 +692,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                 table[code], present[code] = per_regime(rows), True
         return fill_absent_regimes(table, present)
 
-    def _joint_levels(self, signal, regimes, starts):
+    def _joint_levels(self, debounced, regimes, starts):
         """Per joint (and regime) false-alarm levels of the debounced |m|.
 
         The budget ``false_alarm_rate`` is split equally over the joints and
@@ -701,7 +700,6 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         :func:`false_alarm_level` of its debounced ``|m_l|``, set to zero
         outside ``g``, with that share.
         """
-        debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
         n_regimes = len(np.unique(regimes)) if self.regimes else 1
         share = self.false_alarm_rate / (self.n_joints * n_regimes)
         tiny = np.finfo(float).tiny
@@ -714,7 +712,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             return np.maximum(out, tiny)
 
         if not self.regimes:
-            return levels(np.ones(signal.shape[0], dtype=bool))
+            return levels(np.ones(debounced.shape[0], dtype=bool))
         return self._regime_rows(levels, regimes)
 
     # ------------------------------------------------------------- predict
