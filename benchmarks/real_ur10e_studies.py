@@ -23,9 +23,26 @@ Studies (``--study``):
   identification runs (the benchmark) or also on ``collision_free.csv`` of
   the same task, thresholds by LORO on the task's other collision-free data
   that was not trained on.
+- ``select``: the ``rest`` grid chosen honestly: for every unseen recording,
+  the cell (``settle_time``, ``rest_reference``) is chosen on the other 20
+  only, and that recording is scored with the cell's levels and margin from
+  the same 20 (selection nested inside leave-one-recording-out). Criterion:
+  the time-weighted mean log ratio of the thresholds of joints 1-3 to the
+  peer's at ``settle_time=0.5`` without reference, both calibrated on the
+  same recordings (smaller thresholds = a more sensitive monitor; every cell
+  has 0 onsets on its own calibration recordings by construction of the
+  margin). The pushes are scored at the cell chosen on all 21.
+- ``relax``: what the held current does after a stop, on every stop of
+  every collision-free recording with target current that is followed by
+  at least 4 s of rest: the residual ``i - i_des`` 0.15-0.35 s after the stop, in the last
+  second of the rest, and the time constant of an exponential fitted in
+  between; then the arm-at-rest nMSE on ptp_10_points of the simplest causal
+  "model" of it, an exponential average of the measured current itself
+  started at each stop, against its time constant.
 
 Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
-2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min). The
+2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min),
+``--study select`` (about 2 min), ``--study relax`` (seconds). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -34,10 +51,12 @@ import argparse
 import json
 import sys
 import warnings
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
+from scipy.optimize import curve_fit
 from sklearn.frozen import FrozenEstimator
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -47,6 +66,10 @@ import real_ur10e as bench  # noqa: E402
 from sklearn_gpcd.detection import (  # noqa: E402
     CollisionDetector,
     calibrate_across_recordings,
+    loro_margin,
+    nested_false_alarms,
+    regime_excursions,
+    regime_levels,
     stack_currents,
 )
 from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
@@ -178,9 +201,155 @@ def study_family(root, labels, n_support, seed):
         print(f"SP_S trained on {variant}: {hits}/{total} collisions, {onsets} onsets", flush=True)
 
 
+class _Memo:
+    """A fitted model whose predictions are kept per input array.
+
+    The ``select`` study runs the detection rule 13 times over the same
+    recordings; the model's predictions do not depend on the rule.
+    ``clone`` returns the object itself, like :class:`FrozenEstimator`.
+    """
+
+    def __init__(self, model):
+        self.model, self.memo = model, {}
+
+    def __sklearn_clone__(self):
+        return self
+
+    def __sklearn_is_fitted__(self):
+        return True
+
+    def fit(self, *args, **kwargs):
+        return self
+
+    def predict(self, X, **kwargs):
+        key = (id(X), X.shape, kwargs.get("return_std", False))
+        if key not in self.memo:
+            self.memo[key] = (X, self.model.predict(X, **kwargs))  # X kept: id stays unique
+        return self.memo[key][1]
+
+    def __getattr__(self, name):
+        return getattr(self.__dict__["model"], name)
+
+
+def _operating_point(peaks, keys):
+    """Thresholds of the benchmark's rule on the recordings ``keys``: levels x LORO margin."""
+    return regime_levels(peaks, keys) * loro_margin(peaks, keys, bench.MARGIN_RULE)
+
+
+def study_select(root, labels, n_support, seed):
+    train, unseen, _ = bench.split_recordings(root, quick=False)
+    pushes = {key: bench.load(root / key) for key in bench.PUSHES}
+    data = training_set(list(train), "causal")
+    models, _ = bench.train_models(data, n_support, seed, None, names=("SP_C",))
+    models = {bench.PEER: ControllerCurrent(6).fit(data.X, data.y), **models}
+    blocks = {k: stack_currents(data.features.transform(r), r.current)
+              for k, r in unseen.items()}
+    push_blocks = {k: stack_currents(data.features.transform(r), r.current)
+                   for k, r in pushes.items()}
+    times, keys = bench.times_of(unseen), list(blocks)
+    Z = np.concatenate([blocks[k] for k in keys])
+    groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
+    time = np.concatenate([times[k] for k in keys])
+    cells = [(s, t) for s in SETTLE_TIMES for t in REST_REFERENCES]
+    memos = {name: _Memo(model) for name, model in models.items()}
+
+    def excursions(model, cell):
+        det = rule(model, *cell).set_params(margin=1.0).fit(Z, groups=groups, time=time)
+        series = regime_excursions(det, blocks)
+        return series, {k: v[2] for k, v in series.items()}
+
+    peer_series, peer_peaks = excursions(memos[bench.PEER], (0.5, None))
+    for name, memo in memos.items():
+        runs = {}
+        for cell in cells:
+            series, peaks = excursions(memo, cell)
+            runs[cell] = (series, peaks, nested_false_alarms(series, times, bench.MARGIN_RULE))
+
+        def criterion(cell, ks):
+            series, peaks, _ = runs[cell]
+            counts = sum(np.bincount(series[k][1], minlength=3) for k in ks)
+            ratio = _operating_point(peaks, ks) / _operating_point(peer_peaks, ks)
+            return float(counts / counts.sum() @ np.log(ratio[:, :3]).mean(axis=1))
+
+        chosen, onsets = {}, {}
+        for held_out in keys:
+            others = [k for k in keys if k != held_out]
+            chosen[held_out] = min(cells, key=lambda cell: criterion(cell, others))
+            onsets[held_out] = runs[chosen[held_out]][2][held_out]["onsets"]
+        final = min(cells, key=lambda cell: criterion(cell, keys))
+        cal = calibrate_across_recordings(rule(memo, *final), blocks, times)
+        hit, total = pushes_detected(cal.detector, pushes, push_blocks, labels)
+        ratio = cal.detector.thresholds_ / _operating_point(peer_peaks, keys)
+        print(f"{name}: cells chosen in the 21 outer folds {dict(Counter(chosen.values()))}; "
+              f"nested onsets {sum(map(len, onsets.values()))} "
+              f"({ {k: v for k, v in onsets.items() if v} }); chosen on all 21: {final}, "
+              f"margin {cal.margin.max():.2f}, pushes {hit}/{total}; thresholds / peer's at "
+              f"(0.5, None), joints 1-3: moving {np.round(ratio[0, :3], 2)}, settling "
+              f"{np.round(ratio[1, :3], 2)}, rest {np.round(ratio[2, :3], 2)}", flush=True)
+        for held_out in keys:
+            if chosen[held_out] != final:
+                print(f"    {held_out}: chosen {chosen[held_out]} without it", flush=True)
+        for cell in cells:
+            print(f"    {cell}: criterion on all 21 {criterion(cell, keys):+.3f}, nested "
+                  f"onsets {sum(len(f['onsets']) for f in runs[cell][2].values())}", flush=True)
+
+
+def _relaxation(t, y):
+    """Residual shortly after a stop, at the end of the rest, and a fitted time constant."""
+    start, end = y[(t > 0.15) & (t < 0.35)].mean(), y[t > t[-1] - 1.0].mean()
+    late = t > 0.15
+    try:
+        (_, _, tau), _ = curve_fit(lambda x, a, b, tau: a + b * np.exp(-x / tau), t[late],
+                                   y[late], p0=(end, start - end, 1.5), maxfev=5000)
+    except RuntimeError:
+        tau = np.nan
+    return start, end, tau
+
+
+def study_relax(root):
+    files = (sorted((root / bench.IDENTIFICATION).glob("*.csv"))
+             + sorted((root / "jointwise_motion").glob("*.csv"))
+             + [root / bench.PTP])
+    print("stops followed by >= 4 s of rest; residual i - i_des of joints 1, 2, 3, 5: "
+          "0.15-0.35 s after the stop -> last second (fitted time constant, s)")
+    for path in files:
+        rec = bench.load(path)
+        if rec.target_current is None:
+            continue
+        t = rec.time - rec.time[0]
+        residual = rec.current - rec.target_current
+        still = np.all(np.abs(rec.qd) < bench.SIGMA_V, axis=1)
+        for a, b in contiguous_segments(still):
+            if a == 0 or t[b - 1] - t[a] < 4.0:
+                continue
+            cells = []
+            for joint in (0, 1, 2, 4):
+                start, end, tau = _relaxation(t[a:b] - t[a], residual[a:b, joint])
+                decay = f"{tau:.1f}" if 0 < tau < 100 else "none"
+                cells.append(f"j{joint + 1} {start:+.2f} -> {end:+.2f} ({decay})")
+            print(f"  {path.name[:30]:30s} stop at {t[a]:5.1f} s, rest {t[b - 1] - t[a]:4.1f} s: "
+                  + ", ".join(cells), flush=True)
+    rec = bench.load(root / bench.PTP)
+    still = np.all(np.abs(rec.qd) < bench.SIGMA_V, axis=1)
+    segments = contiguous_segments(still)
+    rows = np.concatenate([np.arange(a, b) for a, b in segments])
+    for tau in (0.05, 0.1, 0.2, 0.3, 0.5, 1.0, 2.0, 5.0):
+        beta = -np.expm1(-0.01 / tau)
+        predicted = np.empty_like(rec.current)
+        for a, b in segments:
+            reference = rec.current[a].copy()
+            for k in range(a, b):
+                predicted[k] = reference
+                reference += beta * (rec.current[k] - reference)
+        error = rec.current[rows] - predicted[rows]
+        nmse = np.mean(error**2, axis=0) / rec.current[rows].var(axis=0)
+        print(f"ptp_10_points arm at rest, exponential average of the measured current "
+              f"(time constant {tau} s) from each stop: nMSE {np.round(nmse, 2)}", flush=True)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--study", choices=("rest", "floor", "family"), required=True)
+    parser.add_argument("--study", choices=("rest", "floor", "family", "select", "relax"), required=True)
     parser.add_argument("--data", default=None, help="folder of ur10e_mamedov")
     parser.add_argument("--n-support", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
@@ -193,6 +362,10 @@ def main(argv=None):
         study_rest(root, labels, args.n_support, args.seed)
     elif args.study == "floor":
         study_floor(root)
+    elif args.study == "select":
+        study_select(root, labels, args.n_support, args.seed)
+    elif args.study == "relax":
+        study_relax(root)
     else:
         study_family(root, labels, args.n_support, args.seed)
 
