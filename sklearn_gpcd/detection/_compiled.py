@@ -140,8 +140,8 @@ class _StackedGroup(_Summands):
     """Exponential summands on the same columns, each on its own support rows.
 
     Summand ``t`` (output ``o_t``, inverse squared length scales ``w_t``,
-    weights ``a_t`` on its own support rows ``s_i``; the outputs of a
-    multi-output regressor each have their own support) adds
+    weights ``a_t`` on its own support rows ``s_i``, e.g. the outputs of a
+    multi-output regressor with ``support_selection="greedy"``) adds
 
     .. math::
 
@@ -232,9 +232,10 @@ class _StackedGroup(_Summands):
 
 def _groups(blocks, n_outputs):
     """Groups of one column set: a support read by several summands is read once
-    (:class:`_SharedSupportGroup`); summands alone on their support (the outputs
-    of a multi-output GP each draw their own support rows) share one stacked
-    product (:class:`_StackedGroup`)."""
+    (:class:`_SharedSupportGroup`, e.g. the outputs of a GP on one random
+    support draw); summands alone on their support (e.g. greedy supports, chosen
+    in each output's kernel metric) share one stacked product
+    (:class:`_StackedGroup`)."""
     groups, stacked = [], None
     for support, members in blocks:
         columns = members[0][0].columns
