@@ -349,6 +349,35 @@ def test_compiled_groups_read_each_support_once(rng, n_support, selection, rando
     assert np.allclose(got, gp.predict(X), rtol=1e-8, atol=1e-8)
 
 
+@pytest.mark.parametrize("length_scale, folded", [(3.0, True), (0.02, False)])
+def test_support_term_is_folded_into_the_weights_only_when_safe(rng, monkeypatch,
+                                                                 length_scale, folded):
+    """exp(-1/2 s^T W s) goes into the weights while it cannot over- or underflow
+    (long length scales); with short ones it is added each tick. Both equal
+    predict, and the two forms agree where both are safe."""
+    from sklearn_gpcd.detection import _compiled
+
+    X, current = augmented_run(150, 2, rng)
+    columns = [0, 1, 2, 3, 6, 7, 8, 9] if folded else list(range(12))  # a take, a slice
+    kernel = C(1.0) * ARDRBF(np.full(len(columns), length_scale), columns=columns)
+    gp = SemiParametricGPRegressor(kernel + WhiteKernel(0.01), optimizer=None,
+                                   random_state=0).fit(X, current)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no fallback
+        predictor = compile_predictor(gp, 12, 2)
+    (group,) = predictor.groups
+    assert (group.h is None) == folded and (group.column_slice is None) == folded
+    X_test = np.vstack([X, X[:20] + 0.1 * rng.normal(size=(20, 12))])
+    got = np.array([predictor.predict_one(x, np.empty(2)) for x in X_test])
+    assert np.allclose(got, gp.predict(X_test), rtol=1e-8, atol=1e-8)
+    if folded:
+        monkeypatch.setattr(_compiled, "_FOLD_LIMIT", -1.0)  # h added each tick
+        direct = compile_predictor(gp, 12, 2)
+        assert direct.groups[0].h is not None
+        again = np.array([direct.predict_one(x, np.empty(2)) for x in X_test])
+        assert np.allclose(again, got, rtol=1e-12, atol=1e-12 * np.abs(got).max())
+
+
 def test_compiled_predictor_falls_back_when_it_disagrees(rng, monkeypatch):
     from sklearn_gpcd.kernels import plan
 

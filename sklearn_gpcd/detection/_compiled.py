@@ -50,6 +50,12 @@ from .._gate import quasi_static
 __all__ = ["compile_predictor"]
 
 
+#: Largest -h of a support row (``_SharedSupportGroup``) for which exp(h) is
+#: folded into the weights: exp(600) and exp(-600) are far from the limits of a
+#: float64 (about exp(709) and exp(-708)).
+_FOLD_LIMIT = 600.0
+
+
 class _Summands:
     """What the exponential groups share: the gates of the tick, the centred
     input and the scatter of the summands' values onto the outputs."""
@@ -62,6 +68,10 @@ class _Summands:
                       for column, sigma_v in term.gates]
         self.gated = bool(self.gates)
         self.closed = ()
+        columns = np.asarray(self.columns)
+        self.column_slice = None  # a view of x when the columns are consecutive
+        if columns.size and np.array_equal(columns, np.arange(columns[0], columns[-1] + 1)):
+            self.column_slice = slice(int(columns[0]), int(columns[-1]) + 1)
         self.xs = np.empty(len(self.columns))
         self.f = np.empty(n_terms)  # value of each summand at x
         # the usual case, summand t on output t: f adds to the outputs as it is
@@ -79,8 +89,11 @@ class _Summands:
                            if not quasi_static(x[column], sigma_v)}
             if len(self.closed) == self.f.size:
                 return False
-        np.take(x, self.columns, out=self.xs)
-        self.xs -= self.center
+        if self.column_slice is not None:
+            np.subtract(x[self.column_slice], self.center, out=self.xs)
+        else:  # mode="clip": valid indices, and no buffered copy as with "raise"
+            np.take(x, self.columns, out=self.xs, mode="clip")
+            self.xs -= self.center
         return True
 
     def _add_summands(self, out):
@@ -105,16 +118,24 @@ class _SharedSupportGroup(_Summands):
     .. math::
 
         f_t(x) = \\sum_i a_{ti} \\exp(e_{ti}), \\quad
-        e_{ti} = -\\tfrac12 \\sum_d w_{td} (x_d - s_{id})^2
-               = \\big[w_t \\odot x,\\ (x \\odot x)^\\top w_t\\big]
-                 \\cdot \\big[s_i,\\ -\\tfrac12\\big]
-               - \\tfrac12 (s_i \\odot s_i)^\\top w_t,
+        e_{ti} = -\\tfrac12 \\sum_d w_{td} (x_d - s_{id})^2 = g_{ti} + h_{ti},
 
-    so one tick is one product ``(n_terms, d + 1) @ (d + 1, n_rows)`` (the
-    support transposed, contiguous), the precomputed last part added in
-    place, one ``exp`` and one row-wise dot product with the weights (a
-    batched ``(1, n_rows) @ (n_rows, 1)`` per summand: no ``n_terms x
-    n_terms`` product for its diagonal).
+        g_{ti} = \\big[w_t \\odot x,\\ (x \\odot x)^\\top w_t\\big]
+                 \\cdot \\big[s_i,\\ -\\tfrac12\\big], \\quad
+        h_{ti} = -\\tfrac12 (s_i \\odot s_i)^\\top w_t \\le 0,
+
+    so one tick is one product ``(n_terms, d + 1) @ (d + 1, n_rows)`` for
+    ``g`` (the support transposed, contiguous), one ``exp`` and one
+    row-wise dot product with the weights (a batched ``(1, n_rows) @
+    (n_rows, 1)`` per summand: no ``n_terms x n_terms`` product for its
+    diagonal). The support-only ``h`` goes into the weights,
+    :math:`f_t(x) = \\sum_i \\tilde a_{ti} \\exp(g_{ti})` with
+    :math:`\\tilde a_{ti} = a_{ti} e^{h_{ti}}`, when that is safe for every
+    ``x``: since :math:`e_{ti} \\le 0`, :math:`g_{ti} \\le -h_{ti}`, so with
+    every :math:`-h_{ti} \\le` ``_FOLD_LIMIT`` (600) ``exp(g)`` cannot
+    overflow and :math:`\\tilde a` stays a normal number (relative rounding
+    as for ``exp(g + h)``). Otherwise (short length scales, rows far from
+    their mean) ``h`` is added to ``g`` in place each tick.
     """
 
     def __init__(self, support, columns, n_outputs):
@@ -140,8 +161,13 @@ class _SharedSupportGroup(_Summands):
         n_terms = self.W.shape[1]
         self.WT = np.ascontiguousarray(self.W.T)
         self.ST = np.ascontiguousarray(np.vstack([S.T, np.full((1, n_rows), -0.5)]))
-        self.half_s2w = np.ascontiguousarray(-0.5 * ((S**2) @ self.W).T)
-        self.AT = np.ascontiguousarray(A[rows].T)  # (n_terms, n_rows)
+        h = -0.5 * ((S**2) @ self.W).T  # (n_terms, n_rows)
+        self.AT = np.ascontiguousarray(A[rows].T)
+        self.h = None  # folded into the weights, or added to g each tick
+        if n_rows and -h.min() <= _FOLD_LIMIT:
+            self.AT *= np.exp(h)
+        else:
+            self.h = np.ascontiguousarray(h)
         self._prepare(n_terms)
         # per-tick buffers, and the views a tick writes through
         self.XW = np.empty((n_terms, d + 1))  # [w_t * x, (x * x) @ w_t] per row
@@ -161,10 +187,11 @@ class _SharedSupportGroup(_Summands):
             return  # Eq. 15: every gate closed, the group contributes 0
         np.multiply(self.WT, self.xs, out=self.wx)
         np.matmul(self.wx, self.xs, out=self.wxx)
-        np.matmul(self.XW, self.ST, out=self.G)
-        self.G += self.half_s2w  # e_ti, summands x support rows
+        np.matmul(self.XW, self.ST, out=self.G)  # g_ti, summands x support rows
+        if self.h is not None:
+            self.G += self.h  # e_ti
         np.exp(self.G, out=self.G)
-        np.matmul(self.G_rows, self.AT_columns, out=self.f_batched)  # f_t = sum_i a_ti k_ti
+        np.matmul(self.G_rows, self.AT_columns, out=self.f_batched)  # f_t
         self._add_summands(out)
 
 

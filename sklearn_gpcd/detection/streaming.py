@@ -454,7 +454,7 @@ class StreamingMonitor(VersionedStateMixin):
         np.copyto(self._z, self._z_next)
         self._fresh = False
         if self._regime_state is not None:
-            np.take(self._inputs, self._velocity_columns, out=self._qd)
+            np.take(self._inputs, self._velocity_columns, out=self._qd, mode="clip")
             self.regime = self._regime_state.step(self._qd, self.signal)
         np.abs(self.signal, out=self._window_rows[self._position])
         self._position = (self._position + 1) % len(self._window_rows)
