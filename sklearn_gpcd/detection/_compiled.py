@@ -367,16 +367,18 @@ def _rigid_body_mean(mean, states):
     features = mean.features_.sample_features()
     state = states.setdefault(features.key, _SampleState(features))
     row, columns, scale = int(features.rows[0]), features.columns, float(features.scale[0])
-    coef = np.asarray(mean.coef_, dtype=float) * scale
+    # the coefficients on every column of the full row (0 on the others), and
+    # the same with the friction columns zeroed (phi-bar, Eq. 17): one dot a tick
+    coef = np.zeros(features.full.n_parameters)
+    coef[columns] = np.asarray(mean.coef_, dtype=float) * scale
+    coef_bar = coef.copy()
+    coef_bar[columns[np.asarray(mean.friction_columns_, dtype=int)]] = 0.0
     intercept = float(mean.intercept_)
     velocity, sigma_v = mean.velocity_column_, mean.sigma_v
-    friction = np.asarray(mean.friction_columns_, dtype=int)
 
     def rigid_body(x, _row):
-        phi = state.value[row, columns]
-        if velocity is not None and quasi_static(x[velocity], sigma_v):  # phi-bar, Eq. 17
-            phi[friction] = 0.0
-        return float(phi @ coef) + intercept
+        static = velocity is not None and quasi_static(x[velocity], sigma_v)
+        return float(state.value[row] @ (coef_bar if static else coef)) + intercept
 
     return rigid_body
 
@@ -390,7 +392,7 @@ class _SampleState:
 
     def update(self, x):
         f = self.features
-        self.value = f.full(x[f.q], x[f.qd], x[f.qdd])
+        self.value = f.full(x[f.q], x[f.qd], x[f.qdd], out=self.value)  # in place after the first
 
 
 def _compile_mean(mean, wrap, states):
