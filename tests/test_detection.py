@@ -318,22 +318,28 @@ def test_compiled_gp_matches_predict_with_mean_gates_and_products(rng):
     assert np.allclose(got, gp.predict(X), rtol=1e-8, atol=1e-8)
 
 
-@pytest.mark.parametrize("n_support, layout", [(120, "_StackedGroup"),
-                                              (None, "_SharedSupportGroup")])
-def test_compiled_groups_read_each_support_once(rng, n_support, layout):
+@pytest.mark.parametrize("n_support, selection, random_state, layout", [
+    (40, "greedy", 0, "_StackedGroup"),
+    (40, "random", None, "_SharedSupportGroup"),
+    (None, "random", None, "_SharedSupportGroup"),
+])
+def test_compiled_groups_read_each_support_once(rng, n_support, selection, random_state,
+                                                layout):
     """Outputs with their own support rows share one stacked product per column
     set; outputs on one support share its matrix product. Both equal predict."""
     X, current = augmented_run(200, 3, rng)
     n = 3
-    kernels = [C(1.0) * ARDRBF(np.ones(3 * n), columns=list(range(3 * n)))
+    kernels = [C(1.0) * ARDRBF(np.full(3 * n, scale), columns=list(range(3 * n)))
                + QuasiStaticGate(C(0.5) * ARDRBF(np.ones(6 * n), columns=list(range(6 * n))),
                                  velocity_column=column_index("qd", j, n), sigma_v=SIGMA_V)
-               + WhiteKernel(0.01) for j in range(n)]
-    # a RandomState draws one seed per output: each output its own support rows
+               + WhiteKernel(0.01) for j, scale in enumerate([1.0, 30.0, 300.0])]
+    # greedy selects in each output's kernel metric (length scales differ): its
+    # own rows per output; a random draw is one for all, even with random_state=None
     gp = SemiParametricGPRegressor(kernels, optimizer=None, n_support=n_support,
-                                   random_state=np.random.RandomState(0)).fit(X, current)
-    if n_support is not None:
-        assert not np.array_equal(gp.support_indices_[0], gp.support_indices_[1])
+                                   support_selection=selection,
+                                   random_state=random_state).fit(X, current)
+    supports = [tuple(s) for s in gp.support_indices_]
+    assert len(set(supports)) == (n if layout == "_StackedGroup" else 1)
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)  # no fallback
         predictor = compile_predictor(gp, 6 * n, n)
@@ -341,6 +347,35 @@ def test_compiled_groups_read_each_support_once(rng, n_support, layout):
     assert [g.W.shape[1] for g in predictor.groups] == [n, n]  # every output in each
     got = np.array([predictor.predict_one(x, np.empty(n)) for x in X])
     assert np.allclose(got, gp.predict(X), rtol=1e-8, atol=1e-8)
+
+
+@pytest.mark.parametrize("length_scale, folded", [(3.0, True), (0.02, False)])
+def test_support_term_is_folded_into_the_weights_only_when_safe(rng, monkeypatch,
+                                                                 length_scale, folded):
+    """exp(-1/2 s^T W s) goes into the weights while it cannot over- or underflow
+    (long length scales); with short ones it is added each tick. Both equal
+    predict, and the two forms agree where both are safe."""
+    from sklearn_gpcd.detection import _compiled
+
+    X, current = augmented_run(150, 2, rng)
+    columns = [0, 1, 2, 3, 6, 7, 8, 9] if folded else list(range(12))  # a take, a slice
+    kernel = C(1.0) * ARDRBF(np.full(len(columns), length_scale), columns=columns)
+    gp = SemiParametricGPRegressor(kernel + WhiteKernel(0.01), optimizer=None,
+                                   random_state=0).fit(X, current)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no fallback
+        predictor = compile_predictor(gp, 12, 2)
+    (group,) = predictor.groups
+    assert (group.h is None) == folded and (group.column_slice is None) == folded
+    X_test = np.vstack([X, X[:20] + 0.1 * rng.normal(size=(20, 12))])
+    got = np.array([predictor.predict_one(x, np.empty(2)) for x in X_test])
+    assert np.allclose(got, gp.predict(X_test), rtol=1e-8, atol=1e-8)
+    if folded:
+        monkeypatch.setattr(_compiled, "_FOLD_LIMIT", -1.0)  # h added each tick
+        direct = compile_predictor(gp, 12, 2)
+        assert direct.groups[0].h is not None
+        again = np.array([direct.predict_one(x, np.empty(2)) for x in X_test])
+        assert np.allclose(again, got, rtol=1e-12, atol=1e-12 * np.abs(got).max())
 
 
 def test_compiled_predictor_falls_back_when_it_disagrees(rng, monkeypatch):

@@ -348,3 +348,22 @@ def test_joint_selection_and_batch_cache_give_the_same_rows(rng, monkeypatch):
     Y = reg.joint_torque_regressor(load_robot("ur10").model, q, qd, qdd)
     Y[:] = 0.0
     assert np.array_equal(full_regressor("ur10", q, qd, qdd), full)
+
+
+@pytest.mark.parametrize("options", [
+    {},
+    {"offset": True, "sigma_v": 0.01},
+    {"rotor_inertia": False, "friction": ("viscous",)},
+    {"rotor_inertia": False, "friction": (), "offset": True},
+])
+def test_sample_regressor_equals_the_batch_one_in_place_too(options, rng):
+    """One state at a time, into a fresh array or over the previous result."""
+    from sklearn_gpcd.dynamics.regressor import SampleRegressor
+
+    sample = SampleRegressor("ur10e", **options)
+    out = None
+    for q, qd, qdd in rng.normal(size=(4, 3, 6)) * [[1.0], [0.005], [1.0]]:
+        expected = full_regressor("ur10e", q, qd, qdd, **options)[0]
+        out = sample(q, qd, qdd, out=out)
+        assert np.array_equal(out, expected) and out.shape == (6, sample.n_parameters)
+        assert np.array_equal(sample(q, qd, qdd), expected)

@@ -344,6 +344,28 @@ def test_n_support_conditions_on_the_support_rows_only():
     assert_allclose(gp_other.predict(X), gp.predict(X), rtol=1e-10)
 
 
+@pytest.mark.parametrize("random_state", [None, np.random.RandomState(3), 5])
+def test_random_support_is_one_draw_for_all_outputs(random_state):
+    """A uniform support draw does not depend on the output: every output of a
+    fit is conditioned on the same rows, whatever ``random_state``."""
+    X, Y = smooth_problem(100)
+    Y = np.column_stack([Y, Y[:, 0] - Y[:, 1]])
+    kernels = [C(1.0) * RBF(1.0) + WhiteKernel(1.0), RBF([1.0, 1.0]) + WhiteKernel(1.0),
+               C(2.0) * RBF(0.5) + WhiteKernel(0.1)]
+    gp = SemiParametricGPRegressor(kernels, n_support=30, optimizer=None,
+                                   random_state=random_state).fit(X, Y)
+    first = gp.support_indices_[0]
+    assert len(np.unique(first)) == 30
+    for support in gp.support_indices_[1:]:
+        assert_array_equal(support, first)
+    if isinstance(random_state, int):  # still one fit per column with that seed
+        for j, kernel in enumerate(kernels):
+            one = SemiParametricGPRegressor(kernel, n_support=30, optimizer=None,
+                                            random_state=random_state).fit(X, Y[:, j])
+            assert_array_equal(one.support_indices_, first)
+            assert_allclose(one.predict(X), gp.predict(X)[:, j], rtol=1e-12)
+
+
 def test_greedy_support_is_deterministic_and_spreads_out():
     rng = np.random.RandomState(0)
     X = np.vstack([0.01 * rng.randn(95, 2), [[5, 5], [-5, 5], [5, -5], [-5, -5], [8, 0]]])

@@ -328,6 +328,19 @@ def test_fault_on_the_first_tick_leaves_the_filter_fresh(data):
     feed_both(monitor, twin, Z[1:40])
 
 
+def test_filter_overflow_is_a_fault_that_leaves_the_filter_state(data, ridge_detector):
+    """A finite residual whose filter step overflows (here the first tick's
+    steady state) is rejected before the state moves: the next valid ticks are
+    processed as if it never came, instead of an infinite state faulting them all."""
+    Z = data[1]
+    monitor, twin = StreamingMonitor(ridge_detector), StreamingMonitor(ridge_detector)
+    with np.errstate(over="ignore"):
+        status = monitor.update(faulty(Z[0], CURRENT1 - 1, 1.7e308))
+    assert status == "sensor_fault"
+    assert monitor.fault_reason == "non-finite monitoring signal of joint(s) [0]"
+    feed_both(monitor, twin, Z[1:60])
+
+
 def test_std_normalisation_recovers_after_a_fault(rng):
     X, current = augmented_run(200, N_JOINTS, rng)
     gp = GaussianProcessRegressor(C(1.0) * RBF([3.0] * 12) + WhiteKernel(0.01), optimizer=None)

@@ -50,28 +50,92 @@ from .._gate import quasi_static
 __all__ = ["compile_predictor"]
 
 
+#: Largest -h of a support row (``_SharedSupportGroup``) for which exp(h) is
+#: folded into the weights: exp(600) and exp(-600) are far from the limits of a
+#: float64 (about exp(709) and exp(-708)).
+_FOLD_LIMIT = 600.0
+
+
 class _Summands:
-    """What the exponential groups share: gates of the tick, centred input."""
+    """What the exponential groups share: the gates of the tick, the centred
+    input and the scatter of the summands' values onto the outputs."""
+
+    def _prepare(self, n_terms):
+        """Per-tick lookups and buffers, once ``terms``, ``outputs`` and
+        ``columns`` are final."""
+        # (summand, velocity column, sigma_v) of every gate
+        self.gates = [(t, column, sigma_v) for t, term in enumerate(self.terms)
+                      for column, sigma_v in term.gates]
+        self.gated = bool(self.gates)
+        self.closed = ()
+        columns = np.asarray(self.columns)
+        self.column_slice = None  # a view of x when the columns are consecutive
+        if columns.size and np.array_equal(columns, np.arange(columns[0], columns[-1] + 1)):
+            self.column_slice = slice(int(columns[0]), int(columns[-1]) + 1)
+        self.xs = np.empty(len(self.columns))
+        self.f = np.empty(n_terms)  # value of each summand at x
+        # the usual case, summand t on output t: f adds to the outputs as it is
+        self.direct = list(self.outputs) == list(range(self.n_outputs))
+        self.scatter = np.zeros((n_terms, self.n_outputs))
+        self.scatter[np.arange(n_terms), np.asarray(self.outputs, dtype=np.intp)] = 1.0
+        self.contribution = np.empty(self.n_outputs)
 
     def _centred_input(self, x):
-        """Gates of each summand at ``x`` into ``on``; False when all are closed,
-        else the group's columns of ``x``, centred, into ``xs``."""
+        """False when every summand has a closed gate at ``x`` (Eq. 15); else
+        the group's columns of ``x``, centred, into ``xs`` and the summands
+        with a closed gate into ``closed``."""
         if self.gated:
-            for t, term in enumerate(self.terms):
-                self.on[t] = term.gates_open(x)
-            if not self.on.any():
+            self.closed = {t for t, column, sigma_v in self.gates
+                           if not quasi_static(x[column], sigma_v)}
+            if len(self.closed) == self.f.size:
                 return False
-        np.take(x, self.columns, out=self.xs)
-        self.xs -= self.center
+        if self.column_slice is not None:
+            np.subtract(x[self.column_slice], self.center, out=self.xs)
+        else:  # mode="clip": valid indices, and no buffered copy as with "raise"
+            np.take(x, self.columns, out=self.xs, mode="clip")
+            self.xs -= self.center
         return True
+
+    def _add_summands(self, out):
+        """``out[o_t] += f_t``, with ``f_t = 0`` for the summands whose gate is closed."""
+        for t in self.closed:
+            self.f[t] = 0.0
+        if self.direct:
+            out += self.f
+        else:
+            np.matmul(self.f, self.scatter, out=self.contribution)
+            out += self.contribution
 
 
 class _SharedSupportGroup(_Summands):
     """Exponential summands on the same support points and columns (one matrix product).
 
     Several summands (e.g. the outputs of a regressor conditioned on one
-    support set) read the support once: kernels x rows exponents come from
-    one product ``[w_t * x; -0.5 (x * x) @ w_t] @ [S, 1]^T``.
+    support set) read the support once. With ``x`` and the rows ``s_i``
+    centred, summand ``t`` (inverse squared length scales ``w_t``, weights
+    ``a_ti``) is
+
+    .. math::
+
+        f_t(x) = \\sum_i a_{ti} \\exp(e_{ti}), \\quad
+        e_{ti} = -\\tfrac12 \\sum_d w_{td} (x_d - s_{id})^2 = g_{ti} + h_{ti},
+
+        g_{ti} = \\big[w_t \\odot x,\\ (x \\odot x)^\\top w_t\\big]
+                 \\cdot \\big[s_i,\\ -\\tfrac12\\big], \\quad
+        h_{ti} = -\\tfrac12 (s_i \\odot s_i)^\\top w_t \\le 0,
+
+    so one tick is one product ``(n_terms, d + 1) @ (d + 1, n_rows)`` for
+    ``g`` (the support transposed, contiguous), one ``exp`` and one
+    row-wise dot product with the weights (a batched ``(1, n_rows) @
+    (n_rows, 1)`` per summand: no ``n_terms x n_terms`` product for its
+    diagonal). The support-only ``h`` goes into the weights,
+    :math:`f_t(x) = \\sum_i \\tilde a_{ti} \\exp(g_{ti})` with
+    :math:`\\tilde a_{ti} = a_{ti} e^{h_{ti}}`, when that is safe for every
+    ``x``: since :math:`e_{ti} \\le 0`, :math:`g_{ti} \\le -h_{ti}`, so with
+    every :math:`-h_{ti} \\le` ``_FOLD_LIMIT`` (600) ``exp(g)`` cannot
+    overflow and :math:`\\tilde a` stays a normal number (relative rounding
+    as for ``exp(g + h)``). Otherwise (short length scales, rows far from
+    their mean) ``h`` is added to ``g`` in place each tick.
     """
 
     def __init__(self, support, columns, n_outputs):
@@ -92,27 +156,25 @@ class _SharedSupportGroup(_Summands):
         S = self.support[np.ix_(rows, self.columns)]
         self.center = S.mean(axis=0) if S.shape[0] else np.zeros(len(self.columns))
         S = S - self.center
-        d = S.shape[1]
+        n_rows, d = S.shape
         self.W = np.column_stack(self.inv_sq)  # (n_columns, n_terms)
         n_terms = self.W.shape[1]
-        # kernels x support rows: [W * x; -0.5 (x * x) @ W]^T @ [S, 1]^T
-        #   = sum_d s_d x_d / l_d^2 - 0.5 sum_d x_d^2 / l_d^2
-        self.ST = np.ascontiguousarray(np.vstack([S.T, np.ones((1, S.shape[0]))]))
-        self.half_s2w = np.ascontiguousarray(-0.5 * ((S**2) @ self.W).T)
-        self.A = np.ascontiguousarray(A[rows])
-        self.scatter = np.zeros((n_terms, self.n_outputs))
-        self.scatter[np.arange(n_terms), self.outputs] = 1.0
-        self.gated = any(term.gates for term in self.terms)
-        self.on = np.ones(n_terms)
-        # per-tick buffers
-        self.xs = np.empty(d)
-        self.XW = np.empty((n_terms, d + 1))
         self.WT = np.ascontiguousarray(self.W.T)
-        self.G = np.empty((n_terms, S.shape[0]))
-        self.GA = np.empty((n_terms, n_terms))
-        self.f = self.GA.reshape(-1)[:: n_terms + 1]  # diagonal view
-        self.weighted = np.empty(n_terms)
-        self.contribution = np.empty(self.n_outputs)
+        self.ST = np.ascontiguousarray(np.vstack([S.T, np.full((1, n_rows), -0.5)]))
+        h = -0.5 * ((S**2) @ self.W).T  # (n_terms, n_rows)
+        self.AT = np.ascontiguousarray(A[rows].T)
+        self.h = None  # folded into the weights, or added to g each tick
+        if n_rows and -h.min() <= _FOLD_LIMIT:
+            self.AT *= np.exp(h)
+        else:
+            self.h = np.ascontiguousarray(h)
+        self._prepare(n_terms)
+        # per-tick buffers, and the views a tick writes through
+        self.XW = np.empty((n_terms, d + 1))  # [w_t * x, (x * x) @ w_t] per row
+        self.wx, self.wxx = self.XW[:, :d], self.XW[:, d]
+        self.G = np.empty((n_terms, n_rows))
+        self.G_rows, self.AT_columns = self.G[:, None, :], self.AT[:, :, None]
+        self.f_batched = self.f[:, None, None]
         return self
 
     @property
@@ -123,40 +185,39 @@ class _SharedSupportGroup(_Summands):
     def add_to(self, x, out):
         if not self._centred_input(x):
             return  # Eq. 15: every gate closed, the group contributes 0
-        d = self.xs.shape[0]
-        np.multiply(self.WT, self.xs, out=self.XW[:, :d])
-        np.matmul(self.XW[:, :d], self.xs, out=self.XW[:, d])  # sum_d x_d^2 / l_d^2
-        self.XW[:, d] *= -0.5
-        np.matmul(self.XW, self.ST, out=self.G)
-        self.G += self.half_s2w  # exponent -0.5 d^2(x, s_i), kernels x support rows
+        np.multiply(self.WT, self.xs, out=self.wx)
+        np.matmul(self.wx, self.xs, out=self.wxx)
+        np.matmul(self.XW, self.ST, out=self.G)  # g_ti, summands x support rows
+        if self.h is not None:
+            self.G += self.h  # e_ti
         np.exp(self.G, out=self.G)
-        np.matmul(self.G, self.A, out=self.GA)  # diagonal: sum_i A_it k_t(x, s_i)
-        np.multiply(self.f, self.on, out=self.weighted)
-        np.matmul(self.weighted, self.scatter, out=self.contribution)
-        out += self.contribution
+        np.matmul(self.G_rows, self.AT_columns, out=self.f_batched)  # f_t
+        self._add_summands(out)
 
 
 class _StackedGroup(_Summands):
     """Exponential summands on the same columns, each on its own support rows.
 
     Summand ``t`` (output ``o_t``, inverse squared length scales ``w_t``,
-    weights ``a_t`` on its own support rows ``s_i``; the outputs of a
-    multi-output regressor each have their own support) adds
+    weights ``a_t`` on its own support rows ``s_i``, e.g. the outputs of a
+    multi-output regressor with ``support_selection="greedy"``) adds
 
     .. math::
 
         f_t(x) = \\sum_i a_{ti} \\exp\\big(-\\tfrac12 \\sum_d w_{td} (x_d - s_{id})^2\\big)
 
     to output ``o_t``. The rows of all summands are stacked, each pre-scaled
-    by its summand's ``w_t``, so one tick is one matrix-vector product over
-    every row of every output:
+    by its summand's ``w_t``, so one tick is one vector-matrix product over
+    every row of every output (the stacked rows transposed, contiguous):
 
     .. math::
 
-        -\\tfrac12 d^2_t(x, s_i) = x^\\top (w_t \\odot s_i)
-        - \\tfrac12 (x \\odot x)^\\top w_t - \\tfrac12 (s_i \\odot s_i)^\\top w_t
+        -\\tfrac12 d^2_t(x, s_i) = \\big[x,\\ 1\\big] \\cdot
+        \\big[w_t \\odot s_i,\\ -\\tfrac12 (s_i \\odot s_i)^\\top w_t\\big]
+        - \\tfrac12 (x \\odot x)^\\top w_t
 
-    (inputs centred on the rows' mean for accuracy), then one ``exp`` and
+    (inputs centred on the rows' mean for accuracy), the last part added to
+    each summand's block of rows in place, then one ``exp``, the weights and
     one segmented sum per summand. Rows with a zero weight (gate closed at
     the support point, Eq. 15) are dropped.
     """
@@ -177,64 +238,58 @@ class _StackedGroup(_Summands):
         kept = [np.flatnonzero(a != 0.0) for a in self.weights]
         live = [t for t, rows in enumerate(kept) if rows.size]  # others always add 0
         self.terms = [self.terms[t] for t in live]
+        self.outputs = [self.outputs[t] for t in live]
         d = len(self.columns)
-        self.S_hat = np.zeros((0, d))
+        self.ST_hat = np.zeros((d + 1, 0))
         if live:  # else n_rows == 0 and the predictor drops the group
             centred = [self.supports[t][np.ix_(kept[t], self.columns)] for t in live]
             self.center = np.vstack(centred).mean(axis=0)
             centred = [s - self.center for s in centred]
             self.W = np.column_stack([self.inv_sq[t] for t in live])
-            self.S_hat = np.ascontiguousarray(
-                np.vstack([c * self.inv_sq[t] for c, t in zip(centred, live)]))
-            self.c = np.concatenate([-0.5 * (c**2) @ self.inv_sq[t]
-                                     for c, t in zip(centred, live)])
+            self.ST_hat = np.ascontiguousarray(np.vstack([
+                np.hstack([c * self.inv_sq[t], -0.5 * (c**2) @ self.inv_sq[t][:, None]])
+                for c, t in zip(centred, live)]).T)  # (d + 1, rows): [w_t s_i, c_i]
             self.a = np.concatenate([self.weights[t][kept[t]] for t in live])
             sizes = [kept[t].size for t in live]
-            self.term_of_row = np.repeat(np.arange(len(live)), sizes)
             self.starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
-            self.scatter = np.zeros((len(live), self.n_outputs))
-            self.scatter[np.arange(len(live)), [self.outputs[t] for t in live]] = 1.0
-        self.gated = any(term.gates for term in self.terms)
-        self.on = np.ones(len(live))
-        # per-tick buffers
-        self.xs = np.empty(d)
+        self._prepare(len(live))
+        # per-tick buffers, and the views a tick writes through
+        self.x1 = np.ones(d + 1)  # [x, 1], x centred
+        self.xs = self.x1[:d]
         self.x2 = np.empty(d)
         self.q = np.empty(len(live))
-        self.v = np.empty(self.S_hat.shape[0])
-        self.per_row = np.empty(self.S_hat.shape[0])
-        self.contribution = np.empty(self.n_outputs)
+        self.v = np.empty(self.ST_hat.shape[1])
+        bounds = np.append(self.starts, self.v.size) if live else []
+        self.blocks = [self.v[lo:hi] for lo, hi in zip(bounds[:-1], bounds[1:])]
         del self.supports, self.weights  # the stacked rows are all a tick needs
         return self
 
     @property
     def n_rows(self):
         """Rows kept over all summands (those with a non-zero weight)."""
-        return self.S_hat.shape[0]
+        return self.ST_hat.shape[1]
 
     def add_to(self, x, out):
         if not self._centred_input(x):
             return  # Eq. 15: every gate closed, the group contributes 0
+        np.matmul(self.x1, self.ST_hat, out=self.v)
         np.multiply(self.xs, self.xs, out=self.x2)
         np.matmul(self.x2, self.W, out=self.q)
         self.q *= -0.5  # -0.5 sum_d w_td x_d^2, one per summand
-        np.matmul(self.S_hat, self.xs, out=self.v)
-        self.v += self.c
-        np.take(self.q, self.term_of_row, out=self.per_row)
-        self.v += self.per_row  # exponent -0.5 d_t^2(x, s_i) of every row
+        for block, q in zip(self.blocks, self.q.tolist()):
+            block += q  # exponent -0.5 d_t^2(x, s_i) of the summand's rows
         np.exp(self.v, out=self.v)
         self.v *= self.a
-        sums = np.add.reduceat(self.v, self.starts)  # f_t(x) per summand
-        if self.gated:
-            sums *= self.on
-        np.matmul(sums, self.scatter, out=self.contribution)
-        out += self.contribution
+        np.add.reduceat(self.v, self.starts, out=self.f)  # f_t(x) per summand
+        self._add_summands(out)
 
 
 def _groups(blocks, n_outputs):
     """Groups of one column set: a support read by several summands is read once
-    (:class:`_SharedSupportGroup`); summands alone on their support (the outputs
-    of a multi-output GP each draw their own support rows) share one stacked
-    product (:class:`_StackedGroup`)."""
+    (:class:`_SharedSupportGroup`, e.g. the outputs of a GP on one random
+    support draw); summands alone on their support (e.g. greedy supports, chosen
+    in each output's kernel metric) share one stacked product
+    (:class:`_StackedGroup`)."""
     groups, stacked = [], None
     for support, members in blocks:
         columns = members[0][0].columns
@@ -287,9 +342,10 @@ class _GaussianProcessPredictor:
         self.states = {}  # rigid-body regressors shared by the means of one robot
         self.means = [_compile_mean(post.mean, wrap, self.states) for post in posteriors]
         self.row = np.empty((1, n_features))
+        self.live_means = [(j, mean) for j, mean in enumerate(self.means) if mean is not None]
 
     def predict_one(self, x, out):
-        out[:] = self.offset
+        np.copyto(out, self.offset)
         for group in self.groups:
             group.add_to(x, out)
         for j, value, term in self.constants:
@@ -301,9 +357,8 @@ class _GaussianProcessPredictor:
                 out[j] += float(kernel(self.row, support)[0] @ weights)
         for state in self.states.values():  # one pinocchio call per robot and tick
             state.update(x)
-        for j, mean in enumerate(self.means):
-            if mean is not None:
-                out[j] += mean(x, self.row)
+        for j, mean in self.live_means:
+            out[j] += mean(x, self.row)
         return out
 
 
@@ -312,16 +367,18 @@ def _rigid_body_mean(mean, states):
     features = mean.features_.sample_features()
     state = states.setdefault(features.key, _SampleState(features))
     row, columns, scale = int(features.rows[0]), features.columns, float(features.scale[0])
-    coef = np.asarray(mean.coef_, dtype=float) * scale
+    # the coefficients on every column of the full row (0 on the others), and
+    # the same with the friction columns zeroed (phi-bar, Eq. 17): one dot a tick
+    coef = np.zeros(features.full.n_parameters)
+    coef[columns] = np.asarray(mean.coef_, dtype=float) * scale
+    coef_bar = coef.copy()
+    coef_bar[columns[np.asarray(mean.friction_columns_, dtype=int)]] = 0.0
     intercept = float(mean.intercept_)
     velocity, sigma_v = mean.velocity_column_, mean.sigma_v
-    friction = np.asarray(mean.friction_columns_, dtype=int)
 
     def rigid_body(x, _row):
-        phi = state.value[row, columns]
-        if velocity is not None and quasi_static(x[velocity], sigma_v):  # phi-bar, Eq. 17
-            phi[friction] = 0.0
-        return float(phi @ coef) + intercept
+        static = velocity is not None and quasi_static(x[velocity], sigma_v)
+        return float(state.value[row] @ (coef_bar if static else coef)) + intercept
 
     return rigid_body
 
@@ -335,7 +392,7 @@ class _SampleState:
 
     def update(self, x):
         f = self.features
-        self.value = f.full(x[f.q], x[f.qd], x[f.qdd])
+        self.value = f.full(x[f.q], x[f.qd], x[f.qdd], out=self.value)  # in place after the first
 
 
 def _compile_mean(mean, wrap, states):

@@ -82,7 +82,7 @@ class RegimeState:
         self.settle = int(settle)
         self.beta = beta
         self.reference = np.zeros(n_joints)
-        self._diff = np.zeros(n_joints)
+        self._step = np.zeros(n_joints)
         self.reset()
 
     def reset(self):
@@ -94,7 +94,8 @@ class RegimeState:
 
     def regime(self, qd):
         """Advance the still-counter with one velocity row; the regime code."""
-        if np.all(quasi_static(qd, self.sigma_v)):
+        sigma_v = self.sigma_v  # per joint on floats: no array call on a few values
+        if all([quasi_static(v, sigma_v) for v in qd.tolist()]):
             self._still_for += 1
             if not self._moved or self._still_for > self.settle:
                 return REST
@@ -128,10 +129,9 @@ class RegimeState:
         if not self._referenced:
             self.reference[:] = signal
             self._referenced = True
-        diff = np.subtract(signal, self.reference, out=self._diff)
-        signal[:] = diff
-        diff *= self.beta
-        self.reference += diff
+        np.subtract(signal, self.reference, out=signal)  # m~ = m - b
+        np.multiply(signal, self.beta, out=self._step)
+        self.reference += self._step  # b += beta m~
         return regime
 
 

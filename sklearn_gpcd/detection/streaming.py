@@ -75,6 +75,58 @@ def _time_stamp(time):
         raise ValueError(f"time must be a number (seconds), got {time!r}") from None
 
 
+def _filter_transition(coefficients):
+    """One step of the detector's low-pass filter as a matrix, and its unit steady state.
+
+    scipy's ``lfilter`` (direct form II transposed, ``a[0] = 1``, order
+    ``N``) maps input ``u`` and state ``z`` to
+
+    .. math::
+
+        y = b_0 u + z_1, \\qquad
+        z'_k = b_k u + z_{k+1} - a_k y = (b_k - a_k b_0)\\, u - a_k z_1 + z_{k+1}
+
+    (``z_{N+1} = 0``), so ``[y; z'] = T [u; z]`` with the ``(N + 1) x (N +
+    1)`` matrix ``T``: a filter step for every joint is one matrix product.
+    Without a filter ``T = [[1]]`` (``y = u``, no state).
+
+    Parameters
+    ----------
+    coefficients : tuple of ndarray or None
+        ``(b, a)`` of :func:`~sklearn_gpcd.detection._signal.lowpass_coefficients`.
+
+    Returns
+    -------
+    transition : ndarray of shape (N + 1, N + 1)
+    zi_unit : ndarray of shape (N, 1)
+        State of a filter at rest on a unit input (``lfilter_zi``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> b, a = np.array([0.2, 0.1]), np.array([1.0, -0.5])
+    >>> T, zi = _filter_transition((b, a))
+    >>> u, state, y = [1.0, 3.0, -2.0], np.zeros(2), []
+    >>> for value in u:
+    ...     state[0] = value
+    ...     state = T @ state
+    ...     y.append(state[0])
+    >>> np.allclose(y, lfilter(b, a, u))
+    True
+    """
+    if coefficients is None:
+        return np.ones((1, 1)), np.zeros((0, 1))
+    b, a = (np.asarray(c, dtype=float) for c in coefficients)
+    order = len(b) - 1
+    transition = np.zeros((order + 1, order + 1))
+    transition[0, :2] = b[0], 1.0
+    transition[1:, 0] = b[1:] - a[1:] * b[0]
+    transition[1:, 1] = -a[1:]
+    transition[1:-1, 2:] += np.eye(order - 1)
+    return transition, lfilter_zi(b, a)[:, None]
+
+
 def _frame_maker(detector):
     """Wrap a 2-D input block as the regressor saw it in fit (named or not)."""
     names = getattr(detector, "feature_names_in_", None)
@@ -220,8 +272,6 @@ class StreamingMonitor(VersionedStateMixin):
         n = self.n_joints = detector.n_joints
         self.n_inputs = detector.n_features_in_ - n
         self._row = np.empty(detector.n_features_in_)
-        self._inputs = self._row[: self.n_inputs]
-        self._current = self._row[self.n_inputs :]
         self._finite = np.empty(detector.n_features_in_, dtype=bool)
         self._finite_signal = np.empty(n, dtype=bool)
         self._wrap = _frame_maker(detector)
@@ -232,6 +282,8 @@ class StreamingMonitor(VersionedStateMixin):
         self._use_std = detector.normalize == "std"
         self._std_row = np.empty((1, self.n_inputs))
         self.std = np.ones(n)
+        if self._use_std:  # else the residual is the filter input itself
+            self.residual = np.full(n, np.nan)
         self._scales = np.atleast_2d(np.asarray(detector.scale_, dtype=float))
         self._level = -float(detector.offset_)
         self._regime_state = None
@@ -251,22 +303,17 @@ class StreamingMonitor(VersionedStateMixin):
                     f"detector's regressor takes {self.n_inputs}"
                 )
             self._dt_sum, self._dt_count = 0.0, 0
-        if detector.filter_coefficients_ is not None:
-            b, a = detector.filter_coefficients_
-            self._b, self._a = b, a
-            self._zi_unit = lfilter_zi(b, a)[:, None]
-            self._z = np.zeros((len(b) - 1, n))
-            self._z_saved = np.empty_like(self._z)  # restored if a tick is rejected
-            self._t1, self._t2 = np.empty(n), np.empty(n)
-        else:
-            self._b = None
+        self._transition, self._zi_unit = _filter_transition(detector.filter_coefficients_)
+        order = self._transition.shape[0] - 1
+        # [u; z] -> [y; z']: filter input and state, output and next state
+        self._filter = np.full((2, order + 1, n), np.nan)
+        self._filter_finite = np.empty(self._filter.size, dtype=bool)
         self._window = np.zeros((detector.min_duration, n))
         self.predicted = np.full(n, np.nan)
-        self.residual = np.full(n, np.nan)
-        self.signal = np.full(n, np.nan)
-        self._raw_ratio = np.empty(n)
         self.ratio = np.full(n, np.nan)
         self.alarms = np.zeros(n, dtype=bool)
+        self._alarmed = False  # some entry of alarms is True
+        self._bind()
         self.score = np.nan
         self.status = None
         self.n_ticks = 0
@@ -275,9 +322,11 @@ class StreamingMonitor(VersionedStateMixin):
         self.fault_reason = None
         self.reset()
 
-    #: Attributes rebuilt on load rather than stored: views into ``_row``
-    #: (a pickle would turn them into copies) and the compiled predictor.
-    _REBUILT = ("_inputs", "_current", "_wrap", "_predictor")
+    #: Attributes rebuilt on load rather than stored: views into ``_row``,
+    #: ``_filter``, ``_window`` and ``_scales`` (a pickle would turn them into
+    #: copies; see :meth:`_bind`) and the compiled predictor.
+    _REBUILT = ("_inputs", "_current", "_filter_flat", "_filter_in", "_filter_out", "_u", "_z",
+                "signal", "_z_next", "_window_rows", "_scale_rows", "_wrap", "_predictor")
     #: Ticks after which update_raw compares the mean time step with sample_time_.
     _DT_CHECK_TICKS = 100
 
@@ -291,6 +340,8 @@ class StreamingMonitor(VersionedStateMixin):
         state = super().__getstate__()
         for name in self._REBUILT:
             state.pop(name, None)
+        if not self._use_std:
+            state.pop("residual")  # a view of _filter too
         state["status"] = None if self.status is None else self.status.value
         return state
 
@@ -299,12 +350,31 @@ class StreamingMonitor(VersionedStateMixin):
         super().__setstate__(state)
         if self.status is not None:
             self.status = MonitorStatus(self.status)
-        self._inputs = self._row[: self.n_inputs]
-        self._current = self._row[self.n_inputs :]
+        self._bind()
         self._wrap = _frame_maker(self.detector)
         self._predictor = compile_predictor(
             self.detector.regressor_, self.n_inputs, self.n_joints, wrap=self._wrap
         )
+
+    def _bind(self):
+        """The views a tick reads and writes through (after construction or load).
+
+        ``_filter[0]`` holds the filter input ``u`` (the residual, or the
+        residual over the std) and the filter state ``z``, ``_filter[1]`` the
+        output ``y`` (``signal``) and the next state ``z'``: one product with
+        ``_transition`` is one filter step, and ``z'`` is copied into ``z``
+        only when the tick is accepted.
+        """
+        self._inputs = self._row[: self.n_inputs]
+        self._current = self._row[self.n_inputs :]
+        self._filter_flat = self._filter.reshape(-1)
+        self._filter_in, self._filter_out = self._filter
+        self._u, self._z = self._filter_in[0], self._filter_in[1:]
+        self.signal, self._z_next = self._filter_out[0], self._filter_out[1:]
+        if not self._use_std:
+            self.residual = self._u
+        self._window_rows = list(self._window)
+        self._scale_rows = list(self._scales)
 
     def reset(self):
         """Forget the filter and debounce history and the last time stamp.
@@ -361,43 +431,44 @@ class StreamingMonitor(VersionedStateMixin):
             return self._fault("missing sample (x is None)")
         if stamp is not None and (reason := self._time_fault(stamp)):
             return self._fault(reason)
-        if not np.isfinite(self._row, out=self._finite).all():
+        if np.count_nonzero(np.isfinite(self._row, out=self._finite)) < self._row.size:
             return self._fault(self._non_finite_reason())
         self._predictor.predict_one(self._inputs, self.predicted)
-        np.subtract(self._current, self.predicted, out=self.residual)
         if self._use_std:
+            np.subtract(self._current, self.predicted, out=self.residual)
             self._std_row[0] = self._inputs
             _, std = self.detector.regressor_.predict(
                 self._wrap(self._std_row), return_std=True
             )
             np.maximum(np.reshape(std, (self.n_joints,)), np.finfo(float).tiny, out=self.std)
-            np.divide(self.residual, self.std, out=self.signal)
+            np.divide(self.residual, self.std, out=self._u)
         else:
-            np.copyto(self.signal, self.residual)
-        if not np.isfinite(self.signal, out=self._finite_signal).all():
-            return self._fault(self._signal_reason())
-        if self._b is not None:
-            fresh = self._fresh
-            np.copyto(self._z_saved, self._z)
-            self._filter_step(self.signal)
-            if not np.isfinite(self.signal, out=self._finite_signal).all():  # overflow
-                np.copyto(self._z, self._z_saved)  # the rejected tick leaves no trace
-                self._fresh = fresh
-                return self._fault(self._signal_reason())
+            np.subtract(self._current, self.predicted, out=self._u)  # the residual
+        if self._fresh:  # steady state of the first sample, as in batch
+            np.multiply(self._zi_unit, self._u, out=self._z)
+        np.matmul(self._transition, self._filter_in, out=self._filter_out)
+        # u, z, y and z' finite (u holds the residual: the prediction too)
+        finite = np.isfinite(self._filter_flat, out=self._filter_finite)
+        if np.count_nonzero(finite) < finite.size:
+            return self._fault(self._signal_reason())  # z is left as it was
+        np.copyto(self._z, self._z_next)
+        self._fresh = False
         if self._regime_state is not None:
-            np.take(self._inputs, self._velocity_columns, out=self._qd)
+            np.take(self._inputs, self._velocity_columns, out=self._qd, mode="clip")
             self.regime = self._regime_state.step(self._qd, self.signal)
-        np.abs(self.signal, out=self._raw_ratio)
-        self._window[self._position] = self._raw_ratio
-        self._position = (self._position + 1) % self._window.shape[0]
-        np.min(self._window, axis=0, out=self.ratio)
-        self.ratio /= self._scales[self.regime]
-        np.greater(self.ratio, self._level, out=self.alarms)
-        self.score = -float(self.ratio.max())
+        np.abs(self.signal, out=self._window_rows[self._position])
+        self._position = (self._position + 1) % len(self._window_rows)
+        np.minimum.reduce(self._window, axis=0, out=self.ratio)
+        self.ratio /= self._scale_rows[self.regime]
+        top = max(self.ratio.tolist())
+        if top > self._level or self._alarmed:  # else alarms is all False already
+            np.greater(self.ratio, self._level, out=self.alarms)
+            self._alarmed = top > self._level
+        self.score = -top
         self.last_time = stamp
         self.n_consecutive_faults = 0
         self.fault_reason = None
-        self.status = MonitorStatus.COLLISION if self.alarms.any() else MonitorStatus.OK
+        self.status = MonitorStatus.COLLISION if self._alarmed else MonitorStatus.OK
         return self.status
 
     def update_raw(self, time, q, qd, current, target_q=None, target_qd=None,
@@ -565,6 +636,9 @@ class StreamingMonitor(VersionedStateMixin):
         return f"non-finite value in {names}{more}"
 
     def _signal_reason(self):
+        """Why a tick with finite inputs gave a non-finite value: the first stage
+        that did (prediction, std, residual, filter input ``u``, filter output
+        or state)."""
         stages = (
             ("predicted", "predicted current"),
             ("std", "predictive std"),
@@ -574,27 +648,11 @@ class StreamingMonitor(VersionedStateMixin):
             bad = np.flatnonzero(~np.isfinite(getattr(self, name)))
             if bad.size:
                 return f"non-finite {label} of joint(s) {bad.tolist()}"
+        np.isfinite(self._u, out=self._finite_signal)
+        if self._finite_signal.all():  # the filter overflowed
+            np.all(np.isfinite(self._filter_out), axis=0, out=self._finite_signal)
         bad = np.flatnonzero(~self._finite_signal)
         return f"non-finite monitoring signal of joint(s) {bad.tolist()}"
-
-    def _filter_step(self, u):
-        """One step of the direct-form II transposed filter, as scipy's lfilter."""
-        b, a, z = self._b, self._a, self._z
-        if self._fresh:  # steady state of the first sample, as in batch
-            np.multiply(self._zi_unit, u, out=z)
-            self._fresh = False
-        t1, t2 = self._t1, self._t2
-        np.multiply(u, b[0], out=t1)
-        np.add(z[0], t1, out=t2)  # t2 = y
-        for n in range(len(b) - 2):
-            np.multiply(u, b[n + 1], out=t1)
-            np.add(z[n + 1], t1, out=z[n])
-            np.multiply(t2, a[n + 1], out=t1)
-            z[n] -= t1
-        np.multiply(u, b[-1], out=t1)
-        np.multiply(t2, a[-1], out=z[-1])
-        np.subtract(t1, z[-1], out=z[-1])
-        np.copyto(u, t2)
 
     def _fault(self, reason):
         self.n_faults += 1
@@ -603,6 +661,7 @@ class StreamingMonitor(VersionedStateMixin):
         for array in (self.predicted, self.residual, self.signal, self.ratio):
             array[:] = np.nan
         self.alarms[:] = False
+        self._alarmed = False
         self.score = np.nan
         self.status = MonitorStatus.SENSOR_FAULT
         return self.status

@@ -332,7 +332,9 @@ class SampleRegressor:
     Keeps one pinocchio ``Data`` and skips the batch validation, so one call
     costs one ``computeJointTorqueRegressor`` plus the rotor-inertia,
     friction and offset columns (the per-tick rigid-body mean of the
-    streaming monitor, Eq. 10 and 17).
+    streaming monitor, Eq. 10 and 17). Given ``out`` (an earlier result),
+    only pinocchio's block and the diagonals of the per-joint blocks are
+    written: the rest of those blocks stays zero.
 
     Parameters
     ----------
@@ -357,9 +359,30 @@ class SampleRegressor:
         self.options = (bool(rotor_inertia), tuple(check_friction(friction)), bool(offset),
                         sigma_v)
         self._data = self.robot.model.createData()
-        self._rows = np.arange(self.robot.n_joints)
+        n = self.robot.n_joints
+        self._rows = np.arange(n)
+        self.n_parameters = n * (10 + rotor_inertia + len(self.options[1]) + offset)
 
-    def __call__(self, q, qd, qdd):
-        """The ``(n_joints, n_parameters)`` regressor at the state ``(q, qd, qdd)``."""
+    def _diagonal(self, block):
+        """Flat positions of ``[l, l]`` in per-joint block ``block`` (0: the first
+        after pinocchio's) of an ``(n_joints, n_parameters)`` array."""
+        n = len(self._rows)
+        return self._rows * (self.n_parameters + 1) + (10 + block) * n
+
+    def __call__(self, q, qd, qdd, out=None):
+        """The ``(n_joints, n_parameters)`` regressor at the state ``(q, qd, qdd)``.
+
+        ``out``, an earlier result of this call, is overwritten and returned.
+        """
+        rotor_inertia, friction, offset, sigma_v = self.options
         Y = pin.computeJointTorqueRegressor(self.robot.model, self._data, q, qd, qdd)
-        return _assemble(Y[None], qd[None], qdd[None], self._rows, *self.options)[0]
+        if out is None:
+            out = np.zeros((len(self._rows), self.n_parameters))
+            if offset:  # constant: written once
+                np.put(out, self._diagonal(int(rotor_inertia) + len(friction)), 1.0)
+        out[:, : Y.shape[1]] = Y
+        if rotor_inertia:
+            np.put(out, self._diagonal(0), qdd)
+        for block, term in enumerate(friction, start=int(rotor_inertia)):
+            np.put(out, self._diagonal(block), friction_features(qd, term, sigma_v))
+        return out

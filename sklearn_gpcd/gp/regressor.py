@@ -118,7 +118,9 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         rows when None: an exact GP, O(n^2) memory). "auto" takes at most
         ``AUTO_SUPPORT = 2000`` rows, safe on any number of rows (the
         default of :func:`make_p_f`, :func:`make_sp_s` and
-        :func:`make_sp_p`). The parametric mean always uses all rows.
+        :func:`make_sp_p`). The parametric mean always uses all rows. With
+        ``support_selection="random"`` all outputs share one support draw
+        (see ``random_state``).
     support_selection : {"random", "greedy"}, default="random"
         How the support rows are chosen: uniformly at random, or by
         farthest-point traversal in the metric of the initial kernel
@@ -132,9 +134,16 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
     n_jobs : int or None, default=None
         Number of outputs fitted in parallel (joblib).
     random_state : int, RandomState instance or None, default=None
-        Draws the optimizer restarts and the support rows. An int gives every
-        output the same stream, so a multi-output fit equals one fit per
-        column with that ``random_state``.
+        Draws the optimizer restarts and the support rows. Every output gets
+        the same stream: an int is used as is, so a multi-output fit equals
+        one fit per column with that ``random_state``; None or a
+        ``RandomState`` draws one seed per fit. So with
+        ``support_selection="random"`` the outputs are conditioned on the
+        same support rows (a uniform draw does not depend on the output, so
+        one draw for all is as good as one per output), and the
+        :class:`~sklearn_gpcd.detection.StreamingMonitor` reads those rows
+        once per tick for all outputs (one matrix product). ``"greedy"``
+        selects per output, in the metric of each output's kernel.
     verbose : int, default=0
         Print one line per fitted output when > 0, and Adam's progress (every
         10 steps: minibatch and held-out per-sample LML).
@@ -416,11 +425,12 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         }
 
     def _seeds(self):
-        """One seed per output, drawn up front so results ignore ``n_jobs``."""
-        if isinstance(self.random_state, numbers.Integral):
-            return [self.random_state] * self.n_outputs_
-        rng = check_random_state(self.random_state)
-        return rng.randint(np.iinfo(np.int32).max, size=self.n_outputs_).tolist()
+        """The seed of every output: one per fit, drawn up front so results ignore
+        ``n_jobs``. All outputs share it, so a ``"random"`` support is one draw."""
+        seed = self.random_state
+        if not isinstance(seed, numbers.Integral):
+            seed = int(check_random_state(seed).randint(np.iinfo(np.int32).max))
+        return [seed] * self.n_outputs_
 
     def _check_params(self):
         _check_optimizer(self.optimizer)
