@@ -258,7 +258,7 @@ def study_select(root, labels, n_support, seed):
         series = regime_excursions(det, blocks)
         return series, {k: v[2] for k, v in series.items()}
 
-    peer_series, peer_peaks = excursions(memos[bench.PEER], (0.5, None))
+    _, peer_peaks = excursions(memos[bench.PEER], (0.5, None))
     for name, memo in memos.items():
         runs = {}
         for cell in cells:
