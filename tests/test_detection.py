@@ -378,6 +378,35 @@ def test_support_term_is_folded_into_the_weights_only_when_safe(rng, monkeypatch
         assert np.allclose(again, got, rtol=1e-12, atol=1e-12 * np.abs(got).max())
 
 
+@pytest.mark.parametrize("selection, layout", [("random", "_SharedSupportGroup"),
+                                                ("greedy", "_StackedGroup")])
+def test_exponents_are_floored_before_exp(rng, selection, layout):
+    """Short length scales and an input far from the support put every
+    exponent below -745, where exp underflows (numpy's slow path); the
+    compiled path floors them at _EXP_FLOOR, so exp stays normal (> 0), and
+    the prediction still equals predict (the floor changes a summand by at
+    most |a| exp(-700))."""
+    from sklearn_gpcd.detection import _compiled
+
+    X, current = augmented_run(150, 2, rng)
+    kernels = [C(1.0) * ARDRBF(np.full(6, scale), columns=list(range(6)))
+               + WhiteKernel(0.01) for scale in (0.05, 1.0)]
+    gp = SemiParametricGPRegressor(kernels, optimizer=None, n_support=40,
+                                   support_selection=selection, random_state=0).fit(X, current)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no fallback
+        predictor = compile_predictor(gp, 12, 2)
+    (group,) = predictor.groups
+    assert type(group).__name__ == layout
+    far = X[:5] + 100.0  # d^2 / l^2 of the order of 6e4 >> 2 * 745 for every support row
+    got = np.array([predictor.predict_one(x, np.empty(2)) for x in far])
+    # exp of the last tick (times the weights in the stacked layout): an
+    # underflowed lane would be exactly 0
+    values = group.G if layout == "_SharedSupportGroup" else group.v
+    assert np.exp(_compiled._EXP_FLOOR) > 0.0 and np.all(values != 0.0)
+    assert np.allclose(got, gp.predict(far), rtol=1e-8, atol=1e-8)
+
+
 def test_compiled_predictor_falls_back_when_it_disagrees(rng, monkeypatch):
     from sklearn_gpcd.kernels import plan
 
