@@ -269,15 +269,18 @@ def free_segments(rec, entry, guard=0.5, min_seconds=2.0):
     return [(a, b) for a, b in contiguous_segments(~busy) if t[b - 1] - t[a] >= min_seconds]
 
 
-def collision_family(root, train, labels, n_support, seed, n_jobs, progress):
+def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
+                     rule=MARGIN_RULE, models=None):
     """Detection on collision_detection_data_2020 (no target current logged).
 
     Models on the state only (P_f, SP_S), trained on the training runs.
     For each collision file ``f``: thresholds from the collision-free data of
     the same repetitive task that ``f`` is not part of -- ``collision_free.csv``
     and the event-free segments of the *other* collision files -- margin by
-    leave-one-recording-out (global rule), scored on ``f``: recall and delay
+    leave-one-recording-out (``rule``, global by default), scored on ``f``: recall and delay
     on its labelled collisions, alarm onsets on its event-free segments.
+    ``rule`` shares the margin (:data:`MARGIN_RULES`); ``models`` maps names
+    to regressors already trained on ``train`` (else P_f and SP_S are trained).
     """
     free = load(root / FAMILY_2020 / "collision_free.csv")
     recs = {key: load(root / key) for key in COLLISIONS}
@@ -290,9 +293,10 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress):
     unseen = {"collision_free": free}
     segments = {k: free_segments(r, labels[k]) for k, r in recs.items()}
     out = {}
-    for name in ("P_f", "SP_S"):
+    for name in ("P_f", "SP_S") if models is None else models:
         tic = time.perf_counter()
-        model = train_models(data, n_support, seed, n_jobs, names=(name,))[0][name]
+        model = (train_models(data, n_support, seed, n_jobs, names=(name,))[0][name]
+                 if models is None else models[name])
         files = {}
         for key, rec in recs.items():
             blocks, pieces = dict(base_blocks), dict(unseen)
@@ -303,7 +307,7 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress):
                     blocks[f"{other}#{i}"] = inputs[other][a:b]
                     pieces[f"{other}#{i}"] = recs[other].slice(a, b)
             calibration = calibrate_across_recordings(
-                detector(model), blocks, times_of(pieces), rule=MARGIN_RULE)
+                detector(model), blocks, times_of(pieces), rule=rule)
             det, margin = calibration.detector, calibration.margin
             events, _, mon = score_events(det, inputs[key], rec, labels[key]["events"])
             t = rec.time - rec.time[0]

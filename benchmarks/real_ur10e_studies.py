@@ -39,10 +39,17 @@ Studies (``--study``):
   between; then the arm-at-rest nMSE on ptp_10_points of the simplest causal
   "model" of it, an exponential average of the measured current itself
   started at each stop, against its time constant.
+- ``margin``: how far the leave-one-recording-out margin is shared
+  (``MARGIN_RULES``: per cell, per regime, per joint, global), for the
+  peer, P_f, SP_S and SP_C (with and without the rest reference): nested
+  alarm onsets on the 21 unseen recordings, pushes detected and the margin
+  of each joint; then collision_detection_data_2020 (P_f, SP_S) under each
+  rule: collisions detected and onsets on the event-free segments.
 
 Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
 2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min),
-``--study select`` (about 2 min), ``--study relax`` (seconds). The
+``--study select`` (about 2 min), ``--study relax`` (seconds), ``--study
+margin`` (about 7 min). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -66,6 +73,7 @@ import real_ur10e as bench  # noqa: E402
 from sklearn_gpcd.detection import (  # noqa: E402
     CollisionDetector,
     calibrate_across_recordings,
+    MARGIN_RULES,
     loro_margin,
     nested_false_alarms,
     regime_excursions,
@@ -294,6 +302,45 @@ def study_select(root, labels, n_support, seed):
                   f"onsets {sum(len(f['onsets']) for f in runs[cell][2].values())}", flush=True)
 
 
+def study_margin(root, labels, n_support, seed):
+    train, unseen, _ = bench.split_recordings(root, quick=False)
+    pushes = {key: bench.load(root / key) for key in bench.PUSHES}
+    data = training_set(list(train), "causal")
+    models, _ = bench.train_models(data, n_support, seed, None, names=("P_f", "SP_S", "SP_C"))
+    models = {bench.PEER: ControllerCurrent(6).fit(data.X, data.y), **models}
+    blocks = {k: stack_currents(data.features.transform(r), r.current)
+              for k, r in unseen.items()}
+    push_blocks = {k: stack_currents(data.features.transform(r), r.current)
+                   for k, r in pushes.items()}
+    times = bench.times_of(unseen)
+    print("unseen collision-free recordings (21, 11.9 min): nested alarm onsets, pushes "
+          "detected, margin per joint", flush=True)
+    for name, model in models.items():
+        for tau in (None, bench.REST_TAU) if name in (bench.PEER, "SP_C") else (None,):
+            for rule in MARGIN_RULES:
+                cal = calibrate_across_recordings(bench.detector(model, tau), blocks, times,
+                                                  rule=rule)
+                onsets = sum(len(f["onsets"]) for f in
+                             nested_false_alarms(cal.series, times, rule).values())
+                hit, total = pushes_detected(cal.detector, pushes, push_blocks, labels)
+                print(f"{name + (' +R' if tau else ''):12s} {rule:7s} onsets {onsets:3d}, "
+                      f"pushes {hit}/{total}, margin {np.round(cal.margin.max(axis=0), 2)}",
+                      flush=True)
+    family_data = training_set(list(train), "causal", allow_missing=True)
+    family_models, _ = bench.train_models(family_data, n_support, seed, None,
+                                          names=("P_f", "SP_S"))
+    for rule in MARGIN_RULES:
+        family = bench.collision_family(root, train, labels, n_support, seed, None,
+                                        lambda message: None, rule=rule,
+                                        models=family_models)
+        for name, res in family.items():
+            missed = [(Path(key).stem, e["start_s"]) for key, f in res["files"].items()
+                      for e in f["events"] if not e["detected"]]
+            print(f"{bench.FAMILY_2020} {name:4s} {rule:7s} {res['n_detected']}/"
+                  f"{res['n_events']} collisions, {res['free_onsets']} onsets on the "
+                  f"event-free segments; missed {missed}", flush=True)
+
+
 def _relaxation(t, y):
     """Residual shortly after a stop, at the end of the rest, and a fitted time constant."""
     start, end = y[(t > 0.15) & (t < 0.35)].mean(), y[t > t[-1] - 1.0].mean()
@@ -349,7 +396,8 @@ def study_relax(root):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--study", choices=("rest", "floor", "family", "select", "relax"), required=True)
+    parser.add_argument("--study", required=True, choices=(
+        "rest", "floor", "family", "select", "relax", "margin"))
     parser.add_argument("--data", default=None, help="folder of ur10e_mamedov")
     parser.add_argument("--n-support", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
@@ -366,6 +414,8 @@ def main(argv=None):
         study_select(root, labels, args.n_support, args.seed)
     elif args.study == "relax":
         study_relax(root)
+    elif args.study == "margin":
+        study_margin(root, labels, args.n_support, args.seed)
     else:
         study_family(root, labels, args.n_support, args.seed)
 

@@ -141,3 +141,23 @@ def test_threshold_cv_takes_the_sampling_period_from_time_stamps():
                              cv=LeaveOneGroupOut()).fit(Z, labels, groups=groups)
     with pytest.raises(ValueError, match="time must have shape"):
         auto.fit(Z, labels, groups=groups, time=time[:-1])
+
+
+def test_margin_rules_share_the_worst_left_out_excess_as_far_as_they_say():
+    """cell: each (regime, joint) alone; regime: largest over the joints;
+    joint: largest over the regimes (a wrist joint's heavy tail no longer
+    widens the shoulder's band); global: one for all."""
+    peaks = {k: np.ones((3, 2)) for k in "abc"}
+    peaks["a"][0, 1] = 4.0   # moving, joint 2: a exceeds the others' level 1 by 4
+    peaks["b"][2, 0] = 1.5   # rest, joint 1: by 1.5
+    keys = list(peaks)
+    expected = {
+        "cell": [[1.0, 4.0], [1.0, 1.0], [1.5, 1.0]],
+        "regime": [[4.0, 4.0], [1.0, 1.0], [1.5, 1.5]],
+        "joint": [[1.5, 4.0], [1.5, 4.0], [1.5, 4.0]],
+        "global": [[4.0, 4.0], [4.0, 4.0], [4.0, 4.0]],
+    }
+    for rule, table in expected.items():
+        np.testing.assert_array_equal(loro_margin(peaks, keys, rule), table, err_msg=rule)
+    with pytest.raises(ValueError, match="rule must be one of"):
+        loro_margin(peaks, keys, "joints")

@@ -120,8 +120,9 @@ def false_alarm_level(peak, starts, sample_time, rate):
 
 # --------------------------------------------------- levels across recordings
 #: How far the leave-one-recording-out margin is shared: one per (regime,
-#: joint) cell, one per regime (largest over the joints), or one for all.
-MARGIN_RULES = ("cell", "regime", "global")
+#: joint) cell, one per regime (largest over the joints), one per joint
+#: (largest over the regimes), or one for all.
+MARGIN_RULES = ("cell", "regime", "joint", "global")
 
 
 def fill_absent_regimes(table, present):
@@ -231,6 +232,8 @@ def loro_factors(peaks, rule="global"):
     margin = np.maximum(np.max(factors, axis=0), 1.0)
     if rule == "regime":
         return np.repeat(margin.max(axis=1, keepdims=True), margin.shape[1], axis=1)
+    if rule == "joint":
+        return np.repeat(margin.max(axis=0, keepdims=True), margin.shape[0], axis=0)
     if rule == "global":
         return np.full_like(margin, margin.max())
     return margin

@@ -126,9 +126,9 @@ def loro_margin(peaks, keys, rule="global"):
         Peaks per recording (from :func:`regime_excursions`).
     keys : list of str
         At least two recordings.
-    rule : {"global", "regime", "cell"}, default="global"
-        Share the margin over all cells, per regime (largest over the
-        joints), or not at all.
+    rule : {"global", "joint", "regime", "cell"}, default="global"
+        Share the margin over all cells, per joint (largest over the
+        regimes), per regime (largest over the joints), or not at all.
 
     Returns
     -------
@@ -161,7 +161,7 @@ def nested_false_alarms(series, times, rule="global"):
         From :func:`regime_excursions`.
     times : dict of str -> ndarray of shape (n_samples,)
         Time stamps [s] of each recording.
-    rule : {"global", "regime", "cell"}, default="global"
+    rule : {"global", "joint", "regime", "cell"}, default="global"
         As :func:`loro_margin`.
 
     Returns
@@ -211,7 +211,7 @@ def calibrate_across_recordings(detector, blocks, times, rule="global"):
         Detector input of each collision-free recording (at least 2).
     times : dict of str -> ndarray of shape (n_samples,)
         Time stamps [s] of each recording.
-    rule : {"global", "regime", "cell"}, default="global"
+    rule : {"global", "joint", "regime", "cell"}, default="global"
         As :func:`loro_margin`.
 
     Returns
