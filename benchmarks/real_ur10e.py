@@ -277,10 +277,10 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
     For each collision file ``f``: thresholds from the collision-free data of
     the same repetitive task that ``f`` is not part of -- ``collision_free.csv``
     and the event-free segments of the *other* collision files -- margin by
-    leave-one-recording-out (``rule``, global by default), scored on ``f``: recall and delay
-    on its labelled collisions, alarm onsets on its event-free segments.
-    ``rule`` shares the margin (:data:`MARGIN_RULES`); ``models`` maps names
-    to regressors already trained on ``train`` (else P_f and SP_S are trained).
+    leave-one-recording-out (``rule``, one of ``MARGIN_RULES``), scored on
+    ``f``: recall and delay on its labelled collisions, alarm onsets on its
+    event-free segments. ``models`` maps names to regressors already trained
+    on ``train`` (else P_f and SP_S are trained).
     """
     free = load(root / FAMILY_2020 / "collision_free.csv")
     recs = {key: load(root / key) for key in COLLISIONS}

@@ -71,9 +71,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_ur10e as bench  # noqa: E402
 
 from sklearn_gpcd.detection import (  # noqa: E402
+    MARGIN_RULES,
     CollisionDetector,
     calibrate_across_recordings,
-    MARGIN_RULES,
     loro_margin,
     nested_false_alarms,
     regime_excursions,
