@@ -71,6 +71,15 @@ _FOLD_LIMIT = 600.0
 _EXP_FLOOR = -700.0
 
 
+def _floored_exp(values, floor):
+    """``exp(values)`` in place, exponents below ``_EXP_FLOOR`` first raised to
+    it (``floor``: an array of ``_EXP_FLOOR`` shaped like ``values``; one read
+    each tick, the write only when some exponent is below)."""
+    if values.min() < _EXP_FLOOR:
+        np.maximum(values, floor, out=values)
+    np.exp(values, out=values)
+
+
 class _Summands:
     """What the exponential groups share: the gates of the tick, the centred
     input and the scatter of the summands' values onto the outputs."""
@@ -206,9 +215,7 @@ class _SharedSupportGroup(_Summands):
         np.matmul(self.XW, self.ST, out=self.G)  # g_ti, summands x support rows
         if self.h is not None:
             self.G += self.h  # e_ti
-        if self.G.min() < _EXP_FLOOR:  # one read; the write only when needed
-            np.maximum(self.G, self.floor, out=self.G)
-        np.exp(self.G, out=self.G)
+        _floored_exp(self.G, self.floor)
         np.matmul(self.G_rows, self.AT_columns, out=self.f_batched)  # f_t
         self._add_summands(out)
 
@@ -297,9 +304,7 @@ class _StackedGroup(_Summands):
         self.q *= -0.5  # -0.5 sum_d w_td x_d^2, one per summand
         for block, q in zip(self.blocks, self.q.tolist()):
             block += q  # exponent -0.5 d_t^2(x, s_i) of the summand's rows
-        if self.v.min() < _EXP_FLOOR:  # one read; the write only when needed
-            np.maximum(self.v, self.floor, out=self.v)
-        np.exp(self.v, out=self.v)
+        _floored_exp(self.v, self.floor)
         self.v *= self.a
         np.add.reduceat(self.v, self.starts, out=self.f)  # f_t(x) per summand
         self._add_summands(out)
