@@ -45,11 +45,20 @@ Studies (``--study``):
   alarm onsets on the 21 unseen recordings, pushes detected and the margin
   of each joint; then collision_detection_data_2020 (P_f, SP_S) under each
   rule: collisions detected and onsets on the event-free segments.
+- ``presliding``: is the moving band of joint 2 set by friction at velocity
+  reversals? The controller's model switches Coulomb friction with the sign
+  of the velocity, the measured current follows the displacement since the
+  reversal (pre-sliding, Dahl's model). SP_C is refitted with the causal
+  Dahl state ``z`` of each joint (:func:`dahl_state`, characteristic
+  displacement ``x0``, velocities below a dead band do not move it) either
+  in the mean (``[i_c, z, tanh(qd / 0.005)]`` per joint, least squares) or
+  as six more GP input columns; thresholds against the peer's, global LORO
+  margin, nested onsets and pushes, as in ``rest``.
 
 Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
 2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min),
 ``--study select`` (about 2 min), ``--study relax`` (seconds), ``--study
-margin`` (about 7 min). The
+margin`` (about 7 min), ``--study presliding`` (about 8 min). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -80,7 +89,13 @@ from sklearn_gpcd.detection import (  # noqa: E402
     regime_levels,
     stack_currents,
 )
-from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
+from sklearn.base import BaseEstimator, TransformerMixin  # noqa: E402
+from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel  # noqa: E402
+
+from sklearn_gpcd.dynamics import ControllerCurrent, ControllerFeatures  # noqa: E402
+from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor  # noqa: E402
+from sklearn_gpcd.kernels import ARDRBF  # noqa: E402
+from sklearn_gpcd.layout import block_columns, column_index  # noqa: E402
 from sklearn_gpcd.experiments.paper import split_nmse  # noqa: E402
 from sklearn_gpcd.features import contiguous_segments  # noqa: E402
 from sklearn_gpcd.workflow import training_set  # noqa: E402
@@ -394,10 +409,118 @@ def study_relax(root):
               f"(time constant {tau} s) from each stop: nMSE {np.round(nmse, 2)}", flush=True)
 
 
+def dahl_state(time, qd, x0, dead_band=0.0):
+    """Causal Dahl friction state per joint, in [-1, 1].
+
+    .. math::
+
+        z_k = s_k + (z_{k-1} - s_k)\\, e^{-|\\Delta q_k| / x_0}, \\quad
+        \\Delta q_k = \\dot q_k\\, \\Delta t_k, \\quad s_k = \\operatorname{sign}(\\Delta q_k)
+
+    (Dahl's model with the displacement as its clock: after a reversal the
+    friction turns over within a few ``x0``). Velocities below ``dead_band``
+    leave ``z`` as it is: a held joint's encoder noise does not move it.
+
+    >>> t = np.arange(6) * 0.01
+    >>> qd = np.array([[-0.01], [-0.01], [0.001], [0.01], [0.01], [0.01]])
+    >>> dahl_state(t, qd, x0=3e-4, dead_band=0.002).ravel().round(2).tolist()
+    [-1.0, -1.0, -1.0, -0.43, -0.03, 0.26]
+    """
+    dt = np.diff(time, prepend=time[0])
+    dq = np.where(np.abs(qd) > dead_band, qd, 0.0) * dt[:, None]
+    z = np.empty_like(qd)
+    state = np.sign(qd[0])
+    for k, step in enumerate(dq):
+        s = np.sign(step)
+        state = np.where(s != 0, s + (state - s) * np.exp(-np.abs(step) / x0), state)
+        z[k] = state
+    return z
+
+
+class PreslidingFeatures(TransformerMixin, BaseEstimator):
+    """``[i_c, z, tanh(qd / width)]`` of one joint; ``z`` in the columns after the layout."""
+
+    def __init__(self, joint=0, n_joints=6, width=0.005):
+        self.joint, self.n_joints, self.width = joint, n_joints, width
+
+    def fit(self, X, y=None):
+        self.n_features_in_ = X.shape[1]
+        return self
+
+    def transform(self, X):
+        j, n = self.joint, self.n_joints
+        return np.column_stack([X[:, column_index("i_c", j, n)], X[:, 6 * n + j],
+                                np.tanh(X[:, column_index("qd", j, n)] / self.width)])
+
+
+def study_presliding(root, labels, n_support, seed):
+    train, unseen, _ = bench.split_recordings(root, quick=False)
+    pushes = {key: bench.load(root / key) for key in bench.PUSHES}
+    data = training_set(list(train), "causal")
+    features, y = data.features, np.vstack([r.current for r in train])  # every row: no thinning
+    times = bench.times_of(unseen)
+    state = [int(c) for name in ("q", "qd", "qdd") for c in block_columns(name, 6)]
+    velocities = [int(c) for c in block_columns("qd", 6)]
+
+    def inputs(rec, x0, dead_band):
+        X = features.transform(rec)
+        return X if x0 is None else np.hstack([X, dahl_state(rec.time, rec.qd, x0, dead_band)])
+
+    def fit(X, variant):
+        if variant == "mean":
+            means, columns = [ParametricMean(PreslidingFeatures(j)) for j in range(6)], state
+        else:
+            means = [ParametricMean(ControllerFeatures(j, 6)) for j in range(6)]
+            columns = state + list(range(36, X.shape[1]))
+        model = SemiParametricGPRegressor(
+            kernel=[ConstantKernel(1.0) * ARDRBF(np.ones(len(columns)), columns=columns)
+                    + WhiteKernel(1.0) for _ in range(6)],
+            mean=means, normalize_y=True, n_support=n_support, optimizer="adam",
+            batch_size=min(512, n_support), random_state=seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return model.fit(X, y)
+
+    blocks = {k: stack_currents(inputs(r, None, 0), r.current) for k, r in unseen.items()}
+    peer = calibrate_across_recordings(
+        bench.detector(ControllerCurrent(6).fit(data.X, data.y)), blocks,
+        times).detector.thresholds_
+    print("SP_C variant | margin, nested onsets, pushes | thresholds / peer's (joints 1-3) "
+          "moving, rest | moving level of joints 1-3 and the recording that sets it", flush=True)
+    for x0, dead_band in ((None, 0.0), (3e-4, 0.0), (3e-4, 2e-3), (1e-3, 2e-3)):
+        X = np.vstack([inputs(r, x0, dead_band) for r in train])
+        blocks = {k: stack_currents(inputs(r, x0, dead_band), r.current)
+                  for k, r in unseen.items()}
+        push_blocks = {k: stack_currents(inputs(r, x0, dead_band), r.current)
+                       for k, r in pushes.items()}
+        for variant in ("gp",) if x0 is None else ("mean", "gp"):
+            model = fit(X, variant)
+            if variant == "mean":
+                coef = np.array([post.mean.coef_ for post in model.posteriors_])
+                print(f"x0 {x0}, dead band {dead_band}: mean coefficients of [i_c, z, tanh] "
+                      f"per joint {np.round(coef, 2).tolist()}", flush=True)
+            for tau in (None, bench.REST_TAU):
+                det = bench.detector(model, tau).set_params(velocity_columns=velocities)
+                cal = calibrate_across_recordings(det, blocks, times)
+                onsets = {Path(k).stem: v["onsets"] for k, v in
+                          nested_false_alarms(cal.series, times, bench.MARGIN_RULE).items()
+                          if v["onsets"]}
+                hit, total = pushes_detected(cal.detector, pushes, push_blocks, labels)
+                ratio = cal.detector.thresholds_ / peer
+                level = cal.detector.thresholds_[0, :3] / cal.margin.max()
+                where = [Path(max(cal.series, key=lambda k: cal.series[k][2][0, j])).stem
+                         for j in range(3)]
+                name = "SP_C" if x0 is None else f"x0 {x0} dead {dead_band} {variant}"
+                print(f"{name + (' +R' if tau else ''):30s} | {cal.margin.max():.2f}, "
+                      f"{sum(map(len, onsets.values()))} {onsets}, {hit}/{total} | "
+                      f"{np.round(ratio[0, :3], 2)} {np.round(ratio[2, :3], 2)} | "
+                      f"{np.round(level, 2)} {where}", flush=True)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--study", required=True, choices=(
-        "rest", "floor", "family", "select", "relax", "margin"))
+        "rest", "floor", "family", "select", "relax", "margin", "presliding"))
     parser.add_argument("--data", default=None, help="folder of ur10e_mamedov")
     parser.add_argument("--n-support", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
@@ -416,6 +539,8 @@ def main(argv=None):
         study_relax(root)
     elif args.study == "margin":
         study_margin(root, labels, args.n_support, args.seed)
+    elif args.study == "presliding":
+        study_presliding(root, labels, args.n_support, args.seed)
     else:
         study_family(root, labels, args.n_support, args.seed)
 
