@@ -46,9 +46,10 @@ Studies (``--study``):
   of each joint; then collision_detection_data_2020 (P_f, SP_S) under each
   rule: collisions detected and onsets on the event-free segments.
 - ``presliding``: is the moving band of joint 2 set by friction at velocity
-  reversals? The controller's model switches Coulomb friction with the sign
-  of the velocity, the measured current follows the displacement since the
-  reversal (pre-sliding, Dahl's model). SP_C is refitted with the causal
+  reversals? The controller's model turns its Coulomb friction over smoothly
+  in the velocity, centred on the reversal; the measured current turns over
+  after it, along the displacement since the reversal (pre-sliding, Dahl's
+  model). SP_C is refitted with the causal
   Dahl state ``z`` of each joint (:func:`dahl_state`, characteristic
   displacement ``x0``, velocities below a dead band do not move it) either
   in the mean (``[i_c, z, tanh(qd / 0.005)]`` per joint, least squares) or
