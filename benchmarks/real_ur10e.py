@@ -39,6 +39,11 @@ Protocol
    chosen as in 4 on ``C`` without ``r`` only, and the alarm onsets on ``r``
    counted: the false-alarm figure never saw ``r``, not even through the
    margin.
+5b. **settings chosen the same way** (the "sel" monitors, ``gpcd calibrate
+   --select``): settle time x rest reference over ``SELECT_GRID``, the pair
+   with the smallest time-weighted thresholds at its own LORO margin; for
+   the nested false alarms of ``r`` the pair is chosen without ``r`` too
+   (``calibrate_across_recordings(param_grid=...)``).
 6. **events**: at the operating point, every
    labelled push of ``collision_push_pose`` scored (detected, delay) with
    the labels of ``benchmarks/labels/ur10e_events.json`` (made from the data
@@ -50,8 +55,10 @@ Protocol
 
 Monitors: ``i - i_des`` (the peer: ``ControllerCurrent``), P_f, SP_S, SP_P
 (the paper's, on causal inputs), SP_C (``make_sp_c``: the controller's
-current as mean, GP correction) and the "+R" variants with the rest
-re-reference (``rest_reference=REST_TAU``).
+current as mean, GP correction), the "+R" variants with the rest
+re-reference (``rest_reference=REST_TAU``) and the "sel" variants of the
+peer and SP_C with settle time and rest reference chosen across recordings
+(5b).
 
 Run::
 
@@ -90,6 +97,7 @@ from sklearn_gpcd.detection import (  # noqa: E402
 )
 from sklearn_gpcd.detection import loro_margin as _loro_margin  # noqa: E402
 from sklearn_gpcd.detection import nested_false_alarms as _nested_false_alarms  # noqa: E402
+from sklearn_gpcd.cli_monitor import SELECT_GRID  # noqa: E402
 from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress, split_nmse  # noqa: E402
 from sklearn_gpcd.features import contiguous_segments  # noqa: E402
@@ -458,16 +466,19 @@ def main(argv=None):
 
     blocks = {k: stack_currents(features.transform(r), r.current) for k, r in unseen.items()}
     push_blocks = {k: stack_currents(features.transform(r), r.current) for k, r in pushes.items()}
-    monitors = {name: (model, None) for name, model in models.items()}
-    monitors[PEER + " +R"] = (models[PEER], REST_TAU)
-    monitors["SP_C +R"] = (models["SP_C"], REST_TAU)
+    # name -> (model, rest reference, settings chosen across the recordings or None)
+    monitors = {name: (model, None, None) for name, model in models.items()}
+    monitors[PEER + " +R"] = (models[PEER], REST_TAU, None)
+    monitors["SP_C +R"] = (models["SP_C"], REST_TAU, None)
+    monitors[PEER + " sel"] = (models[PEER], REST_TAU, SELECT_GRID)
+    monitors["SP_C sel"] = (models["SP_C"], REST_TAU, SELECT_GRID)
 
     # -- margins by leave-one-recording-out, nested false alarms, events -------
     results = {}
-    for name, (model, tau) in monitors.items():
+    for name, (model, tau, grid) in monitors.items():
         tic = time.perf_counter()
         calibration = calibrate_across_recordings(
-            detector(model, tau), blocks, times_of(unseen), rule=MARGIN_RULE)
+            detector(model, tau), blocks, times_of(unseen), rule=MARGIN_RULE, param_grid=grid)
         det, margin, folds = calibration.detector, calibration.margin, calibration.folds
         by_rule = {rule: sum(len(f["onsets"]) for f in nested_false_alarms(
             calibration.series, unseen, rule).values()) for rule in MARGIN_RULES}
@@ -487,9 +498,15 @@ def main(argv=None):
             "events": events, "outside": outside, "n_events": n_events, "n_detected": n_hit,
             "median_delay_s": float(np.median(delays)) if delays else None,
             "max_delay_s": float(np.max(delays)) if delays else None,
+            "settle_time_s": det.settle_time, "rest_reference_s": det.rest_reference,
+            "candidates": calibration.candidates if grid else None,
+            "fold_settings": calibration.fold_settings or None,
             "monitors": mons, "detector": det,
         }
-        progress(f"{name}: {onsets} alarm onset(s) on unseen collision-free data (nested "
+        chosen = (f"settings chosen: settle {det.settle_time:g} s, rest reference "
+                  f"{det.rest_reference} s ({len(set(map(str, calibration.fold_settings.values())))}"
+                  " distinct in the nested folds); " if grid else "")
+        progress(f"{name}: {chosen}{onsets} alarm onset(s) on unseen collision-free data (nested "
                  f"LORO; by margin rule {by_rule}), {n_hit}/{n_events} pushes detected, "
                  f"{sum(len(v) for v in outside.values())} alarm onset(s) outside them "
                  f"({time.perf_counter() - tic:.0f} s)")
@@ -503,7 +520,8 @@ def main(argv=None):
     # -- quasi-static nMSE ---------------------------------------------------
     nmse = {}
     tests = {"p1..p10": STILL, "ptp_10_points": [PTP]}
-    for name, (model, tau) in monitors.items():
+    for name, (model, *_) in monitors.items():
+        tau = results[name]["detector"].rest_reference
         nmse[name] = {}
         for test, keys in tests.items():
             y = np.concatenate([unseen[k].current for k in keys])
@@ -560,17 +578,19 @@ def main(argv=None):
 def report_tables(results, nmse, unseen, family=None):
     """The benchmark's tables as reStructuredText."""
     minutes = sum(r.duration for r in unseen.values()) / 60.0
-    header = ["monitor", "margin (max)", "onsets on unseen", "pushes detected",
-              "median delay [s]", "max delay [s]", "onsets outside pushes",
-              "alarm samples in 1st s"]
-    rows = [[n, f"{np.max(r['margin']):.2f}", r["onsets"],
+    header = ["monitor", "settle, rest ref. [s]", "margin (max)", "onsets on unseen",
+              "pushes detected", "median delay [s]", "max delay [s]",
+              "onsets outside pushes", "alarm samples in 1st s"]
+    rows = [[n, f"{r['settle_time_s']:g}, {r['rest_reference_s'] or '-'}",
+             f"{np.max(r['margin']):.2f}", r["onsets"],
              f"{r['n_detected']}/{r['n_events']}",
              "n/a" if r["median_delay_s"] is None else f"{r['median_delay_s']:.2f}",
              "n/a" if r["max_delay_s"] is None else f"{r['max_delay_s']:.2f}",
              sum(len(v) for v in r["outside"].values()), r["first_second_alarm_samples"]]
             for n, r in results.items()]
     text = [f"Alarm onsets on {len(unseen)} unseen collision-free recordings ({minutes:.1f} "
-            "min), each scored with margins and levels chosen without it (nested "
+            "min), each scored with margins and levels (and, for the 'sel' monitors, "
+            "settle time and rest reference) chosen without it (nested "
             "leave-one-recording-out); pushes at the operating point (margins by "
             "leave-one-recording-out on all of them)", "", rst_table(header, rows), ""]
     peer = results[PEER]["thresholds"]

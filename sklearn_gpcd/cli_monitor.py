@@ -29,13 +29,16 @@ import time
 import warnings
 from pathlib import Path
 
-__all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "add_commands", "load_detector"]
+__all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "SELECT_GRID", "add_commands", "load_detector"]
 
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
 DETECTOR_KIND = "gpcd-detector"
 #: The detection rule ``gpcd calibrate`` applies (that of benchmarks/real_ur10e.py).
 DETECTOR_RULE = dict(threshold="per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
                      min_duration=5, sample_time="auto", sigma_v=None, settle_time=0.5)
+#: The settings ``gpcd calibrate --select`` chooses among (benchmarks/real_ur10e.py's
+#: "selected" monitors): settle time [s] x rest reference time constant [s].
+SELECT_GRID = {"settle_time": [0.5, 1.0, 2.0, 3.0], "rest_reference": [None, 2.0, 5.0]}
 
 
 # ---------------------------------------------------------------- arguments
@@ -99,8 +102,14 @@ def add_commands(sub):
                      "least 2, 3 for the false-alarm figure)")
     cli._add_recording_options(cal, "built-in name or URDF path, for thresholds in Nm "
                                "(default: the robot named in the recordings' metadata)")
-    cal.add_argument("--rest-reference", type=_non_negative_float, default=5.0,
+    cal.add_argument("--rest-reference", type=_non_negative_float, default=None,
                      help="time constant [s] of the rest re-reference (0: none; default 5)")
+    cal.add_argument("--select", action="store_true",
+                     help="choose the settle time (0.5, 1, 2, 3 s) and the rest reference "
+                     "(none, 2, 5 s) across the recordings too: the pair with the smallest "
+                     "time-weighted thresholds at its own leave-one-recording-out margin; "
+                     "the expected false alarms then count each recording at the pair "
+                     "chosen without it")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
     cal.add_argument("-o", "--output", type=cli._model_file_arg, required=True,
@@ -196,6 +205,10 @@ def _cmd_calibrate(args):
     if len(paths) < 2:  # before any work
         raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
                          f"give at least 2 collision-free recordings, got {len(paths)}")
+    if args.select and (args.no_regimes or args.rest_reference is not None):
+        raise ValueError("--select chooses the settle time and the rest reference of the "
+                         "regimes: drop " + ("--no-regimes" if args.no_regimes
+                                             else "--rest-reference"))
     trained = load_model(args.model)
     model, features = trained.regressor, trained.features
     recordings = _read_recordings(args.recordings, args, "calibration recordings")
@@ -215,16 +228,22 @@ def _cmd_calibrate(args):
         times[key] = rec.time
         bar.update()
     regimes = not args.no_regimes
-    tau = args.rest_reference if (regimes and args.rest_reference > 0) else None
+    tau = 5.0 if args.rest_reference is None else args.rest_reference
+    tau = tau if (regimes and tau > 0) else None
     template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
                                  regimes=regimes, rest_reference=tau, **DETECTOR_RULE)
-    result = calibrate_across_recordings(template, blocks, times)
+    result = calibrate_across_recordings(template, blocks, times,
+                                         param_grid=SELECT_GRID if args.select else None)
     det = result.detector
     thresholds = np.atleast_2d(det.thresholds_)
     summary = {
         "recordings": keys, "hours": result.hours, "margin": float(result.margin.max()),
         "margin_rule": "global", "regimes": list(result.regime_names),
-        "rest_reference_s": tau, "thresholds_A": thresholds.tolist(),
+        "settle_time_s": det.settle_time, "rest_reference_s": det.rest_reference,
+        "selected": bool(args.select),
+        "candidates": [dict(c, params=_json_params(c["params"])) for c in result.candidates]
+        if args.select else [],
+        "thresholds_A": thresholds.tolist(),
         "n_false_alarms_nested": result.n_false_alarms,
         "false_alarms_per_hour": result.false_alarms_per_hour,
         "nested_onsets_s": {k: f["onsets"] for k, f in result.folds.items()},
@@ -242,13 +261,31 @@ def _cmd_calibrate(args):
     return 0
 
 
+def _json_params(params):
+    """Candidate settings with JSON keys: ``settle_time`` -> ``settle_time_s``."""
+    return {f"{k}_s" if k in ("settle_time", "rest_reference") else k: v
+            for k, v in params.items()}
+
+
+def _seconds(value):
+    return "none" if value is None else f"{value:g} s"
+
+
 def _print_calibration(summary, n_recordings):
     n = len(summary["thresholds_A"][0])
-    tau = summary["rest_reference_s"]
     print(f"calibrated on {n_recordings} collision-free recording(s), "
           f"{summary['hours'] * 60:.1f} min, sample time {summary['sample_time_s']:g} s, "
-          f"controller signals used: {', '.join(summary['signals']) or 'none'}; rest "
-          f"reference {'none' if tau is None else f'{tau:g} s'}")
+          f"controller signals used: {', '.join(summary['signals']) or 'none'}; settle "
+          f"time {_seconds(summary['settle_time_s'])}, rest reference "
+          f"{_seconds(summary['rest_reference_s'])}"
+          + (" (chosen across the recordings)" if summary.get("selected") else ""))
+    if summary.get("candidates"):
+        print("  candidates (score: time-weighted mean log threshold, smaller is tighter; "
+              "alarms: nested onsets at that fixed candidate):")
+        for c in summary["candidates"]:
+            print(f"    settle {_seconds(c['params']['settle_time_s']):>6}, rest reference "
+                  f"{_seconds(c['params']['rest_reference_s']):>5}: score {c['score']:+.3f}, "
+                  f"margin {c['margin']:.3f}, alarms {c['n_false_alarms']}")
     if (info := summary.get("training")):
         print(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
               f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "
@@ -262,7 +299,9 @@ def _print_calibration(summary, n_recordings):
         print(f"  expected false alarms: {summary['n_false_alarms_nested']} alarm onset(s) "
               f"on left-out recordings in {summary['hours'] * 60:.1f} min = "
               f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
-              "out: each recording scored with margin and levels chosen without it)")
+              "out: each recording scored with margin"
+              + (", levels and settings" if summary.get("selected") else " and levels")
+              + " chosen without it)")
     units = [("A", summary["thresholds_A"])]
     if "thresholds_Nm" in summary:
         units.append((f"Nm, torque constants of {summary['robot']}", summary["thresholds_Nm"]))

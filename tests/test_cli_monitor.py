@@ -8,7 +8,7 @@ import pytest
 from sklearn.frozen import FrozenEstimator
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.cli_monitor import DETECTOR_RULE, load_detector
+from sklearn_gpcd.cli_monitor import DETECTOR_RULE, SELECT_GRID, load_detector
 from sklearn_gpcd.datasets import make_d1
 from sklearn_gpcd.detection import (
     CollisionDetector,
@@ -227,3 +227,34 @@ def test_monitor_hook_runs_at_each_alarm_onset(work, capsys):
     written = sorted((float(p.stem), p.read_text()) for p in folder.glob("*.txt"))
     assert [t for t, _ in written] == pytest.approx([e["start_s"] for e in events], abs=1e-6)
     assert "ALARM" in capsys.readouterr().out
+
+
+def test_calibrate_select_chooses_settle_time_and_rest_reference(work, capsys):
+    out = work["folder"] / "selected.skops"
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--select", "-q",
+                 "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    detector, features, calibration = load_detector(out)
+    recs = [load_recording(p) for p in work["free"]]
+    trained = load_model(work["model"])
+    blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
+              for p, r in zip(work["free"], recs)}
+    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
+                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    expected = calibrate_across_recordings(
+        template, blocks, {p.name: r.time for p, r in zip(work["free"], recs)},
+        param_grid=SELECT_GRID)
+    assert (detector.settle_time, detector.rest_reference) == (
+        expected.settings["settle_time"], expected.settings["rest_reference"])
+    np.testing.assert_allclose(detector.thresholds_, expected.detector.thresholds_)
+    assert calibration["selected"] and len(calibration["candidates"]) == 12
+    assert calibration["n_false_alarms_nested"] == expected.n_false_alarms
+    assert "(chosen across the recordings)" in text
+    assert sum(line.startswith("    settle ") for line in text.splitlines()) == 12
+
+
+def test_calibrate_select_refuses_fixed_settings(work, capsys):
+    for fixed in (["--no-regimes"], ["--rest-reference", "2"]):
+        assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--select",
+                     *fixed, "-q", "-o", str(work["folder"] / "x.skops")]) != 0
+        assert f"drop {fixed[0]}" in capsys.readouterr().err

@@ -161,3 +161,56 @@ def test_margin_rules_share_the_worst_left_out_excess_as_far_as_they_say():
         np.testing.assert_array_equal(loro_margin(peaks, keys, rule), table, err_msg=rule)
     with pytest.raises(ValueError, match="rule must be one of"):
         loro_margin(peaks, keys, "joints")
+
+
+GRID = {"settle_time": [0.1, 0.5], "rest_reference": [None, 1.0]}
+
+
+def test_a_one_candidate_grid_is_the_plain_calibration():
+    blocks, times = _recordings()
+    plain = calibrate_across_recordings(_template(settle_time=0.5), blocks, times)
+    grid = calibrate_across_recordings(_template(), blocks, times,
+                                       param_grid={"settle_time": [0.5]})
+    assert grid.settings == {"settle_time": 0.5} and plain.settings == {}
+    np.testing.assert_array_equal(grid.detector.thresholds_, plain.detector.thresholds_)
+    assert grid.folds == plain.folds
+
+
+def test_each_candidate_is_calibrated_as_its_own_template():
+    """The candidates share one prediction per recording; each one's margin and
+    nested false alarms are those of a calibration with its settings alone."""
+    blocks, times = _recordings(seed=1)
+    result = calibrate_across_recordings(_template(), blocks, times, param_grid=GRID)
+    assert len(result.candidates) == 4
+    for row in result.candidates:
+        alone = calibrate_across_recordings(_template(**row["params"]), blocks, times)
+        assert row["margin"] == pytest.approx(alone.margin.max(), rel=1e-12)
+        assert row["n_false_alarms"] == alone.n_false_alarms
+    best = min(result.candidates, key=lambda row: row["score"])
+    assert result.settings == best["params"]
+    alone = calibrate_across_recordings(_template(**result.settings), blocks, times)
+    np.testing.assert_allclose(result.detector.thresholds_, alone.detector.thresholds_,
+                               rtol=1e-12)
+
+
+def test_nested_false_alarms_use_settings_chosen_without_the_recording():
+    blocks, times = _recordings(n_recordings=5, seed=2)
+    result = calibrate_across_recordings(_template(), blocks, times, param_grid=GRID)
+    assert sorted(result.fold_settings) == sorted(blocks)
+    for held_out in blocks:
+        others = {k: v for k, v in blocks.items() if k != held_out}
+        inner = calibrate_across_recordings(_template(), others, times, param_grid=GRID)
+        assert result.fold_settings[held_out] == inner.settings
+        # scored with that candidate's margin and levels chosen without it
+        alone = calibrate_across_recordings(_template(**inner.settings), blocks, times)
+        assert result.folds[held_out] == alone.folds[held_out]
+
+
+def test_param_grid_names_what_can_be_chosen():
+    blocks, times = _recordings(n_recordings=3)
+    with pytest.raises(ValueError, match="'k' cannot be chosen across recordings.*settle_time"):
+        calibrate_across_recordings(_template(), blocks, times, param_grid={"k": [1.0, 2.0]})
+    no_regimes = _template().set_params(regimes=False, velocity_columns=None)
+    with pytest.raises(ValueError, match="rest_reference"):
+        calibrate_across_recordings(no_regimes, blocks, times,
+                                    param_grid={"rest_reference": [None, 1.0]})

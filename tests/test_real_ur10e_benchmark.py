@@ -95,7 +95,11 @@ def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
     saved = json.loads((out / "real_ur10e.json").read_text())
     assert saved["n_support"] == 100
     assert set(saved["monitors"]) == {"i - i_des", "P_f", "SP_S", "SP_P", "SP_C",
-                                      "i - i_des +R", "SP_C +R"}
+                                      "i - i_des +R", "SP_C +R", "i - i_des sel",
+                                      "SP_C sel"}
+    chosen = saved["monitors"]["SP_C sel"]
+    assert len(chosen["candidates"]) == 12 and len(chosen["fold_settings"]) == len(
+        saved["unseen_collision_free"])
     assert saved["unseen_minutes"] > 10
     assert not set(saved["train_files"]) & set(bench.HELD_OUT)
     for result in saved["monitors"].values():

@@ -9,7 +9,8 @@
 * regimes (``moving``, ``settling``, ``rest``) with per-regime thresholds and
   the rest re-reference (:mod:`~sklearn_gpcd.detection._regimes`, our
   extension for the history-dependent current at rest);
-* :func:`calibrate_across_recordings` -- thresholds chosen across recordings
+* :func:`calibrate_across_recordings` -- thresholds (and optionally settle
+  time, rest reference, filter) chosen across recordings
   (leave-one-recording-out margin, nested false alarms);
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
 """
@@ -17,6 +18,7 @@
 from ._regimes import REGIME_NAMES
 from .calibration import (
     MARGIN_RULES,
+    SELECTABLE_PARAMS,
     calibrate_across_recordings,
     loro_margin,
     nested_false_alarms,
@@ -34,6 +36,7 @@ __all__ = [
     "MARGIN_RULES",
     "MonitorStatus",
     "REGIME_NAMES",
+    "SELECTABLE_PARAMS",
     "SampleTimeWarning",
     "StreamingMonitor",
     "calibrate_across_recordings",

@@ -16,12 +16,21 @@ can be larger. The rule here (the one of ``benchmarks/real_ur10e.py`` and of
    other recordings only, alarm onsets counted on ``r``
    (:func:`nested_false_alarms`): the figure never saw ``r``;
 4. the operating point: the detector refitted on all recordings with that
-   margin (:func:`calibrate_across_recordings` does 1-4).
+   margin (:func:`calibrate_across_recordings` does 1-4);
+5. optionally, **settings chosen the same way** (``param_grid``: e.g. the
+   settle time and the rest reference): the candidate with the smallest
+   time-weighted thresholds at its own operating point, and, for the nested
+   false alarms, the candidate chosen without the recording they are counted
+   on (:func:`calibrate_across_recordings` with ``param_grid``).
 """
+
+import copy
 
 import numpy as np
 from sklearn.base import clone
+from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
+from sklearn.utils.validation import validate_data
 
 from ..features.masks import contiguous_segments
 from ._signal import debounce_segments, segment_starts
@@ -29,12 +38,19 @@ from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peak
 
 __all__ = [
     "MARGIN_RULES",
+    "SELECTABLE_PARAMS",
     "calibrate_across_recordings",
     "loro_margin",
     "nested_false_alarms",
     "regime_excursions",
     "regime_levels",
 ]
+
+#: CollisionDetector parameters ``calibrate_across_recordings(param_grid=...)``
+#: may vary: they act after the regressor, so its predictions are computed once.
+SELECTABLE_PARAMS = ("settle_time", "rest_reference", "filter_cutoff", "filter_order",
+                     "min_duration")
+
 
 def regime_excursions(detector, blocks):
     """Debounced ``|m|``, regimes and peak per (regime, joint) of each recording.
@@ -69,16 +85,20 @@ def regime_excursions(detector, blocks):
     >>> debounced.shape, peaks.shape
     ((200, 1), (1, 1))
     """
-    n_rows = len(detector.regime_names_)
     out = {}
     for key, block in blocks.items():
         mon = detector.monitoring_signal(block)
-        starts = segment_starts(len(block))
-        debounced = debounce_segments(np.abs(mon.signal), detector.min_duration, starts)
-        recording = np.zeros(len(block), dtype=np.intp)
-        peaks = recording_peaks(debounced, mon.regime, recording, n_rows)[0]
-        out[key] = (debounced, mon.regime, peaks)
+        out[key] = _excursion(detector, mon.signal, mon.regime)
     return out
+
+
+def _excursion(detector, signal, regime):
+    """``(debounced, regime, peaks)`` of one recording's monitoring signal."""
+    starts = segment_starts(len(signal))
+    debounced = debounce_segments(np.abs(signal), detector.min_duration, starts)
+    recording = np.zeros(len(signal), dtype=np.intp)
+    peaks = recording_peaks(debounced, regime, recording, len(detector.regime_names_))[0]
+    return debounced, regime, peaks
 
 
 def regime_levels(peaks, keys):
@@ -197,8 +217,27 @@ def nested_false_alarms(series, times, rule="global"):
     return out
 
 
-def calibrate_across_recordings(detector, blocks, times, rule="global"):
+def calibrate_across_recordings(detector, blocks, times, rule="global", param_grid=None):
     """Fit a detector with a leave-one-recording-out margin; count nested false alarms.
+
+    With ``param_grid``, the detector's post-processing settings are chosen
+    too. Each candidate is calibrated by the rule above and scored by the
+    time-weighted mean log threshold at its own operating point,
+
+    .. math::
+
+        J = \\sum_g \\frac{n_g}{n}\\, \\frac{1}{L} \\sum_{\\ell=1}^{L}
+            \\log\\big(\\mu\\, p_{g\\ell}\\big),
+
+    with :math:`n_g` the calibration samples in regime :math:`g` under that
+    candidate, :math:`p_{g\\ell}` the levels and :math:`\\mu` the margin: the
+    band the arm spends its time in, smaller is more sensitive (each joint's
+    scale adds the same constant to every candidate). The candidate with the
+    smallest :math:`J` on all recordings is the operating point; the nested
+    false alarms of each recording are counted at the candidate chosen
+    without it (with its margin and levels, also chosen without it), so the
+    figure never saw the recording even through the choice of settings. The
+    regressor predicts each recording once for all candidates.
 
     Parameters
     ----------
@@ -213,6 +252,11 @@ def calibrate_across_recordings(detector, blocks, times, rule="global"):
         Time stamps [s] of each recording.
     rule : {"global", "joint", "regime", "cell"}, default="global"
         As :func:`loro_margin`.
+    param_grid : dict or list of dicts, default=None
+        Candidate settings, as for :class:`sklearn.model_selection.ParameterGrid`,
+        with keys in :data:`SELECTABLE_PARAMS`, e.g. ``{"settle_time": [0.5,
+        1, 2, 3], "rest_reference": [None, 2, 5]}``. None calibrates the
+        template's own settings.
 
     Returns
     -------
@@ -221,9 +265,13 @@ def calibrate_across_recordings(detector, blocks, times, rule="global"):
         ``margin`` and ``levels`` (n_regime_rows, n_joints), ``folds`` (from
         :func:`nested_false_alarms`, empty with 2 recordings), ``n_false_alarms``
         (their total), ``hours`` and ``false_alarms_per_hour`` (None with
-        fewer than 3 recordings), and ``series`` (from
-        :func:`regime_excursions` at a unit margin, e.g. to compare rules
-        with :func:`nested_false_alarms`).
+        fewer than 3 recordings), ``series`` (from :func:`regime_excursions`
+        at a unit margin, e.g. to compare rules with
+        :func:`nested_false_alarms`), ``settings`` (the chosen candidate,
+        ``{}`` without ``param_grid``), ``candidates`` (per candidate:
+        ``params``, ``score`` :math:`J`, ``margin`` and ``n_false_alarms``,
+        nested at that fixed candidate) and ``fold_settings`` (the candidate
+        chosen without each recording).
 
     Examples
     --------
@@ -241,25 +289,99 @@ def calibrate_across_recordings(detector, blocks, times, rule="global"):
     >>> result = calibrate_across_recordings(template, blocks, times)
     >>> bool(result.margin.min() >= 1.0), sorted(result.folds)
     (True, ['a', 'b', 'c'])
+    >>> result = calibrate_across_recordings(template, blocks, times,
+    ...                                      param_grid={"filter_cutoff": [None, 2.0]})
+    >>> result.settings, result.detector.filter_cutoff   # filtering narrows the band
+    ({'filter_cutoff': 2.0}, 2.0)
     """
     keys = list(blocks)
     if len(keys) < 2:
         raise ValueError("calibration across recordings needs at least 2 collision-free "
                          f"recordings, got {len(keys)}")
+    candidates = _candidates(param_grid)
     Z = np.concatenate([blocks[k] for k in keys])
     groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
     time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
     base = clone(detector).set_params(margin=1.0).fit(Z, groups=groups, time=time)
-    series = regime_excursions(base, blocks)
+    residuals = _recording_residuals(base, blocks)
+    runs = []
+    for params in candidates:
+        series = _candidate_series(base, params, residuals)
+        peaks = {k: v[2] for k, v in series.items()}
+        folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
+        runs.append((series, loro_margin(peaks, keys, rule), folds))
+    best = _best_candidate(runs, keys, rule)
+    series, margin, folds = runs[best]
+    fold_settings = {}
+    if len(keys) >= 3 and len(candidates) > 1:  # the settings, too, chosen without r
+        chosen = {r: _best_candidate(runs, [k for k in keys if k != r], rule) for r in keys}
+        folds = {r: runs[c][2][r] for r, c in chosen.items()}
+        fold_settings = {r: candidates[c] for r, c in chosen.items()}
     peaks = {k: v[2] for k, v in series.items()}
-    margin = loro_margin(peaks, keys, rule)
-    folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
     shaped = margin.reshape(np.shape(base.scale_))  # (n_joints,) without regimes
-    fitted = clone(detector).set_params(margin=shaped).fit(Z, groups=groups, time=time)
+    fitted = clone(detector).set_params(**candidates[best], margin=shaped).fit(
+        Z, groups=groups, time=time)
     hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
     n_false = sum(len(f["onsets"]) for f in folds.values())
+    table = [{"params": params, "score": _selection_score(run[0], keys, rule),
+              "margin": float(run[1].max()),
+              "n_false_alarms": sum(len(f["onsets"]) for f in run[2].values())}
+             for params, run in zip(candidates, runs)]
     return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
                  folds=folds, n_false_alarms=n_false, hours=hours,
                  false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
-                 regime_names=tuple(fitted.regime_names_), series=series)
+                 regime_names=tuple(fitted.regime_names_), series=series,
+                 settings=dict(candidates[best]), candidates=table,
+                 fold_settings=fold_settings)
 
+
+def _candidates(param_grid):
+    """The candidate settings of ``param_grid`` (``[{}]`` for None), checked."""
+    if param_grid is None:
+        return [{}]
+    candidates = list(ParameterGrid(param_grid))
+    unknown = sorted({k for c in candidates for k in c} - set(SELECTABLE_PARAMS))
+    if unknown:
+        raise ValueError(f"param_grid: {unknown[0]!r} cannot be chosen across recordings; "
+                         f"the settings that can are {SELECTABLE_PARAMS}")
+    if not candidates:
+        raise ValueError("param_grid has no candidate")
+    return candidates
+
+
+def _recording_residuals(detector, blocks):
+    """``(residual, std, velocities)`` of each recording under a fitted detector."""
+    out = {}
+    for key, block in blocks.items():
+        X = validate_data(detector, block, dtype=np.float64, reset=False)
+        _, std, residual = detector._residual(X, detector._needs_std())
+        out[key] = (residual, std, detector._velocities(X))
+    return out
+
+
+def _candidate_series(base, params, residuals):
+    """:func:`regime_excursions` of ``base`` with the post-processing ``params``,
+    from residuals already predicted."""
+    det = copy.copy(base).set_params(**params)
+    det._validate_params()
+    det._set_signal_stages()
+    out = {}
+    for key, (residual, std, qd) in residuals.items():
+        signal, regime, _ = det._signal(residual, std, segment_starts(len(residual)), qd)
+        out[key] = _excursion(det, signal, regime)
+    return out
+
+
+def _selection_score(series, keys, rule):
+    """Time-weighted mean log threshold on the recordings ``keys`` (see
+    :func:`calibrate_across_recordings`)."""
+    peaks = {k: series[k][2] for k in keys}
+    thresholds = loro_margin(peaks, keys, rule) * regime_levels(peaks, keys)
+    counts = sum(np.bincount(series[k][1], minlength=thresholds.shape[0]) for k in keys)
+    log = np.log(np.maximum(thresholds, np.finfo(float).tiny)).mean(axis=1)
+    return float(counts / counts.sum() @ log)
+
+
+def _best_candidate(runs, keys, rule):
+    """Index of the run with the smallest score on ``keys`` (the first on ties)."""
+    return int(np.argmin([_selection_score(run[0], keys, rule) for run in runs]))

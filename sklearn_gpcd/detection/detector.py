@@ -620,18 +620,23 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         debounced = debounce_segments(np.abs(signal), self.min_duration, starts)
         return debounced / np.atleast_2d(self.scale_)[regimes]
 
-    def _calibrate(self, residual, std, starts, qd, recordings=None):
-        """Set filter_coefficients_, scale_, margin_, offset_ and thresholds_.
-
-        ``recordings``: recording index of each training residual row (for
-        ``margin="loro"``), or None when no ``groups`` were given.
-        """
+    def _set_signal_stages(self):
+        """``filter_coefficients_`` and ``regime_names_``: what :meth:`_signal` reads
+        besides the parameters (``sample_time_`` set)."""
         self.filter_coefficients_ = None
         if self.filter_cutoff is not None:
             self.filter_coefficients_ = lowpass_coefficients(
                 self.filter_cutoff, self.sample_time_, self.filter_order
             )
         self.regime_names_ = REGIME_NAMES if self.regimes else ("all",)
+
+    def _calibrate(self, residual, std, starts, qd, recordings=None):
+        """Set filter_coefficients_, scale_, margin_, offset_ and thresholds_.
+
+        ``recordings``: recording index of each training residual row (for
+        ``margin="loro"``), or None when no ``groups`` were given.
+        """
+        self._set_signal_stages()
         signal, regimes, _ = self._signal(residual, std, starts, qd)
         margin = 1.0
         if self.threshold == "std":
