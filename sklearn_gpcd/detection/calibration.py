@@ -310,7 +310,8 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         peaks = {k: v[2] for k, v in series.items()}
         folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
         runs.append((series, loro_margin(peaks, keys, rule), folds))
-    best = _best_candidate(runs, keys, rule)
+    scores = [_selection_score(run[0], keys, rule) for run in runs]
+    best = int(np.argmin(scores))  # the first on ties
     series, margin, folds = runs[best]
     fold_settings = {}
     if len(keys) >= 3 and len(candidates) > 1:  # the settings, too, chosen without r
@@ -323,10 +324,9 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         Z, groups=groups, time=time)
     hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
     n_false = sum(len(f["onsets"]) for f in folds.values())
-    table = [{"params": params, "score": _selection_score(run[0], keys, rule),
-              "margin": float(run[1].max()),
+    table = [{"params": params, "score": score, "margin": float(run[1].max()),
               "n_false_alarms": sum(len(f["onsets"]) for f in run[2].values())}
-             for params, run in zip(candidates, runs)]
+             for params, score, run in zip(candidates, scores, runs)]
     return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
                  folds=folds, n_false_alarms=n_false, hours=hours,
                  false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
