@@ -503,9 +503,10 @@ def main(argv=None):
             "fold_settings": calibration.fold_settings or None,
             "monitors": mons, "detector": det,
         }
-        chosen = (f"settings chosen: settle {det.settle_time:g} s, rest reference "
-                  f"{det.rest_reference} s ({len(set(map(str, calibration.fold_settings.values())))}"
-                  " distinct in the nested folds); " if grid else "")
+        tau_text = "none" if det.rest_reference is None else f"{det.rest_reference:g} s"
+        n_distinct = len(set(map(str, calibration.fold_settings.values())))
+        chosen = (f"settings chosen: settle {det.settle_time:g} s, rest reference {tau_text} "
+                  f"({n_distinct} distinct in the nested folds); " if grid else "")
         progress(f"{name}: {chosen}{onsets} alarm onset(s) on unseen collision-free data (nested "
                  f"LORO; by margin rule {by_rule}), {n_hit}/{n_events} pushes detected, "
                  f"{sum(len(v) for v in outside.values())} alarm onset(s) outside them "
