@@ -30,10 +30,9 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
-from sklearn.utils.validation import validate_data
 
 from ..features.masks import contiguous_segments
-from ._signal import debounce_segments, segment_starts
+from ._signal import debounce_segments, recording_index, segment_starts
 from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
 
 __all__ = [
@@ -302,8 +301,13 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     Z = np.concatenate([blocks[k] for k in keys])
     groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
     time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
-    base = clone(detector).set_params(margin=1.0).fit(Z, groups=groups, time=time)
-    residuals = _recording_residuals(base, blocks)
+    # base = clone(...).fit(Z, ...) at a unit margin, its residuals kept: the
+    # regressor predicts each calibration row once for every candidate
+    base = clone(detector).set_params(margin=1.0)
+    residual, std, starts, qd = base._fit_residuals(Z, None, groups, time,
+                                                    base._needs_std(fitting=True))
+    base._calibrate(residual, std, starts, qd, recording_index(groups))
+    residuals = _recording_residuals(base, keys, groups, residual, std, qd)
     runs = []
     for params in candidates:
         series = _candidate_series(base, params, residuals)
@@ -349,14 +353,14 @@ def _candidates(param_grid):
     return candidates
 
 
-def _recording_residuals(detector, blocks):
-    """``(residual, std, velocities)`` of each recording under a fitted detector."""
-    out = {}
-    for key, block in blocks.items():
-        X = validate_data(detector, block, dtype=np.float64, reset=False)
-        _, std, residual = detector._residual(X, detector._needs_std())
-        out[key] = (residual, std, detector._velocities(X))
-    return out
+def _recording_residuals(detector, keys, groups, residual, std, qd):
+    """``(residual, std, velocities)`` of each recording, cut from the stacked
+    rows (recording ``keys[g]`` in the rows where ``groups == g``); ``std``
+    only where the detector's monitoring signal reads it."""
+    std = std if detector._needs_std() else None
+    return {key: (residual[rows], None if std is None else std[rows],
+                  None if qd is None else qd[rows])
+            for key, rows in ((k, groups == g) for g, k in enumerate(keys))}
 
 
 def _candidate_series(base, params, residuals):

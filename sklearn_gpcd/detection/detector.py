@@ -364,13 +364,19 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         -------
         self : CollisionDetector
         """
-        self._validate_params()
-        self.sample_time_ = self._check_sample_time(time, groups, _num_samples(X))
-        residual, std, starts, qd = self._fit_regressor(
-            X, labels, groups, self._needs_std(fitting=True)
+        residual, std, starts, qd = self._fit_residuals(
+            X, labels, groups, time, self._needs_std(fitting=True)
         )
         self._calibrate(residual, std, starts, qd, recording_index(groups, labels))
         return self
+
+    def _fit_residuals(self, X, labels, groups, time, return_std):
+        """The half of :meth:`fit` before the thresholds: parameters checked,
+        ``sample_time_``, ``regressor_`` fitted; residuals, std, starts and
+        velocities of the collision-free rows (what :meth:`_calibrate` reads)."""
+        self._validate_params()
+        self.sample_time_ = self._check_sample_time(time, groups, _num_samples(X))
+        return self._fit_regressor(X, labels, groups, return_std)
 
     def _check_sample_time(self, time, groups, n_rows):
         """``sample_time_``: given, or the median step of ``time`` ("auto")."""

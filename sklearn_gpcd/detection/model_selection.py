@@ -364,10 +364,8 @@ def _evaluate_fold(detector, heavy, lights, X, labels, groups, train, test, max_
     variants = [clone(base).set_params(**light) for light in lights]
     needs_std = any(v._needs_std(fitting=True) for v in variants)
     train_time = None if time is None else time[train]
-    base._validate_params()
-    base.sample_time_ = base._check_sample_time(train_time, groups[train], len(train))
-    residual, std, train_starts, _ = base._fit_regressor(
-        X[train], labels[train], groups[train], needs_std
+    residual, std, train_starts, _ = base._fit_residuals(
+        X[train], labels[train], groups[train], train_time, needs_std
     )
     X_train, X_test = X[train][labels[train] == 0], X[test]
     _, test_std, test_residual = base._residual(X_test, any(v._needs_std() for v in variants))
