@@ -576,6 +576,18 @@ def main(argv=None):
     return summary
 
 
+def same_rule_peer(monitor):
+    """The peer's monitor calibrated by the same rule as ``monitor``.
+
+    >>> [same_rule_peer(n) for n in ("SP_C", "SP_C +R", "SP_C sel", "i - i_des +R")]
+    ['i - i_des', 'i - i_des +R', 'i - i_des sel', 'i - i_des +R']
+    """
+    for suffix in (" +R", " sel"):
+        if monitor.endswith(suffix):
+            return PEER + suffix
+    return PEER
+
+
 def report_tables(results, nmse, unseen, family=None):
     """The benchmark's tables as reStructuredText."""
     minutes = sum(r.duration for r in unseen.values()) / 60.0
@@ -602,6 +614,18 @@ def report_tables(results, nmse, unseen, family=None):
                 for n, r in results.items()]
         text += [f"Thresholds at the operating point, {regime} [A] (ratio to {PEER})", "",
                  rst_table(["monitor"] + jh, rows), ""]
+    rows = []
+    for n, r in results.items():
+        same = same_rule_peer(n)
+        ratio = np.asarray(r["thresholds"]) / np.asarray(results[same]["thresholds"])
+        rows.append([n, same] + [f"{v:.2f}x" for g in ("moving", "rest")
+                                 for v in ratio[REGIME_NAMES.index(g), :3]])
+    text += ["Thresholds relative to the robot's residual calibrated with the same rule "
+             "(settle time, rest reference, selection): issue 14's bar is at most 0.8x "
+             "moving and 0.5x at rest on joints 1-3", "",
+             rst_table(["monitor", "peer, same rule"]
+                       + [f"{g} j{j + 1}" for g in ("moving", "rest") for j in range(3)], rows),
+             ""]
     sets = list(next(iter(nmse.values())))
     rows = [[n] + list(nmse[n][test]) for test in sets for n in nmse]
     names = [f"{n}, {test}" for test in sets for n in nmse]

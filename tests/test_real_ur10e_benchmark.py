@@ -50,6 +50,14 @@ def test_levels_fill_an_absent_regime_with_the_largest(bench):
     np.testing.assert_array_equal(bench.levels(peaks, ["a"])[1], [1.0, 2.0])
 
 
+def test_each_monitor_is_compared_with_the_peer_of_its_own_rule(bench):
+    pairs = {name: bench.same_rule_peer(name) for name in
+             ("P_f", "SP_C", "SP_C +R", "SP_C sel", bench.PEER, bench.PEER + " sel")}
+    assert pairs == {"P_f": bench.PEER, "SP_C": bench.PEER, "SP_C +R": bench.PEER + " +R",
+                     "SP_C sel": bench.PEER + " sel", bench.PEER: bench.PEER,
+                     bench.PEER + " sel": bench.PEER + " sel"}
+
+
 def test_labels_are_stored_with_their_method():
     data = json.loads(LABELS.read_text())
     assert "method" in data and len(data["method"]) > 200
