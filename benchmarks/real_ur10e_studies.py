@@ -73,7 +73,7 @@ Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
 2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min),
 ``--study select`` (about 2 min), ``--study relax`` (seconds), ``--study
 margin`` (about 7 min), ``--study presliding`` (about 8 min), ``--study impact``
-(about 3 min). The
+(about 1.5 min). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -567,6 +567,7 @@ def _with_prediction(model, X, current):
 
 
 def _banded(rule, band):
+    """``rule`` with the low-pass and debounce of ``band`` (cut-off, order, debounce)."""
     cutoff, order, debounce = band
     return clone(rule).set_params(filter_cutoff=cutoff, filter_order=order,
                                   min_duration=debounce)
@@ -583,17 +584,24 @@ def _nested_alarms(series, rule=bench.MARGIN_RULE):
     return out
 
 
+#: The band of the benchmark's rule: (cut-off [Hz], filter order, debounce [samples]).
+MAIN_BAND = (bench.FILTER_CUTOFF, 1, bench.MIN_DURATION)
+
+
 def study_impact(root, labels, n_support, seed):
     train, unseen, _ = bench.split_recordings(root, quick=False)
     data = training_set(list(train), "causal", allow_missing=True)
     models, _ = bench.train_models(data, n_support, seed, None, names=("P_f", "SP_S", "SP_C"))
     models[bench.PEER] = ControllerCurrent(N_JOINTS).fit(data.X, data.y)
-    features = data.features
     velocities = [int(c) for c in block_columns("qd", N_JOINTS)]
     base = bench.detector(_Given()).set_params(velocity_columns=velocities)
-    bands = [(bench.FILTER_CUTOFF, 1, bench.MIN_DURATION)]
+    _impact_on_2020(root, labels, models, data.features, base)
+    _impact_on_unseen(root, labels, unseen, models, data.features, base)
 
-    # 1. collision_detection_data_2020: the benchmark's protocol, union of two bands
+
+def _impact_on_2020(root, labels, models, features, base):
+    """collision_detection_data_2020, the benchmark's protocol, union of two bands."""
+    bands = [MAIN_BAND]
     free = bench.load(root / bench.FAMILY_2020 / "collision_free.csv")
     recs = {key: bench.load(root / key) for key in bench.COLLISIONS}
     segments = {k: bench.free_segments(r, labels[k]) for k, r in recs.items()}
@@ -629,7 +637,10 @@ def study_impact(root, labels, n_support, seed):
                   f"{hits}/{total} collisions, {n_onsets} onsets on the event-free "
                   f"segments; missed {missed}", flush=True)
 
-    # 2. the band IMPACT_CHECK on the unseen collision-free recordings and the pushes
+
+def _impact_on_unseen(root, labels, unseen, models, features, base):
+    """The band ``IMPACT_CHECK`` on the unseen collision-free recordings and the pushes."""
+    bands = [MAIN_BAND]
     pushes = {key: bench.load(root / key) for key in bench.PUSHES}
     X_unseen = {k: features.transform(r) for k, r in unseen.items()}
     X_push = {k: features.transform(r) for k, r in pushes.items()}
