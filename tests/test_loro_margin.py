@@ -69,6 +69,23 @@ def test_loro_margin_is_the_calibration_margin():
     np.testing.assert_allclose(det.margin_, loro_margin(peaks, list(peaks)), rtol=1e-12)
 
 
+def test_the_operating_point_is_the_template_fitted_with_the_chosen_margin():
+    """calibrate_across_recordings returns what fit would: same parameters,
+    fitted attributes and decisions, from the one prediction it made."""
+    blocks, times = _recordings(seed=3)
+    result = calibrate_across_recordings(_template(), blocks, times)
+    Z, groups = _stacked(blocks)
+    time = np.concatenate([times[k] for k in blocks])
+    fitted = _template(margin=result.margin).fit(Z, groups=groups, time=time)
+    det = result.detector
+    assert det is not None and sorted(det.get_params()) == sorted(fitted.get_params())
+    np.testing.assert_array_equal(det.margin, fitted.margin)
+    for name in ("scale_", "margin_", "thresholds_", "offset_", "sample_time_"):
+        np.testing.assert_allclose(getattr(det, name), getattr(fitted, name), rtol=1e-12)
+    np.testing.assert_allclose(det.decision_function(Z), fitted.decision_function(Z),
+                               rtol=1e-12)
+
+
 def test_numeric_margin_is_stored_broadcast():
     blocks, _ = _recordings(n_recordings=2)
     Z, groups = _stacked(blocks)

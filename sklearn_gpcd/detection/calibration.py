@@ -302,7 +302,8 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
     time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
     # base = clone(...).fit(Z, ...) at a unit margin, its residuals kept: the
-    # regressor predicts each calibration row once for every candidate
+    # regressor predicts each calibration row once, for every candidate and for
+    # the operating point
     base = clone(detector).set_params(margin=1.0)
     residual, std, starts, qd = base._fit_residuals(Z, None, groups, time,
                                                     base._needs_std(fitting=True))
@@ -324,8 +325,10 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         fold_settings = {r: candidates[c] for r, c in chosen.items()}
     peaks = {k: v[2] for k, v in series.items()}
     shaped = margin.reshape(np.shape(base.scale_))  # (n_joints,) without regimes
-    fitted = clone(detector).set_params(**candidates[best], margin=shaped).fit(
-        Z, groups=groups, time=time)
+    # the operating point: what fit would set, from the residuals already predicted
+    fitted = base.set_params(**candidates[best], margin=shaped)
+    fitted._validate_params()
+    fitted._calibrate(residual, std, starts, qd, recording_index(groups))
     hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
     n_false = sum(len(f["onsets"]) for f in folds.values())
     table = [{"params": params, "score": score, "margin": float(run[1].max()),
