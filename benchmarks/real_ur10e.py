@@ -336,14 +336,13 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
     return out
 
 
-def rest_referenced_prediction(model, block, rest_reference):
+def rest_referenced_prediction(model, block, rest_reference, settle_time=0.5):
     """Causal prediction incl. the rest reference (unfiltered monitor), for nMSE."""
     det = CollisionDetector(FrozenEstimator(model), n_joints=6, threshold="per_joint",
                             false_alarm_rate=0.0, sample_time=0.01, regimes=True,
-                            settle_time=0.5, rest_reference=rest_reference)
-    det.fit(block)
-    mon = det.monitoring_signal(block)
-    return mon.predicted + mon.reference
+                            settle_time=settle_time, rest_reference=rest_reference)
+    mon = det.fit(block).monitoring_signal(block)
+    return mon.predicted + (0.0 if mon.reference is None else mon.reference)
 
 
 # ----------------------------------------------------------------- figures
@@ -522,7 +521,8 @@ def main(argv=None):
     nmse = {}
     tests = {"p1..p10": STILL, "ptp_10_points": [PTP]}
     for name, (model, *_) in monitors.items():
-        tau = results[name]["detector"].rest_reference
+        det = results[name]["detector"]
+        tau, settle = det.rest_reference, det.settle_time
         nmse[name] = {}
         for test, keys in tests.items():
             y = np.concatenate([unseen[k].current for k in keys])
@@ -530,7 +530,7 @@ def main(argv=None):
             if tau is None:
                 pred = np.concatenate([model.predict(blocks[k][:, :-6]) for k in keys])
             else:
-                pred = np.concatenate([rest_referenced_prediction(model, blocks[k], tau)
+                pred = np.concatenate([rest_referenced_prediction(model, blocks[k], tau, settle)
                                        for k in keys])
             nmse[name][test] = split_nmse(y, pred, qd, SIGMA_V)["quasi_static"]
             arm_still = np.repeat(np.all(np.abs(qd) < SIGMA_V, axis=1)[:, None], 6, axis=1)

@@ -88,7 +88,6 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.optimize import curve_fit
-from sklearn.frozen import FrozenEstimator
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -96,7 +95,6 @@ import real_ur10e as bench  # noqa: E402
 
 from sklearn_gpcd.detection import (  # noqa: E402
     MARGIN_RULES,
-    CollisionDetector,
     calibrate_across_recordings,
     loro_margin,
     nested_false_alarms,
@@ -139,13 +137,9 @@ def rest_nmse(model, unseen, blocks, settle_time, rest_reference):
     for test, keys in {"p1..p10": bench.STILL, "ptp": [bench.PTP]}.items():
         y, pred, qd = [], [], []
         for key in keys:
-            det = CollisionDetector(FrozenEstimator(model), n_joints=6, threshold="per_joint",
-                                    false_alarm_rate=0.0, sample_time=0.01, regimes=True,
-                                    settle_time=settle_time, rest_reference=rest_reference)
-            mon = det.fit(blocks[key]).monitoring_signal(blocks[key])
-            reference = 0.0 if mon.reference is None else mon.reference
             y.append(unseen[key].current)
-            pred.append(mon.predicted + reference)
+            pred.append(bench.rest_referenced_prediction(model, blocks[key], rest_reference,
+                                                         settle_time))
             qd.append(unseen[key].qd)
         y, pred, qd = map(np.concatenate, (y, pred, qd))
         still = np.repeat(np.all(np.abs(qd) < bench.SIGMA_V, axis=1)[:, None], 6, axis=1)
