@@ -350,9 +350,7 @@ def study_margin(root, labels, n_support, seed):
                 print(f"{name + (' +R' if tau else ''):12s} {rule:7s} onsets {onsets:3d}, "
                       f"pushes {hit}/{total}, margin {np.round(cal.margin.max(axis=0), 2)}",
                       flush=True)
-    family_data = training_set(list(train), "causal", allow_missing=True)
-    family_models, _ = bench.train_models(family_data, n_support, seed, None,
-                                          names=("P_f", "SP_S"))
+    family_models = {name: models[name] for name in ("P_f", "SP_S")}  # same runs, same fit
     for rule in MARGIN_RULES:
         family = bench.collision_family(root, train, labels, n_support, seed, None,
                                         lambda message: None, rule=rule,
