@@ -40,10 +40,11 @@ Protocol
    counted: the false-alarm figure never saw ``r``, not even through the
    margin.
 5b. **settings chosen the same way** (the "sel" monitors, ``gpcd calibrate
-   --select``): settle time x rest reference over ``SELECT_GRID``, the pair
-   with the smallest time-weighted thresholds at its own LORO margin; for
-   the nested false alarms of ``r`` the pair is chosen without ``r`` too
-   (``calibrate_across_recordings(param_grid=...)``).
+   --select``): settle time x rest reference over ``SELECT_GRID``; of the
+   pairs with the fewest nested alarm onsets on the calibration recordings,
+   the one with the smallest time-weighted thresholds at its own LORO
+   margin; for the nested false alarms of ``r`` the pair is chosen without
+   ``r`` too (``calibrate_across_recordings(param_grid=...)``).
 6. **events**: at the operating point, every
    labelled push of ``collision_push_pose`` scored (detected, delay) with
    the labels of ``benchmarks/labels/ur10e_events.json`` (made from the data
@@ -57,8 +58,8 @@ Monitors: ``i - i_des`` (the peer: ``ControllerCurrent``), P_f, SP_S, SP_P
 (the paper's, on causal inputs), SP_C (``make_sp_c``: the controller's
 current as mean, GP correction), the "+R" variants with the rest
 re-reference (``rest_reference=REST_TAU``) and the "sel" variants of the
-peer and SP_C with settle time and rest reference chosen across recordings
-(5b).
+peer, P_f, SP_S and SP_C with settle time and rest reference chosen across
+recordings (5b).
 
 Run::
 
@@ -278,7 +279,7 @@ def free_segments(rec, entry, guard=0.5, min_seconds=2.0):
 
 
 def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
-                     rule=MARGIN_RULE, models=None):
+                     rule=MARGIN_RULE, models=None, settings=None):
     """Detection on collision_detection_data_2020 (no target current logged).
 
     Models on the state only (P_f, SP_S), trained on the training runs.
@@ -288,7 +289,9 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
     leave-one-recording-out (``rule``, one of ``MARGIN_RULES``), scored on
     ``f``: recall and delay on its labelled collisions, alarm onsets on its
     event-free segments. ``models`` maps names to regressors already trained
-    on ``train`` (else P_f and SP_S are trained).
+    on ``train`` (else P_f and SP_S are trained). ``settings`` maps a model
+    name to detector settings (those its "sel" monitor chose on the unseen
+    recordings): the model is scored again with them, as ``name + " sel"``.
     """
     free = load(root / FAMILY_2020 / "collision_free.csv")
     recs = {key: load(root / key) for key in COLLISIONS}
@@ -300,11 +303,8 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
         base_blocks = {"collision_free": stack_currents(features.transform(free), free.current)}
     unseen = {"collision_free": free}
     segments = {k: free_segments(r, labels[k]) for k, r in recs.items()}
-    out = {}
-    for name in ("P_f", "SP_S") if models is None else models:
-        tic = time.perf_counter()
-        model = (train_models(data, n_support, seed, n_jobs, names=(name,))[0][name]
-                 if models is None else models[name])
+
+    def score(template):
         files = {}
         for key, rec in recs.items():
             blocks, pieces = dict(base_blocks), dict(unseen)
@@ -314,8 +314,8 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
                 for i, (a, b) in enumerate(segments[other]):
                     blocks[f"{other}#{i}"] = inputs[other][a:b]
                     pieces[f"{other}#{i}"] = recs[other].slice(a, b)
-            calibration = calibrate_across_recordings(
-                detector(model), blocks, times_of(pieces), rule=rule)
+            calibration = calibrate_across_recordings(template, blocks, times_of(pieces),
+                                                      rule=rule)
             det, margin = calibration.detector, calibration.margin
             events, _, mon = score_events(det, inputs[key], rec, labels[key]["events"])
             t = rec.time - rec.time[0]
@@ -328,11 +328,23 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
         hits = sum(e["detected"] for f in files.values() for e in f["events"])
         total = sum(len(f["events"]) for f in files.values())
         onsets = sum(len(f["free_onsets"]) for f in files.values())
-        out[name] = {"files": files, "n_detected": hits, "n_events": total,
-                     "free_onsets": onsets}
-        progress(f"{FAMILY_2020}, {name}: {hits}/{total} labelled collisions detected, "
-                 f"{onsets} alarm onset(s) on the event-free segments "
-                 f"({time.perf_counter() - tic:.0f} s)")
+        return {"files": files, "n_detected": hits, "n_events": total, "free_onsets": onsets,
+                "settle_time_s": template.settle_time,
+                "rest_reference_s": template.rest_reference}
+
+    out = {}
+    for name in ("P_f", "SP_S") if models is None else models:
+        tic = time.perf_counter()
+        model = (train_models(data, n_support, seed, n_jobs, names=(name,))[0][name]
+                 if models is None else models[name])
+        variants = {name: {}}
+        if settings and name in settings:
+            variants[name + " sel"] = settings[name]
+        for shown, params in variants.items():
+            res = out[shown] = score(detector(model).set_params(**params))
+            progress(f"{FAMILY_2020}, {shown}: {res['n_detected']}/{res['n_events']} labelled "
+                     f"collisions detected, {res['free_onsets']} alarm onset(s) on the "
+                     f"event-free segments ({time.perf_counter() - tic:.0f} s)")
     return out
 
 
@@ -469,8 +481,8 @@ def main(argv=None):
     monitors = {name: (model, None, None) for name, model in models.items()}
     monitors[PEER + " +R"] = (models[PEER], REST_TAU, None)
     monitors["SP_C +R"] = (models["SP_C"], REST_TAU, None)
-    monitors[PEER + " sel"] = (models[PEER], REST_TAU, SELECT_GRID)
-    monitors["SP_C sel"] = (models["SP_C"], REST_TAU, SELECT_GRID)
+    for name in (PEER, "P_f", "SP_S", "SP_C"):
+        monitors[name + " sel"] = (models[name], REST_TAU, SELECT_GRID)
 
     # -- margins by leave-one-recording-out, nested false alarms, events -------
     results = {}
@@ -514,8 +526,11 @@ def main(argv=None):
     # -- collision_detection_data_2020: no target current, state-only models -----
     family = None
     if all((root / key).exists() for key in COLLISIONS):
+        chosen = {name: {"settle_time": results[name + " sel"]["settle_time_s"],
+                         "rest_reference": results[name + " sel"]["rest_reference_s"]}
+                  for name in ("P_f", "SP_S")}
         family = collision_family(root, train, labels, n_support, args.seed, args.n_jobs,
-                                  progress)
+                                  progress, settings=chosen)
 
     # -- quasi-static nMSE ---------------------------------------------------
     nmse = {}
@@ -646,13 +661,15 @@ def report_tables(results, nmse, unseen, family=None):
     text += ["Labelled pushes (benchmarks/labels/ur10e_events.json)", "",
              rst_table(header, rows), ""]
     if family:
-        header = ["model", "file", "collisions detected", "delays [s]", "event-free [min]",
-                  "alarm onsets there", "margin"]
+        header = ["model", "settle, rest ref. [s]", "file", "collisions detected",
+                  "delays [s]", "event-free [min]", "alarm onsets there", "margin"]
         rows = []
         for name, res in family.items():
+            tau = res["rest_reference_s"]
+            setting = f"{res['settle_time_s']:g}, {'none' if tau is None else f'{tau:g}'}"
             for key, f in res["files"].items():
                 delays = [e["delay_s"] for e in f["events"] if e["detected"]]
-                rows.append([name, Path(key).stem,
+                rows.append([name, setting, Path(key).stem,
                              f"{sum(e['detected'] for e in f['events'])}/{len(f['events'])}",
                              " ".join(f"{d:.2f}" for d in delays) or "-",
                              f"{f['free_minutes']:.2f}", len(f["free_onsets"]),

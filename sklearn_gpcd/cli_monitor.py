@@ -106,7 +106,8 @@ def add_commands(sub):
                      help="time constant [s] of the rest re-reference (0: none; default 5)")
     cal.add_argument("--select", action="store_true",
                      help="choose the settle time (0.5, 1, 2, 3 s) and the rest reference "
-                     "(none, 2, 5 s) across the recordings too: the pair with the smallest "
+                     "(none, 2, 5 s) across the recordings too: of the pairs with the fewest "
+                     "nested alarm onsets on the recordings, the one with the smallest "
                      "time-weighted thresholds at its own leave-one-recording-out margin; "
                      "the expected false alarms then count each recording at the pair "
                      "chosen without it")

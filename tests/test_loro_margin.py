@@ -8,6 +8,7 @@ it never saw, the same figure as the calibration's nested false alarms.
 
 import numpy as np
 import pytest
+from sklearn.frozen import FrozenEstimator
 from sklearn.linear_model import LinearRegression
 from sklearn.model_selection import LeaveOneGroupOut
 
@@ -41,8 +42,9 @@ def _recordings(n_recordings=4, n=600, seed=0):
     return blocks, times
 
 
-def _template(**params):
-    return CollisionDetector(LinearRegression(), threshold="per_joint", false_alarm_rate=0.0,
+def _template(regressor=None, **params):
+    regressor = LinearRegression() if regressor is None else regressor
+    return CollisionDetector(regressor, threshold="per_joint", false_alarm_rate=0.0,
                              sample_time=DT, filter_cutoff=5.0, min_duration=3,
                              regimes=True, velocity_columns=[0], **params)
 
@@ -203,24 +205,51 @@ def test_each_candidate_is_calibrated_as_its_own_template():
         alone = calibrate_across_recordings(_template(**row["params"]), blocks, times)
         assert row["margin"] == pytest.approx(alone.margin.max(), rel=1e-12)
         assert row["n_false_alarms"] == alone.n_false_alarms
-    best = min(result.candidates, key=lambda row: row["score"])
+    best = min(result.candidates, key=lambda row: (row["n_false_alarms"], row["score"]))
     assert result.settings == best["params"]
     alone = calibrate_across_recordings(_template(**result.settings), blocks, times)
     np.testing.assert_allclose(result.detector.thresholds_, alone.detector.thresholds_,
                                rtol=1e-12)
 
 
+def _frozen(blocks):
+    """A regressor trained once, as the docstring asks: every calibration below
+    sees the same residuals, so a choice made without a recording is exactly
+    the choice of a calibration that never had it."""
+    Z, _ = _stacked(blocks)
+    return FrozenEstimator(LinearRegression().fit(Z[:, :1], Z[:, 1]))
+
+
 def test_nested_false_alarms_use_settings_chosen_without_the_recording():
     blocks, times = _recordings(n_recordings=5, seed=2)
-    result = calibrate_across_recordings(_template(), blocks, times, param_grid=GRID)
+    regressor = _frozen(blocks)
+    result = calibrate_across_recordings(_template(regressor), blocks, times, param_grid=GRID)
     assert sorted(result.fold_settings) == sorted(blocks)
     for held_out in blocks:
         others = {k: v for k, v in blocks.items() if k != held_out}
-        inner = calibrate_across_recordings(_template(), others, times, param_grid=GRID)
+        inner = calibrate_across_recordings(_template(regressor), others, times,
+                                            param_grid=GRID)
         assert result.fold_settings[held_out] == inner.settings
         # scored with that candidate's margin and levels chosen without it
-        alone = calibrate_across_recordings(_template(**inner.settings), blocks, times)
+        alone = calibrate_across_recordings(_template(regressor, **inner.settings), blocks,
+                                            times)
         assert result.folds[held_out] == alone.folds[held_out]
+
+
+def test_the_candidate_that_transfers_between_recordings_is_chosen_first():
+    """The smallest thresholds on the calibration recordings are not enough: on
+    these four, settle 0.5 s without a reference has the smallest score but two
+    nested alarm onsets, so a candidate with none is the operating point."""
+    blocks, times = _recordings(n_recordings=4, seed=2)
+    result = calibrate_across_recordings(_template(_frozen(blocks)), blocks, times,
+                                         param_grid=GRID)
+    tightest = min(result.candidates, key=lambda row: row["score"])
+    assert tightest["params"] == {"rest_reference": None, "settle_time": 0.5}
+    assert tightest["n_false_alarms"] == 2
+    chosen = next(row for row in result.candidates if row["params"] == result.settings)
+    assert chosen["n_false_alarms"] == 0
+    assert chosen["score"] == min(row["score"] for row in result.candidates
+                                  if row["n_false_alarms"] == 0)
 
 
 def test_param_grid_names_what_can_be_chosen():

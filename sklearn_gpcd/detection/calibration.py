@@ -18,7 +18,8 @@ can be larger. The rule here (the one of ``benchmarks/real_ur10e.py`` and of
 4. the operating point: the detector refitted on all recordings with that
    margin (:func:`calibrate_across_recordings` does 1-4);
 5. optionally, **settings chosen the same way** (``param_grid``: e.g. the
-   settle time and the rest reference): the candidate with the smallest
+   settle time and the rest reference): the candidate with the fewest nested
+   false alarms (3.) on the calibration recordings, then the smallest
    time-weighted thresholds at its own operating point, and, for the nested
    false alarms, the candidate chosen without the recording they are counted
    on (:func:`calibrate_across_recordings` with ``param_grid``).
@@ -201,14 +202,10 @@ def nested_false_alarms(series, times, rule="global"):
     >>> folds["c"]["onsets"], folds["a"]["onsets"]
     ([1.0], [])
     """
-    peaks = {k: v[2] for k, v in series.items()}
     keys = list(series)
     out = {}
     for r in keys:
-        rest = [k for k in keys if k != r]
-        thr = loro_margin(peaks, rest, rule) * regime_levels(peaks, rest)
-        debounced, regimes, _ = series[r]
-        alarm = (debounced > thr[regimes]).any(axis=1)
+        alarm = _held_out_alarm(series, keys, r, rule)
         t = np.asarray(times[r], dtype=float)
         t = t - t[0]
         out[r] = {"onsets": _alarm_onsets(alarm, t), "hours": float(t[-1] / 3600.0),
@@ -231,12 +228,19 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     with :math:`n_g` the calibration samples in regime :math:`g` under that
     candidate, :math:`p_{g\\ell}` the levels and :math:`\\mu` the margin: the
     band the arm spends its time in, smaller is more sensitive (each joint's
-    scale adds the same constant to every candidate). The candidate with the
-    smallest :math:`J` on all recordings is the operating point; the nested
+    scale adds the same constant to every candidate). By construction of the
+    margin every candidate raises no alarm on the recordings it is calibrated
+    on, so :math:`J` alone rewards a candidate that fits them tightly and
+    transfers badly. The candidates are therefore ranked first by their
+    nested false alarms on the calibration recordings (each recording scored
+    with margin and levels from the others, step 3 above), then by
+    :math:`J`: the operating point is the most sensitive candidate among those
+    that transferred best between the calibration recordings. The nested
     false alarms of each recording are counted at the candidate chosen
-    without it (with its margin and levels, also chosen without it), so the
-    figure never saw the recording even through the choice of settings. The
-    regressor predicts each recording once for all candidates.
+    without it (ranked on the other recordings alone, its margin and levels
+    also chosen without it), so the figure never saw the recording even
+    through the choice of settings. The regressor predicts each recording
+    once for all candidates.
 
     Parameters
     ----------
@@ -269,8 +273,9 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         :func:`nested_false_alarms`), ``settings`` (the chosen candidate,
         ``{}`` without ``param_grid``), ``candidates`` (per candidate:
         ``params``, ``score`` :math:`J`, ``margin`` and ``n_false_alarms``,
-        nested at that fixed candidate) and ``fold_settings`` (the candidate
-        chosen without each recording).
+        nested at that fixed candidate: the operating point has the fewest
+        ``n_false_alarms``, then the smallest ``score``) and ``fold_settings``
+        (the candidate chosen without each recording).
 
     Examples
     --------
@@ -316,7 +321,7 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
         runs.append((series, loro_margin(peaks, keys, rule), folds))
     scores = [_selection_score(run[0], keys, rule) for run in runs]
-    best = int(np.argmin(scores))  # the first on ties
+    best = _best_candidate(runs, keys, rule)
     series, margin, folds = runs[best]
     fold_settings = {}
     if len(keys) >= 3 and len(candidates) > 1:  # the settings, too, chosen without r
@@ -389,6 +394,28 @@ def _selection_score(series, keys, rule):
     return float(counts / counts.sum() @ log)
 
 
+def _held_out_alarm(series, keys, r, rule):
+    """Alarms (any joint) of recording ``r`` with margin and levels from the
+    other recordings of ``keys``."""
+    rest = [k for k in keys if k != r]
+    peaks = {k: series[k][2] for k in rest}
+    thr = loro_margin(peaks, rest, rule) * regime_levels(peaks, rest)
+    debounced, regimes, _ = series[r]
+    return (debounced > thr[regimes]).any(axis=1)
+
+
+def _nested_onset_count(series, keys, rule):
+    """Nested alarm onsets on the recordings ``keys``, each recording scored with
+    margin and levels from the other ``keys`` (0 with fewer than 3)."""
+    if len(keys) < 3:
+        return 0
+    return sum(len(contiguous_segments(_held_out_alarm(series, keys, r, rule)))
+               for r in keys)
+
+
 def _best_candidate(runs, keys, rule):
-    """Index of the run with the smallest score on ``keys`` (the first on ties)."""
-    return int(np.argmin([_selection_score(run[0], keys, rule) for run in runs]))
+    """Index of the run with the fewest nested onsets on ``keys``, then the
+    smallest score on ``keys`` (the first on ties)."""
+    ranks = [(_nested_onset_count(run[0], keys, rule), _selection_score(run[0], keys, rule))
+             for run in runs]
+    return min(range(len(runs)), key=ranks.__getitem__)
