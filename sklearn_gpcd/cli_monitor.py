@@ -281,12 +281,14 @@ def _print_calibration(summary, n_recordings):
           f"{_seconds(summary['rest_reference_s'])}"
           + (" (chosen across the recordings)" if summary.get("selected") else ""))
     if summary.get("candidates"):
-        print("  candidates (score: time-weighted mean log threshold, smaller is tighter; "
-              "alarms: nested onsets at that fixed candidate):")
-        for c in summary["candidates"]:
-            print(f"    settle {_seconds(c['params']['settle_time_s']):>6}, rest reference "
-                  f"{_seconds(c['params']['rest_reference_s']):>5}: score {c['score']:+.3f}, "
-                  f"margin {c['margin']:.3f}, alarms {c['n_false_alarms']}")
+        print("  candidates, best first (alarms: nested onsets at that fixed candidate, "
+              "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
+        chosen = (summary["settle_time_s"], summary["rest_reference_s"])
+        for c in sorted(summary["candidates"], key=lambda c: (c["n_false_alarms"], c["score"])):
+            settle, tau = c["params"]["settle_time_s"], c["params"]["rest_reference_s"]
+            print(f"    settle {_seconds(settle):>6}, rest reference {_seconds(tau):>5}: "
+                  f"alarms {c['n_false_alarms']}, score {c['score']:+.3f}, "
+                  f"margin {c['margin']:.3f}" + ("  <- chosen" if (settle, tau) == chosen else ""))
     if (info := summary.get("training")):
         print(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
               f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "

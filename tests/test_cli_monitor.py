@@ -250,7 +250,9 @@ def test_calibrate_select_chooses_settle_time_and_rest_reference(work, capsys):
     assert calibration["selected"] and len(calibration["candidates"]) == 12
     assert calibration["n_false_alarms_nested"] == expected.n_false_alarms
     assert "(chosen across the recordings)" in text
-    assert sum(line.startswith("    settle ") for line in text.splitlines()) == 12
+    lines = [line for line in text.splitlines() if line.startswith("    settle ")]
+    assert len(lines) == 12
+    assert lines[0].endswith("<- chosen") and sum("<- chosen" in line for line in lines) == 1
 
 
 def test_calibrate_select_refuses_fixed_settings(work, capsys):
