@@ -603,13 +603,23 @@ def same_rule_peer(monitor):
     return PEER
 
 
+def settings_text(result):
+    """A result's settle time and rest reference [s], as the tables show them.
+
+    >>> settings_text({"settle_time_s": 3.0, "rest_reference_s": None})
+    '3, none'
+    """
+    tau = result["rest_reference_s"]
+    return f"{result['settle_time_s']:g}, {'none' if tau is None else f'{tau:g}'}"
+
+
 def report_tables(results, nmse, unseen, family=None):
     """The benchmark's tables as reStructuredText."""
     minutes = sum(r.duration for r in unseen.values()) / 60.0
     header = ["monitor", "settle, rest ref. [s]", "margin (max)", "onsets on unseen",
               "pushes detected", "median delay [s]", "max delay [s]",
               "onsets outside pushes", "alarm samples in 1st s"]
-    rows = [[n, f"{r['settle_time_s']:g}, {r['rest_reference_s'] or '-'}",
+    rows = [[n, settings_text(r),
              f"{np.max(r['margin']):.2f}", r["onsets"],
              f"{r['n_detected']}/{r['n_events']}",
              "n/a" if r["median_delay_s"] is None else f"{r['median_delay_s']:.2f}",
@@ -665,11 +675,9 @@ def report_tables(results, nmse, unseen, family=None):
                   "delays [s]", "event-free [min]", "alarm onsets there", "margin"]
         rows = []
         for name, res in family.items():
-            tau = res["rest_reference_s"]
-            setting = f"{res['settle_time_s']:g}, {'none' if tau is None else f'{tau:g}'}"
             for key, f in res["files"].items():
                 delays = [e["delay_s"] for e in f["events"] if e["detected"]]
-                rows.append([name, setting, Path(key).stem,
+                rows.append([name, settings_text(res), Path(key).stem,
                              f"{sum(e['detected'] for e in f['events'])}/{len(f['events'])}",
                              " ".join(f"{d:.2f}" for d in delays) or "-",
                              f"{f['free_minutes']:.2f}", len(f["free_onsets"]),

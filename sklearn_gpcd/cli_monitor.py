@@ -283,12 +283,11 @@ def _print_calibration(summary, n_recordings):
     if summary.get("candidates"):
         print("  candidates, best first (alarms: nested onsets at that fixed candidate, "
               "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
-        chosen = (summary["settle_time_s"], summary["rest_reference_s"])
-        for c in sorted(summary["candidates"], key=lambda c: (c["n_false_alarms"], c["score"])):
+        for c in sorted(summary["candidates"], key=lambda c: c["rank"]):
             settle, tau = c["params"]["settle_time_s"], c["params"]["rest_reference_s"]
             print(f"    settle {_seconds(settle):>6}, rest reference {_seconds(tau):>5}: "
                   f"alarms {c['n_false_alarms']}, score {c['score']:+.3f}, "
-                  f"margin {c['margin']:.3f}" + ("  <- chosen" if (settle, tau) == chosen else ""))
+                  f"margin {c['margin']:.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
     if (info := summary.get("training")):
         print(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
               f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "

@@ -206,7 +206,10 @@ def test_each_candidate_is_calibrated_as_its_own_template():
         assert row["margin"] == pytest.approx(alone.margin.max(), rel=1e-12)
         assert row["n_false_alarms"] == alone.n_false_alarms
     best = min(result.candidates, key=lambda row: (row["n_false_alarms"], row["score"]))
-    assert result.settings == best["params"]
+    assert result.settings == best["params"] and best["rank"] == 0
+    ranked = sorted(result.candidates, key=lambda row: row["rank"])
+    assert [row["rank"] for row in ranked] == list(range(4))
+    assert ranked == sorted(ranked, key=lambda row: (row["n_false_alarms"], row["score"]))
     alone = calibrate_across_recordings(_template(**result.settings), blocks, times)
     np.testing.assert_allclose(result.detector.thresholds_, alone.detector.thresholds_,
                                rtol=1e-12)

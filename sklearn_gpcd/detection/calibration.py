@@ -272,10 +272,11 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         at a unit margin, e.g. to compare rules with
         :func:`nested_false_alarms`), ``settings`` (the chosen candidate,
         ``{}`` without ``param_grid``), ``candidates`` (per candidate:
-        ``params``, ``score`` :math:`J`, ``margin`` and ``n_false_alarms``,
-        nested at that fixed candidate: the operating point has the fewest
-        ``n_false_alarms``, then the smallest ``score``) and ``fold_settings``
-        (the candidate chosen without each recording).
+        ``params``, ``score`` :math:`J`, ``margin``, ``n_false_alarms``,
+        nested at that fixed candidate, and ``rank``: 0 for the operating
+        point, which has the fewest ``n_false_alarms``, then the smallest
+        ``score``) and ``fold_settings`` (the candidate chosen without each
+        recording).
 
     Examples
     --------
@@ -320,8 +321,17 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         peaks = {k: v[2] for k, v in series.items()}
         folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
         runs.append((series, loro_margin(peaks, keys, rule), folds))
-    scores = [_selection_score(run[0], keys, rule) for run in runs]
-    best = _best_candidate(runs, keys, rule)
+    # ranked on all recordings from what the runs already hold: the nested onsets
+    # of each run's folds and its score (as _best_candidate computes them on a subset)
+    table = [{"params": params, "score": _selection_score(run[0], keys, rule),
+              "margin": float(run[1].max()),
+              "n_false_alarms": sum(len(f["onsets"]) for f in run[2].values())}
+             for params, run in zip(candidates, runs)]
+    order = sorted(range(len(runs)), key=lambda c: (table[c]["n_false_alarms"],
+                                                     table[c]["score"]))
+    for rank, c in enumerate(order):
+        table[c]["rank"] = rank
+    best = order[0]
     series, margin, folds = runs[best]
     fold_settings = {}
     if len(keys) >= 3 and len(candidates) > 1:  # the settings, too, chosen without r
@@ -336,9 +346,6 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     fitted._calibrate(residual, std, starts, qd, recording_index(groups))
     hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
     n_false = sum(len(f["onsets"]) for f in folds.values())
-    table = [{"params": params, "score": score, "margin": float(run[1].max()),
-              "n_false_alarms": sum(len(f["onsets"]) for f in run[2].values())}
-             for params, score, run in zip(candidates, scores, runs)]
     return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
                  folds=folds, n_false_alarms=n_false, hours=hours,
                  false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
@@ -384,11 +391,17 @@ def _candidate_series(base, params, residuals):
     return out
 
 
+def _loro_thresholds(series, keys, rule):
+    """Thresholds at a unit scale calibrated on the recordings ``keys``: their
+    leave-one-recording-out margin times their levels."""
+    peaks = {k: series[k][2] for k in keys}
+    return loro_margin(peaks, keys, rule) * regime_levels(peaks, keys)
+
+
 def _selection_score(series, keys, rule):
     """Time-weighted mean log threshold on the recordings ``keys`` (see
     :func:`calibrate_across_recordings`)."""
-    peaks = {k: series[k][2] for k in keys}
-    thresholds = loro_margin(peaks, keys, rule) * regime_levels(peaks, keys)
+    thresholds = _loro_thresholds(series, keys, rule)
     counts = sum(np.bincount(series[k][1], minlength=thresholds.shape[0]) for k in keys)
     log = np.log(np.maximum(thresholds, np.finfo(float).tiny)).mean(axis=1)
     return float(counts / counts.sum() @ log)
@@ -397,11 +410,9 @@ def _selection_score(series, keys, rule):
 def _held_out_alarm(series, keys, r, rule):
     """Alarms (any joint) of recording ``r`` with margin and levels from the
     other recordings of ``keys``."""
-    rest = [k for k in keys if k != r]
-    peaks = {k: series[k][2] for k in rest}
-    thr = loro_margin(peaks, rest, rule) * regime_levels(peaks, rest)
+    thresholds = _loro_thresholds(series, [k for k in keys if k != r], rule)
     debounced, regimes, _ = series[r]
-    return (debounced > thr[regimes]).any(axis=1)
+    return (debounced > thresholds[regimes]).any(axis=1)
 
 
 def _nested_onset_count(series, keys, rule):
