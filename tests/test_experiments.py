@@ -66,6 +66,39 @@ def test_report_states_failures_plainly():
     assert text.count("Not delivered") == 3
 
 
+class _Alarms:
+    """A detector stand-in whose ``predict`` returns fixed alarms."""
+
+    def __init__(self, alarms):
+        self.alarms = np.asarray(alarms, dtype=bool)
+
+    def predict(self, Z):
+        assert len(Z) == self.alarms.size
+        return np.where(self.alarms, -1, 1)
+
+
+def test_an_alarm_outlasting_its_push_is_not_a_false_alarm():
+    from types import SimpleNamespace
+
+    from sklearn_gpcd.experiments.paper import interaction_outcome
+
+    #           moving ...............  rest ...................
+    labels = [0, 1, 1, 1, 0, 0, 0, 0, 0, 2, 2, 0, 0, 0, 0, 0]
+    alarms = [0, 0, 1, 1, 1, 1, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0]
+    n = len(labels)
+    target_qd = np.zeros((n, 2))
+    target_qd[:8] = 0.5
+    recording = SimpleNamespace(labels=np.array(labels), time=0.01 * np.arange(n),
+                                target_qd=target_qd, qd=target_qd)
+    out = interaction_outcome(_Alarms(alarms), np.zeros((n, 4)), np.zeros((n, 2)),
+                              recording, sigma_v=0.01)
+    assert [p["detected"] for p in out["pushes"]] == [True, True]
+    assert [p["while_moving"] for p in out["pushes"]] == [True, False]
+    # the alarms at 4-5 and 11 continue the pushes' own; 7 and 14 start on free samples
+    assert (out["false_alarms_moving"], out["false_alarms_rest"]) == (1, 1)
+    assert (out["false_alarm_samples_moving"], out["false_alarm_samples_rest"]) == (3, 2)
+
+
 def test_split_nmse_separates_regimes():
     rng = np.random.default_rng(0)
     y = rng.normal(size=(200, 2))
@@ -91,6 +124,7 @@ def test_gpcd_reproduce_quick_end_to_end(tmp_path):
     assert results["checks"]["sp_p_quasi_static_best_majority"]
     assert results["checks"]["all_pushes_detected"]
     assert results["checks"]["no_false_alarm_at_rest"]
+    assert results["interaction"]["false_alarms_moving"] == 0
 
 
 def _full_nmse(d2_dynamic_sp_p, d2_dynamic_p_f):

@@ -245,11 +245,19 @@ def interaction_outcome(detector, X, y, recording, sigma_v):
     -------
     outcome : dict
         Per push (label k > 0): detected or not and the delay of the first
-        alarm after onset; false alarms (alarm onsets outside pushes) in the
-        moving part and in the collision-free rest phases, where "rest" is
-        the commanded rest (``target_qd`` below ``sigma_v`` on all joints);
-        also the number of alarm samples outside pushes (an alarm that starts
-        in a push and lingers after it counts there).
+        alarm after onset; false alarms in the moving part and in the
+        collision-free rest phases, where "rest" is the commanded rest
+        (``target_qd`` below ``sigma_v`` on all joints); also the number of
+        alarm samples outside pushes.
+
+    Notes
+    -----
+    A false alarm is an alarm *onset* (an alarm sample whose predecessor has
+    none) on a collision-free sample, as in
+    :func:`~sklearn_gpcd.metrics.false_alarms_per_hour`. An alarm that
+    starts in a push and outlasts its label (the 2 Hz residual filter
+    decays after the contact ends) is that push's detection, not a false
+    alarm; its samples after the push count in ``false_alarm_samples_*``.
     """
     alarms = detector.predict(stack_currents(X, y)) == -1
     commanded_rest = _commanded_rest(recording, sigma_v)
@@ -268,7 +276,9 @@ def interaction_outcome(detector, X, y, recording, sigma_v):
             "delay_s": float(t[hit[0]] - t[idx[0]]) if hit.size else None,
         })
     free = labels == 0
-    onsets = [a for a, _ in contiguous_segments(alarms & free)]
+    starts = alarms.copy()
+    starts[1:] &= ~alarms[:-1]
+    onsets = np.flatnonzero(starts & free)
     return {
         "pushes": pushes,
         "all_pushes_detected": all(p["detected"] for p in pushes),
