@@ -97,6 +97,7 @@ from sklearn_gpcd.detection import (  # noqa: E402
     MARGIN_RULES,
     calibrate_across_recordings,
     loro_margin,
+    nested_alarms,
     nested_false_alarms,
     regime_excursions,
     regime_levels,
@@ -565,17 +566,6 @@ def _banded(rule, band):
                                   min_duration=debounce)
 
 
-def _nested_alarms(series, rule=bench.MARGIN_RULE):
-    """Alarms (any joint) of each recording with levels and margin chosen without it."""
-    peaks = {k: v[2] for k, v in series.items()}
-    out = {}
-    for r, (debounced, regimes, _) in series.items():
-        others = [k for k in series if k != r]
-        threshold = loro_margin(peaks, others, rule) * regime_levels(peaks, others)
-        out[r] = (debounced > threshold[regimes]).any(axis=1)
-    return out
-
-
 #: The band of the benchmark's rule: (cut-off [Hz], filter order, debounce [samples]).
 MAIN_BAND = (bench.FILTER_CUTOFF, 1, bench.MIN_DURATION)
 
@@ -649,7 +639,7 @@ def _impact_on_unseen(root, labels, unseen, models, features, base):
                 push_alarms = {k: np.zeros(r.n_samples, dtype=bool) for k, r in pushes.items()}
                 for b in bands + ([extra] if extra else []):
                     cal = calibrate_across_recordings(_banded(rule, b), blocks, times)
-                    for k, a in _nested_alarms(cal.series).items():
+                    for k, a in nested_alarms(cal.series, bench.MARGIN_RULE).items():
                         alarms[k] |= a
                     for k in pushes:
                         push_alarms[k] |= cal.detector.monitoring_signal(

@@ -17,6 +17,7 @@ from sklearn_gpcd.detection import (
     CollisionThresholdCV,
     calibrate_across_recordings,
     loro_margin,
+    nested_alarms,
     nested_false_alarms,
     regime_excursions,
     stack_currents,
@@ -180,6 +181,21 @@ def test_margin_rules_share_the_worst_left_out_excess_as_far_as_they_say():
         np.testing.assert_array_equal(loro_margin(peaks, keys, rule), table, err_msg=rule)
     with pytest.raises(ValueError, match="rule must be one of"):
         loro_margin(peaks, keys, "joints")
+
+
+def test_nested_alarms_are_the_samples_behind_the_nested_onsets():
+    """Each recording's alarms come from the other recordings' margin and
+    levels: a left-out recording noisier than all the others alarms, and
+    its alarm episodes start at the onsets ``nested_false_alarms`` reports."""
+    blocks, times = _recordings(n_recordings=5, seed=3)
+    series = regime_excursions(_template().fit(np.concatenate(list(blocks.values()))), blocks)
+    alarms = nested_alarms(series, "cell")
+    folds = nested_false_alarms(series, times, "cell")
+    assert set(alarms) == set(blocks)
+    assert any(a.any() for a in alarms.values())  # the noisiest recording breaks the others' band
+    for key, alarm in alarms.items():
+        starts = np.flatnonzero(np.diff(alarm.astype(int), prepend=0) == 1)
+        assert folds[key]["onsets"] == pytest.approx(times[key][starts].tolist())
 
 
 GRID = {"settle_time": [0.1, 0.5], "rest_reference": [None, 1.0]}

@@ -170,6 +170,47 @@ def _alarm_onsets(alarm, t):
     return [float(t[a]) for a, _ in contiguous_segments(alarm)]
 
 
+def nested_alarms(series, rule="global"):
+    """Alarms (any joint) on each recording with margin and levels chosen without it.
+
+    Recording ``r`` alarms where its debounced excursion exceeds the
+    threshold of its regime calibrated on the other recordings,
+
+    .. math::
+
+        a_r(t) = \bigvee_l \; \tilde m_{r,l}(t) > \mu_{-r}\, L_{-r}(g_r(t), l),
+
+    with :math:`\mu_{-r}` the leave-one-recording-out margin and
+    :math:`L_{-r}` the per-(regime, joint) levels of the others (see
+    :func:`loro_margin`, :func:`regime_levels`). The sample-level view of
+    :func:`nested_false_alarms`, e.g. to OR the alarms of two bands.
+    Needs at least 3 recordings.
+
+    Parameters
+    ----------
+    series : dict of str -> tuple
+        From :func:`regime_excursions`.
+    rule : {"global", "joint", "regime", "cell"}, default="global"
+        As :func:`loro_margin`.
+
+    Returns
+    -------
+    alarms : dict of str -> ndarray of bool, shape (n_samples,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> flat = (np.ones((5, 1)), np.zeros(5, dtype=int), np.ones((1, 1)))
+    >>> bump = (np.array([[1.0], [3.0], [1.0], [1.0], [1.0]]), np.zeros(5, dtype=int),
+    ...         np.array([[3.0]]))
+    >>> alarms = nested_alarms({"a": flat, "b": flat, "c": bump})
+    >>> alarms["c"].tolist(), bool(alarms["a"].any())
+    ([False, True, False, False, False], False)
+    """
+    keys = list(series)
+    return {r: _held_out_alarm(series, keys, r, rule) for r in keys}
+
+
 def nested_false_alarms(series, times, rule="global"):
     """Alarm onsets on each recording with margin and levels chosen without it.
 
@@ -202,10 +243,8 @@ def nested_false_alarms(series, times, rule="global"):
     >>> folds["c"]["onsets"], folds["a"]["onsets"]
     ([1.0], [])
     """
-    keys = list(series)
     out = {}
-    for r in keys:
-        alarm = _held_out_alarm(series, keys, r, rule)
+    for r, alarm in nested_alarms(series, rule).items():
         t = np.asarray(times[r], dtype=float)
         t = t - t[0]
         out[r] = {"onsets": _alarm_onsets(alarm, t), "hours": float(t[-1] / 3600.0),
