@@ -171,7 +171,7 @@ def _alarm_onsets(alarm, t):
 
 
 def nested_alarms(series, rule="global"):
-    """Alarms (any joint) on each recording with margin and levels chosen without it.
+    r"""Alarms (any joint) on each recording with margin and levels chosen without it.
 
     Recording ``r`` alarms where its debounced excursion exceeds the
     threshold of its regime calibrated on the other recordings,
