@@ -276,9 +276,7 @@ def interaction_outcome(detector, X, y, recording, sigma_v):
             "delay_s": float(t[hit[0]] - t[idx[0]]) if hit.size else None,
         })
     free = labels == 0
-    starts = alarms.copy()
-    starts[1:] &= ~alarms[:-1]
-    onsets = np.flatnonzero(starts & free)
+    onsets = [a for a, _ in contiguous_segments(alarms) if free[a]]
     return {
         "pushes": pushes,
         "all_pushes_detected": all(p["detected"] for p in pushes),
