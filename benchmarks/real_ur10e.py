@@ -103,6 +103,7 @@ from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress, split_nmse  # noqa: E402
 from sklearn_gpcd.features import contiguous_segments  # noqa: E402
 from sklearn_gpcd.io import RecordingWarning, load_recording  # noqa: E402
+from sklearn_gpcd.metrics import alarm_onsets  # noqa: E402
 from sklearn_gpcd.robots import load_robot  # noqa: E402
 from sklearn_gpcd.workflow import train_model, training_set  # noqa: E402
 
@@ -208,11 +209,6 @@ def times_of(recordings):
     return {k: r.time for k, r in recordings.items()}
 
 
-def alarm_onsets(alarm, t):
-    """Start times of the alarm episodes (any joint)."""
-    return [float(t[a]) for a, _ in contiguous_segments(alarm)]
-
-
 def excursions(det, blocks):
     """Per recording: debounced |m| (n, 6), regimes (n,), and the peak per (regime, joint)."""
     return regime_excursions(det, blocks)
@@ -278,6 +274,24 @@ def free_segments(rec, entry, guard=0.5, min_seconds=2.0):
     return [(a, b) for a, b in contiguous_segments(~busy) if t[b - 1] - t[a] >= min_seconds]
 
 
+def family_calibration(key, blocks, times, inputs, recordings, segments):
+    """Calibration data for collision file ``key`` of the 2020 task.
+
+    ``blocks`` / ``times`` (the task's collision-free recording) plus the
+    event-free segments of the *other* collision files, each segment its own
+    recording (``"<file>#<i>"``), so that leave-one-recording-out treats
+    them as separate recordings.
+    """
+    blocks, times = dict(blocks), dict(times)
+    for other in COLLISIONS:
+        if other == key:
+            continue
+        for i, (a, b) in enumerate(segments[other]):
+            blocks[f"{other}#{i}"] = inputs[other][a:b]
+            times[f"{other}#{i}"] = recordings[other].time[a:b]
+    return blocks, times
+
+
 def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
                      rule=MARGIN_RULE, models=None, settings=None):
     """Detection on collision_detection_data_2020 (no target current logged).
@@ -307,15 +321,9 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
     def score(template):
         files = {}
         for key, rec in recs.items():
-            blocks, pieces = dict(base_blocks), dict(unseen)
-            for other in COLLISIONS:
-                if other == key:
-                    continue
-                for i, (a, b) in enumerate(segments[other]):
-                    blocks[f"{other}#{i}"] = inputs[other][a:b]
-                    pieces[f"{other}#{i}"] = recs[other].slice(a, b)
-            calibration = calibrate_across_recordings(template, blocks, times_of(pieces),
-                                                      rule=rule)
+            blocks, times = family_calibration(key, base_blocks, times_of(unseen), inputs,
+                                               recs, segments)
+            calibration = calibrate_across_recordings(template, blocks, times, rule=rule)
             det, margin = calibration.detector, calibration.margin
             events, _, mon = score_events(det, inputs[key], rec, labels[key]["events"])
             t = rec.time - rec.time[0]
@@ -514,7 +522,7 @@ def main(argv=None):
             "fold_settings": calibration.fold_settings or None,
             "monitors": mons, "detector": det,
         }
-        tau_text = "none" if det.rest_reference is None else f"{det.rest_reference:g} s"
+        tau_text = seconds_text(det.rest_reference, unit=" s")
         n_distinct = len(set(map(str, calibration.fold_settings.values())))
         chosen = (f"settings chosen: settle {det.settle_time:g} s, rest reference {tau_text} "
                   f"({n_distinct} distinct in the nested folds); " if grid else "")
@@ -609,8 +617,16 @@ def settings_text(result):
     >>> settings_text({"settle_time_s": 3.0, "rest_reference_s": None})
     '3, none'
     """
-    tau = result["rest_reference_s"]
-    return f"{result['settle_time_s']:g}, {'none' if tau is None else f'{tau:g}'}"
+    return f"{result['settle_time_s']:g}, {seconds_text(result['rest_reference_s'])}"
+
+
+def seconds_text(value, unit=""):
+    """A duration that may be off (None), e.g. the rest reference.
+
+    >>> seconds_text(None), seconds_text(2.0, unit=" s")
+    ('none', '2 s')
+    """
+    return "none" if value is None else f"{value:g}{unit}"
 
 
 def report_tables(results, nmse, unseen, family=None):

@@ -598,11 +598,9 @@ def _impact_on_2020(root, labels, models, features, base):
             hits = total = n_onsets = 0
             missed = []
             for key, rec in recs.items():
-                blocks, times = {"collision_free": free_block}, {"collision_free": free.time}
-                for other in bench.COLLISIONS:
-                    for i, (a, b) in enumerate(segments[other] if other != key else []):
-                        blocks[f"{other}#{i}"] = inputs[other][a:b]
-                        times[f"{other}#{i}"] = recs[other].time[a:b]
+                blocks, times = bench.family_calibration(
+                    key, {"collision_free": free_block}, {"collision_free": free.time},
+                    inputs, recs, segments)
                 alarm = np.zeros(rec.n_samples, dtype=bool)
                 for b in bands + ([band] if band else []):
                     cal = calibrate_across_recordings(_banded(base, b), blocks, times)

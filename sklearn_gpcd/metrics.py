@@ -17,6 +17,7 @@ import numpy as np
 from sklearn.metrics import make_scorer
 
 __all__ = [
+    "alarm_onsets",
     "contact_events",
     "detection_delay",
     "detection_scorers",
@@ -38,6 +39,11 @@ def _check_labels_alarms(labels, alarms):
         raise ValueError(
             f"alarms must have the shape of labels {labels.shape}, got {alarms.shape}"
         )
+    return labels, _check_alarm_values(alarms)
+
+
+def _check_alarm_values(alarms):
+    """``alarms`` as bool; 0 / 1 accepted, anything else is an error."""
     if alarms.dtype != bool:
         values = np.unique(alarms)
         if not np.isin(values, (0, 1)).all():
@@ -46,7 +52,7 @@ def _check_labels_alarms(labels, alarms):
                 "from CollisionDetector.predict pass `predict(X) == -1`"
             )
         alarms = alarms.astype(bool)
-    return labels, alarms
+    return alarms
 
 
 def _check_groups(groups, n):
@@ -81,6 +87,52 @@ def _new_segment(n, groups):
     if groups is not None:
         new[1:] |= groups[1:] != groups[:-1]
     return new
+
+
+# ------------------------------------------------------------------- alarms
+def alarm_onsets(alarms, time=None):
+    """Times at which alarm episodes start.
+
+    An onset is a sample with an alarm whose predecessor has none (the first
+    sample counts when it alarms). With one column per joint, a sample alarms
+    when any joint does, so overlapping alarms on several joints are one
+    episode. This is what :func:`false_alarms_per_hour` counts, before it
+    leaves out the onsets that belong to a contact.
+
+    Parameters
+    ----------
+    alarms : array-like of bool, shape (n_samples,) or (n_samples, n_joints)
+        True where the detector raised an alarm (per joint, or any joint).
+    time : array-like of shape (n_samples,), default=None
+        Time stamp of each sample; None gives the sample indices.
+
+    Returns
+    -------
+    onsets : list of float, or list of int when ``time`` is None
+        ``time[k]`` (or ``k``) of each onset, in increasing order.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.metrics import alarm_onsets
+    >>> alarm_onsets([0, 1, 1, 0, 1])
+    [1, 4]
+    >>> alarm_onsets([[0, 0], [1, 0], [0, 1], [0, 0]], time=[0.0, 0.01, 0.02, 0.03])
+    [0.01]
+    """
+    alarms = np.asarray(alarms)
+    if alarms.ndim not in (1, 2):
+        raise ValueError(
+            f"alarms must be 1-D (n_samples,) or 2-D (n_samples, n_joints), got shape "
+            f"{alarms.shape}"
+        )
+    n = alarms.shape[0]
+    alarms = _check_alarm_values(alarms)
+    any_joint = alarms.any(axis=1) if alarms.ndim == 2 else alarms
+    starts = np.flatnonzero(any_joint & ~np.concatenate([[False], any_joint[:-1]]))
+    if time is None:
+        return starts.tolist()
+    time = _check_time(time, None, n, required=True)
+    return time[starts].tolist()
 
 
 # ------------------------------------------------------------------- events

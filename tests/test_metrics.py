@@ -7,6 +7,7 @@ from hypothesis import strategies as st
 from sklearn.base import BaseEstimator, OutlierMixin
 
 from sklearn_gpcd.metrics import (
+    alarm_onsets,
     contact_events,
     detection_delay,
     detection_scorers,
@@ -114,6 +115,30 @@ def test_false_alarms_with_time_stamps():
 def test_false_alarms_need_a_time_base():
     with pytest.raises(ValueError, match="sample_time"):
         false_alarms_per_hour([0, 0], [0, 1])
+
+
+def test_alarm_onsets_are_what_false_alarms_per_hour_counts_without_contacts():
+    onsets = alarm_onsets(ALARMS)
+    assert onsets == [0, 4, 10, 13]
+    free = np.zeros(len(ALARMS))
+    assert false_alarms_per_hour(free, ALARMS, sample_time=3600.0 / len(ALARMS)) == 4.0
+    t = 0.01 * np.arange(len(ALARMS))
+    assert alarm_onsets(ALARMS, time=t) == pytest.approx(t[onsets].tolist())
+
+
+def test_alarm_onsets_merge_overlapping_joints():
+    per_joint = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0], [0, 1]], dtype=bool)
+    assert alarm_onsets(per_joint) == [1, 5]  # joint 2 continues joint 1's episode
+    assert alarm_onsets(per_joint[:, 1]) == [2, 5]
+
+
+def test_alarm_onsets_reject_bad_input():
+    with pytest.raises(ValueError, match="boolean"):
+        alarm_onsets([0, 1, 2])
+    with pytest.raises(ValueError, match="1-D .* or 2-D"):
+        alarm_onsets(np.zeros((2, 2, 2)))
+    with pytest.raises(ValueError, match=r"time must have shape \(3,\)"):
+        alarm_onsets([0, 1, 0], time=[0.0, 1.0])
 
 
 def test_mean_detection_delay_charges_missed_events():

@@ -33,6 +33,7 @@ from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
 
 from ..features.masks import contiguous_segments
+from ..metrics import alarm_onsets
 from ._signal import debounce_segments, recording_index, segment_starts
 from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
 
@@ -165,11 +166,6 @@ def loro_margin(peaks, keys, rule="global"):
     return loro_factors(np.stack([peaks[k] for k in keys]), rule)
 
 
-def _alarm_onsets(alarm, t):
-    """Start times of the alarm episodes (any joint)."""
-    return [float(t[a]) for a, _ in contiguous_segments(alarm)]
-
-
 def nested_alarms(series, rule="global"):
     r"""Alarms (any joint) on each recording with margin and levels chosen without it.
 
@@ -247,7 +243,7 @@ def nested_false_alarms(series, times, rule="global"):
     for r, alarm in nested_alarms(series, rule).items():
         t = np.asarray(times[r], dtype=float)
         t = t - t[0]
-        out[r] = {"onsets": _alarm_onsets(alarm, t), "hours": float(t[-1] / 3600.0),
+        out[r] = {"onsets": alarm_onsets(alarm, t), "hours": float(t[-1] / 3600.0),
                   "first_second_alarm_samples": int(alarm[t < 1.0].sum())}
     return out
 

@@ -30,7 +30,7 @@ from ..detection import CollisionDetector, stack_currents
 from ..dynamics import RigidBodyRegressor
 from ..features import CausalFeatures, contiguous_segments, make_inputs
 from ..gp import make_p_f, make_sp_p, make_sp_s
-from ..metrics import nmse
+from ..metrics import alarm_onsets, nmse
 from ..robots import resolve_robot
 from .report import ESTIMATORS, write_report
 
@@ -276,7 +276,7 @@ def interaction_outcome(detector, X, y, recording, sigma_v):
             "delay_s": float(t[hit[0]] - t[idx[0]]) if hit.size else None,
         })
     free = labels == 0
-    onsets = [a for a, _ in contiguous_segments(alarms) if free[a]]
+    onsets = [a for a in alarm_onsets(alarms) if free[a]]
     return {
         "pushes": pushes,
         "all_pushes_detected": all(p["detected"] for p in pushes),
