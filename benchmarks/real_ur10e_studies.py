@@ -68,12 +68,22 @@ Studies (``--study``):
   thresholds) for the peer, P_f, SP_S and SP_C at settle 0.5 s without rest
   reference and at settle 3 s / rest reference 2 s. The model predictions
   are computed once per recording (:class:`_Given`).
+- ``correction``: does SP_C's GP correction transfer, joint by joint? Over
+  the 12 training runs, each left out of an SP_C fit in turn, the debounced
+  moving-regime peak of each joint's monitoring signal (settle 3 s / rest
+  reference 2 s, SP_C sel's choice) with the correction and with the
+  controller's mean ``w i_c + b`` alone; the correction is kept on the joints
+  where it lowers the peak on average. Then, on the 21 unseen recordings at
+  the same settings: the peer, SP_C, SP_C with the corrections so chosen,
+  and SP_C without joint 2's correction (chosen by looking at those
+  recordings, for comparison only): margin, nested onsets, pushes,
+  thresholds against the peer's.
 
 Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
 2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min),
 ``--study select`` (about 2 min), ``--study relax`` (seconds), ``--study
 margin`` (about 7 min), ``--study presliding`` (about 8 min), ``--study impact``
-(about 1.5 min). The
+(about 1.5 min), ``--study correction`` (about 4 min). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -659,10 +669,100 @@ def _impact_on_unseen(root, labels, unseen, models, features, base):
                       f"pushes {hit}/{total}{last}", flush=True)
 
 
+#: Settle time and rest reference [s] that SP_C sel chooses on the 21 unseen recordings.
+SP_C_SEL = (3.0, 2.0)
+
+
+def _correction_split(model, X):
+    """SP_C's prediction as the controller's mean ``w i_c + b`` and the GP correction."""
+    mean = np.column_stack([post.y_mean + np.ravel(post.mean.predict(X))
+                            for post in model.posteriors_])
+    return mean, model.predict(X) - mean
+
+
+def _moving_peaks(rule, X, pred, recording):
+    """Debounced peak of ``|m|`` per joint in the moving regime, under ``rule``."""
+    block = _with_prediction(_Fixed(pred), X, recording.current)
+    det = clone(rule).fit(block, time=recording.time)  # its thresholds are unused: the filter, debounce, regimes
+    return regime_excursions(det, {"r": block})["r"][2][0]
+
+
+class _Fixed:
+    """``predict`` returns a fixed array (for :func:`_with_prediction`)."""
+
+    def __init__(self, values):
+        self.values = values
+
+    def predict(self, X):
+        return self.values
+
+
+def study_correction(root, labels, n_support, seed):
+    """Per joint, keep SP_C's GP correction only where it lowers the moving peaks
+    on training runs left out of the fit; then the operating point on ``C``."""
+    train, unseen, _ = bench.split_recordings(root, quick=False)
+    velocities = [int(c) for c in block_columns("qd", N_JOINTS)]
+    settle, reference = SP_C_SEL
+    rule = bench.detector(_Given()).set_params(
+        velocity_columns=velocities, settle_time=settle, rest_reference=reference)
+    ratios = []
+    for k, held in enumerate(train):
+        data = training_set([r for i, r in enumerate(train) if i != k], "causal")
+        model = bench.train_models(data, n_support, seed, None, names=("SP_C",))[0]["SP_C"]
+        X = data.features.transform(held)
+        mean, correction = _correction_split(model, X)
+        with_gp = _moving_peaks(rule, X, mean + correction, held)
+        without = _moving_peaks(rule, X, mean, held)
+        ratios.append(with_gp / without)
+        print(f"left out {held.name}: moving peaks [A] with the correction "
+              f"{np.round(with_gp, 3)}, without {np.round(without, 3)}", flush=True)
+    ratios = np.array(ratios)
+    keep = ratios.mean(axis=0) <= 1.0
+    print(f"over {len(train)} left-out training runs, per joint: correction lowers the peak "
+          f"in {(ratios < 1).sum(axis=0)} runs, mean ratio with / without "
+          f"{np.round(ratios.mean(axis=0), 3)}; kept on joints "
+          f"{[int(j) + 1 for j in np.flatnonzero(keep)]}", flush=True)
+
+    data = training_set(list(train), "causal")
+    model = bench.train_models(data, n_support, seed, None, names=("SP_C",))[0]["SP_C"]
+    peer = ControllerCurrent(N_JOINTS).fit(data.X, data.y)
+    pushes = {key: bench.load(root / key) for key in bench.PUSHES}
+    recordings = {**unseen, **pushes}
+    X = {k: data.features.transform(r) for k, r in recordings.items()}
+    split = {k: _correction_split(model, x) for k, x in X.items()}
+    hindsight = np.ones(N_JOINTS, dtype=bool)
+    hindsight[1] = False
+    variants = {
+        bench.PEER: {k: peer.predict(x) for k, x in X.items()},
+        "SP_C": {k: m + c for k, (m, c) in split.items()},
+        "SP_C, corrections chosen on training runs": {
+            k: m + c * keep for k, (m, c) in split.items()},
+        "SP_C without joint 2's correction (chosen on C: hindsight)": {
+            k: m + c * hindsight for k, (m, c) in split.items()},
+    }
+    times = bench.times_of(unseen)
+    peer_thresholds = None
+    for name, preds in variants.items():
+        blocks = {k: stack_currents(np.hstack([X[k], preds[k]]), recordings[k].current)
+                  for k in recordings}
+        cal = calibrate_across_recordings(rule, {k: blocks[k] for k in unseen}, times)
+        thresholds = cal.detector.thresholds_
+        if peer_thresholds is None:
+            peer_thresholds = thresholds
+        hit, total = pushes_detected(cal.detector, pushes, blocks, labels)
+        ratio = thresholds / peer_thresholds
+        print(f"{name}, settle {settle:g} s, rest ref. {reference:g} s: margin "
+              f"{cal.margin.max():.3f}, {cal.n_false_alarms} nested onsets, pushes "
+              f"{hit}/{total}; thresholds j1-3 moving {np.round(thresholds[0, :3], 3)} A "
+              f"({np.round(ratio[0, :3], 2)}x the peer at the same settings), rest "
+              f"{np.round(thresholds[-1, :3], 3)} A ({np.round(ratio[-1, :3], 2)}x)", flush=True)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--study", required=True, choices=(
-        "rest", "floor", "family", "select", "relax", "margin", "presliding", "impact"))
+        "rest", "floor", "family", "select", "relax", "margin", "presliding", "impact",
+        "correction"))
     parser.add_argument("--data", default=None, help="folder of ur10e_mamedov")
     parser.add_argument("--n-support", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
@@ -685,6 +785,8 @@ def main(argv=None):
         study_presliding(root, labels, args.n_support, args.seed)
     elif args.study == "impact":
         study_impact(root, labels, args.n_support, args.seed)
+    elif args.study == "correction":
+        study_correction(root, labels, args.n_support, args.seed)
     else:
         study_family(root, labels, args.n_support, args.seed)
 
