@@ -96,8 +96,9 @@ def alarm_onsets(alarms, time=None):
     An onset is a sample with an alarm whose predecessor has none (the first
     sample counts when it alarms). With one column per joint, a sample alarms
     when any joint does, so overlapping alarms on several joints are one
-    episode. This is what :func:`false_alarms_per_hour` counts, before it
-    leaves out the onsets that belong to a contact.
+    episode. On one recording, these are the onsets that
+    :func:`false_alarms_per_hour` counts before it leaves out those that
+    belong to a contact.
 
     Parameters
     ----------
