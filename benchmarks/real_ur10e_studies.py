@@ -122,6 +122,7 @@ from sklearn_gpcd.kernels import ARDRBF  # noqa: E402
 from sklearn_gpcd.layout import block_columns, column_index  # noqa: E402
 from sklearn_gpcd.experiments.paper import split_nmse  # noqa: E402
 from sklearn_gpcd.features import contiguous_segments  # noqa: E402
+from sklearn_gpcd.metrics import alarm_onsets  # noqa: E402
 from sklearn_gpcd.workflow import training_set  # noqa: E402
 
 SETTLE_TIMES = (0.5, 1.0, 2.0, 3.0)
@@ -234,7 +235,7 @@ def study_family(root, labels, n_support, seed):
             t = rec.time - rec.time[0]
             alarm = mon.alarms.any(axis=1)
             free_onsets = [o for a, b in segments[key]
-                           for o in bench.alarm_onsets(alarm[a:b], t[a:b])]
+                           for o in alarm_onsets(alarm[a:b], t[a:b])]
             hit = sum(e["detected"] for e in events)
             hits, total, onsets = hits + hit, total + len(events), onsets + len(free_onsets)
             missed = [e["start_s"] for e in events if not e["detected"]]
@@ -564,9 +565,14 @@ class _Given(RegressorMixin, BaseEstimator):
         return X[:, -N_JOINTS:]
 
 
+def _given_block(X, prediction, current):
+    """``[X, prediction, current]``: a detector block for :class:`_Given`."""
+    return stack_currents(np.hstack([X, prediction]), current)
+
+
 def _with_prediction(model, X, current):
-    """``[X, model.predict(X), current]``: a detector block for :class:`_Given`."""
-    return stack_currents(np.hstack([X, model.predict(X)]), current)
+    """:func:`_given_block` with ``model``'s prediction."""
+    return _given_block(X, model.predict(X), current)
 
 
 def _banded(rule, band):
@@ -621,7 +627,7 @@ def _impact_on_2020(root, labels, models, features, base):
                 total += len(events)
                 missed += [f"{Path(key).stem[10:]} {e['start_s']:.2f}"
                            for e in events if not e["detected"]]
-                n_onsets += sum(len(bench.alarm_onsets(alarm[a:b], t[a:b]))
+                n_onsets += sum(len(alarm_onsets(alarm[a:b], t[a:b]))
                                 for a, b in segments[key])
             print(f"2020, {name}, 2 Hz band{' + ' + str(band) if band else ' only'}: "
                   f"{hits}/{total} collisions, {n_onsets} onsets on the event-free "
@@ -652,7 +658,7 @@ def _impact_on_unseen(root, labels, unseen, models, features, base):
                     for k in pushes:
                         push_alarms[k] |= cal.detector.monitoring_signal(
                             push_blocks[k]).alarms.any(axis=1)
-                onsets = {Path(k).stem: bench.alarm_onsets(a, times[k] - times[k][0])
+                onsets = {Path(k).stem: alarm_onsets(a, times[k] - times[k][0])
                           for k, a in alarms.items()}
                 onsets = {k: [round(o, 2) for o in v] for k, v in onsets.items() if v}
                 hit = total = 0
@@ -682,19 +688,10 @@ def _correction_split(model, X):
 
 def _moving_peaks(rule, X, pred, recording):
     """Debounced peak of ``|m|`` per joint in the moving regime, under ``rule``."""
-    block = _with_prediction(_Fixed(pred), X, recording.current)
-    det = clone(rule).fit(block, time=recording.time)  # its thresholds are unused: the filter, debounce, regimes
+    block = _given_block(X, pred, recording.current)
+    # fitted for its filter, debounce and regimes; its thresholds are unused
+    det = clone(rule).fit(block, time=recording.time)
     return regime_excursions(det, {"r": block})["r"][2][0]
-
-
-class _Fixed:
-    """``predict`` returns a fixed array (for :func:`_with_prediction`)."""
-
-    def __init__(self, values):
-        self.values = values
-
-    def predict(self, X):
-        return self.values
 
 
 def study_correction(root, labels, n_support, seed):
@@ -743,8 +740,7 @@ def study_correction(root, labels, n_support, seed):
     times = bench.times_of(unseen)
     peer_thresholds = None
     for name, preds in variants.items():
-        blocks = {k: stack_currents(np.hstack([X[k], preds[k]]), recordings[k].current)
-                  for k in recordings}
+        blocks = {k: _given_block(X[k], preds[k], recordings[k].current) for k in recordings}
         cal = calibrate_across_recordings(rule, {k: blocks[k] for k in unseen}, times)
         thresholds = cal.detector.thresholds_
         if peer_thresholds is None:

@@ -32,7 +32,6 @@ from sklearn.base import clone
 from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
 
-from ..features.masks import contiguous_segments
 from ..metrics import alarm_onsets
 from ._signal import debounce_segments, recording_index, segment_starts
 from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
@@ -455,8 +454,7 @@ def _nested_onset_count(series, keys, rule):
     margin and levels from the other ``keys`` (0 with fewer than 3)."""
     if len(keys) < 3:
         return 0
-    return sum(len(contiguous_segments(_held_out_alarm(series, keys, r, rule)))
-               for r in keys)
+    return sum(len(alarm_onsets(_held_out_alarm(series, keys, r, rule))) for r in keys)
 
 
 def _best_candidate(runs, keys, rule):
