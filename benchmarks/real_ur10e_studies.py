@@ -78,12 +78,30 @@ Studies (``--study``):
   and SP_C without joint 2's correction (chosen by looking at those
   recordings, for comparison only): margin, nested onsets, pushes,
   thresholds against the peer's.
+- ``braking``: what the second band of ``impact`` trips on. Two causes
+  found by reading its false alarms: (1) at rest the logged velocity
+  jitters by about 1e-4 rad/s, and P_f's Coulomb column
+  :math:`\mathrm{sign}(\dot q)` flips the predicted current by the whole
+  Coulomb level (about 1.2 A on joint 2; jointwise_6 at 79.5 s); (2) hard
+  stops of the jointwise runs (causal ``|qdd|`` up to 9.6 rad/s^2, against at
+  most 5.05 in the training runs and 2.4 in the 2020 collision files) ring
+  the current by several ampere for about half a second, for the peer too
+  (jointwise_2 at 61.7 s). Tried: P_f with :class:`SmoothCoulomb`
+  (``tanh(qd / width)``, ``COULOMB_WIDTHS``) and a fourth regime,
+  ``braking`` (:func:`braking`: causal ``|qdd|`` on some joint above the
+  largest of the training runs, held ``BRAKE_HOLD`` s), with its own
+  per-joint levels, calibrated like the others. For the peer, P_f and P_f
+  with each width, every band of ``IMPACT_BANDS``: the 2020 task (family
+  calibration, braking regime on) and ``C`` at settle 3 s / rest reference
+  2 s with the braking regime off and on (nested onsets, pushes, moving
+  thresholds of joints 1-3 against the peer's at the same settings).
 
 Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
 2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min),
 ``--study select`` (about 2 min), ``--study relax`` (seconds), ``--study
 margin`` (about 7 min), ``--study presliding`` (about 8 min), ``--study impact``
-(about 1.5 min), ``--study correction`` (about 4 min). The
+(about 1.5 min), ``--study correction`` (about 4 min), ``--study braking``
+(about 5 min). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -116,8 +134,17 @@ from sklearn_gpcd.detection import (  # noqa: E402
 from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin, clone  # noqa: E402
 from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel  # noqa: E402
 
-from sklearn_gpcd.dynamics import ControllerCurrent, ControllerFeatures  # noqa: E402
-from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor  # noqa: E402
+from sklearn_gpcd.dynamics import (  # noqa: E402
+    ControllerCurrent,
+    ControllerFeatures,
+    RigidBodyRegressor,
+)
+from sklearn_gpcd.gp import (  # noqa: E402
+    ParametricMean,
+    SemiParametricGPRegressor,
+    make_p_f,
+    resolve_n_support,
+)
 from sklearn_gpcd.kernels import ARDRBF  # noqa: E402
 from sklearn_gpcd.layout import block_columns, column_index  # noqa: E402
 from sklearn_gpcd.experiments.paper import split_nmse  # noqa: E402
@@ -754,11 +781,218 @@ def study_correction(root, labels, n_support, seed):
               f"{np.round(thresholds[-1, :3], 3)} A ({np.round(ratio[-1, :3], 2)}x)", flush=True)
 
 
+#: Regime code of the ``braking`` study, after the detector's moving / settling / rest.
+BRAKING = 3
+#: Seconds the braking regime lasts after the last sample above the limit:
+#: the current rings for about that long after a hard stop (jointwise_2, 61.6 s).
+BRAKE_HOLD = 0.5
+#: Widths [rad/s] of the smooth Coulomb term tried in the ``braking`` study.
+COULOMB_WIDTHS = (0.01, 0.03)
+QDD = block_columns("qdd", N_JOINTS)
+
+
+class SmoothCoulomb(TransformerMixin, BaseEstimator):
+    """One joint's rigid-body regressor with Coulomb friction ``tanh(qd / width)``.
+
+    The paper's P_f has :math:`\\mathrm{sign}(\\dot q_\\ell)`. The UR10e logs
+    the velocity of a still joint with a jitter of about 1e-4 rad/s, so the
+    sign, and with it the predicted friction, flips by the whole Coulomb level
+    from one sample to the next (about 1.2 A on joint 2). The hyperbolic
+    tangent turns over within ``width`` instead.
+    """
+
+    def __init__(self, robot="ur10e", joint=0, width=0.01):
+        self.robot = robot
+        self.joint = joint
+        self.width = width
+
+    def fit(self, X, y=None):
+        self.rigid_ = RigidBodyRegressor(self.robot, joint=self.joint).fit(X)
+        names = list(self.rigid_.get_feature_names_out())
+        self.coulomb_column_ = names.index(f"coulomb_{self.joint}")
+        self.friction_columns_ = self.rigid_.friction_columns_
+        self.velocity_column_ = column_index("qd", self.joint, N_JOINTS)
+        return self
+
+    def transform(self, X):
+        Phi = np.array(self.rigid_.transform(X), dtype=float)
+        Phi[:, self.coulomb_column_] = np.tanh(X[:, self.velocity_column_] / self.width)
+        return Phi
+
+
+def braking(X, time, limit, hold=BRAKE_HOLD):
+    """Causal braking flag: from a sample whose causal ``|qdd|`` exceeds
+    ``limit`` on some joint until ``hold`` seconds after the last such sample."""
+    out = np.zeros(len(time), dtype=bool)
+    for k in np.flatnonzero((np.abs(X[:, QDD]) > limit).any(axis=1)):
+        out[k:np.searchsorted(time, time[k] + hold, side="right")] = True
+    return out
+
+
+def _braking_series(det, blocks, X, times, limit):
+    """:func:`regime_excursions` with the samples of :func:`braking` in regime
+    ``BRAKING`` (their own per-joint levels); ``limit=inf`` leaves them as they are."""
+    out = {}
+    for k, (debounced, regime, _) in regime_excursions(det, blocks).items():
+        regime = np.where(braking(X[k], times[k], limit), BRAKING, regime)
+        peaks = np.zeros((BRAKING + 1, N_JOINTS))
+        for g in np.unique(regime):
+            peaks[g] = debounced[regime == g].max(axis=0)
+        out[k] = (debounced, regime, peaks)
+    return out
+
+
+def _thresholds(series, keys):
+    """Margin (global LORO rule) times the per-(regime, joint) levels over ``keys``."""
+    peaks = {k: series[k][2] for k in keys}
+    return loro_margin(peaks, keys, bench.MARGIN_RULE) * regime_levels(peaks, keys)
+
+
+def _alarms(series, thresholds):
+    """Any-joint alarms of each recording of ``series`` at ``thresholds``."""
+    return {k: (d > thresholds[g]).any(axis=1) for k, (d, g, _) in series.items()}
+
+
+def study_braking(root, labels, n_support, seed):
+    """Smooth Coulomb friction and a braking regime: the second band's false
+    alarms on ``C`` and collision_detection_data_2020 (see the module docstring)."""
+    train, unseen, _ = bench.split_recordings(root, quick=False)
+    data = training_set(list(train), "causal", allow_missing=True)
+    limit = max(np.abs(data.features.transform(r)[:, QDD]).max() for r in train)
+    print(f"braking limit: the largest causal |qdd| of the {len(train)} training runs, "
+          f"{limit:.2f} rad/s^2; hold {BRAKE_HOLD} s", flush=True)
+    models = {bench.PEER: ControllerCurrent(N_JOINTS).fit(data.X, data.y)}
+    models.update(bench.train_models(data, n_support, seed, None, names=("P_f",))[0])
+    # P_f's settings in train_model, with the smooth Coulomb term
+    gp = dict(n_support=resolve_n_support(n_support, len(data.y)), optimizer="adam",
+              random_state=seed, n_jobs=None)
+    gp["batch_size"] = min(512, gp["n_support"])
+    for width in COULOMB_WIDTHS:
+        phi = [SmoothCoulomb("ur10e", joint, width) for joint in range(N_JOINTS)]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            models[f"P_f, tanh(qd / {width:g})"] = make_p_f(phi, N_JOINTS, **gp).fit(
+                data.X, data.y)
+    velocities = [int(c) for c in block_columns("qd", N_JOINTS)]
+    base = bench.detector(_Given()).set_params(velocity_columns=velocities)
+    free = bench.load(root / bench.FAMILY_2020 / "collision_free.csv")
+    recs = {key: bench.load(root / key) for key in bench.COLLISIONS}
+    pushes = {key: bench.load(root / key) for key in bench.PUSHES}
+    segments = {k: bench.free_segments(r, labels[k]) for k, r in recs.items()}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # 2020: no target current, unused by P_f
+        X_2020 = {k: data.features.transform(r) for k, r in {**recs, "free": free}.items()}
+    X_c = {k: data.features.transform(r) for k, r in {**unseen, **pushes}.items()}
+    times = bench.times_of(unseen)
+    for key, rec in recs.items():
+        t = rec.time - rec.time[0]
+        peak = [np.abs(X_2020[key][(t >= e["start_s"] - 0.3) & (t <= e["stop_s"])][:, QDD]).max()
+                for e in labels[key]["events"]]
+        print(f"{Path(key).stem}: largest |qdd| around a labelled collision {max(peak):.2f}, "
+              f"in the whole file {np.abs(X_2020[key][:, QDD]).max():.2f} rad/s^2; braking "
+              f"samples {braking(X_2020[key], rec.time, limit).sum()}", flush=True)
+    for k, x in X_c.items():
+        n = braking(x, (unseen | pushes)[k].time, limit).sum()
+        if n:
+            print(f"{Path(k).stem}: {n} braking samples, largest |qdd| "
+                  f"{np.abs(x[:, QDD]).max():.2f} rad/s^2", flush=True)
+    peer_thresholds = {}
+    for name, model in models.items():
+        for band in [None, *IMPACT_BANDS]:
+            bands = [MAIN_BAND] + ([band] if band else [])
+            text = f"2 Hz band{' + ' + str(band) if band else ' only'}"
+            if name != bench.PEER:
+                print(f"2020, {name}, {text}: "
+                      + _braking_on_2020(model, bands, base, recs, free, X_2020, segments,
+                                         labels, limit), flush=True)
+            for brake in (np.inf, limit):
+                line, moving = _braking_on_unseen(model, bands, base, unseen, pushes, X_c,
+                                                  times, labels, brake)
+                cell = (band, brake)
+                peer_thresholds.setdefault(cell, moving)
+                print(f"unseen, {name}, {text}, braking regime "
+                      f"{'off' if brake == np.inf else 'on'}: {line}; last band's moving j1-3 "
+                      f"{np.round(moving, 2)} A ({np.round(moving / peer_thresholds[cell], 2)}x "
+                      "the peer)", flush=True)
+
+
+def _braking_on_2020(model, bands, base, recs, free, X, segments, labels, limit):
+    """The 2020 task (family calibration) with the braking regime: collisions, onsets."""
+    inputs = {k: _with_prediction(model, X[k], r.current) for k, r in recs.items()}
+    free_block = {"collision_free": _with_prediction(model, X["free"], free.current)}
+    hits = total = n_onsets = 0
+    missed = []
+    for key, rec in recs.items():
+        blocks, tms = bench.family_calibration(key, free_block,
+                                               {"collision_free": free.time}, inputs, recs,
+                                               segments)
+        rows = {k: X[k.rsplit("#", 1)[0]][_segment_rows(k, segments)]
+                for k in blocks if "#" in k}
+        rows["collision_free"] = X["free"]
+        alarm = np.zeros(rec.n_samples, dtype=bool)
+        for b in bands:
+            det = calibrate_across_recordings(_banded(base, b), blocks, tms).detector
+            series = _braking_series(det, blocks, rows, tms, limit)
+            mine = _braking_series(det, {key: inputs[key]}, {key: X[key]},
+                                   {key: rec.time}, limit)
+            alarm |= _alarms(mine, _thresholds(series, list(series)))[key]
+        t = rec.time - rec.time[0]
+        events, _ = bench.score_alarms(alarm, t, labels[key]["events"])
+        hits += sum(e["detected"] for e in events)
+        total += len(events)
+        missed += [f"{Path(key).stem[10:]} {e['start_s']:.2f}" for e in events
+                   if not e["detected"]]
+        n_onsets += sum(len(alarm_onsets(alarm[a:b], t[a:b])) for a, b in segments[key])
+    return f"{hits}/{total} collisions, {n_onsets} onsets on the event-free segments; " \
+           f"missed {missed}"
+
+
+def _segment_rows(key, segments):
+    """Rows of the event-free segment ``"<file>#<i>"`` of ``bench.family_calibration``."""
+    name, i = key.rsplit("#", 1)
+    a, b = segments[name][int(i)]
+    return slice(a, b)
+
+
+def _braking_on_unseen(model, bands, base, unseen, pushes, X, times, labels, limit):
+    """``C`` at settle 3 s / rest reference 2 s with the braking regime: nested
+    onsets, pushes, and the moving thresholds of joints 1-3 of the last band."""
+    settle, reference = SP_C_SEL
+    rule = clone(base).set_params(settle_time=settle, rest_reference=reference)
+    recordings = {**unseen, **pushes}
+    blocks = {k: _with_prediction(model, X[k], r.current) for k, r in recordings.items()}
+    calibration = {k: blocks[k] for k in unseen}
+    alarms = {k: np.zeros(len(t), dtype=bool) for k, t in times.items()}
+    push_alarms = {k: np.zeros(r.n_samples, dtype=bool) for k, r in pushes.items()}
+    keys = list(unseen)
+    for b in bands:
+        det = calibrate_across_recordings(_banded(rule, b), calibration, times).detector
+        series = _braking_series(det, calibration, X, times, limit)
+        for r in keys:
+            alarms[r] |= _alarms({r: series[r]},
+                                 _thresholds(series, [k for k in keys if k != r]))[r]
+        thresholds = _thresholds(series, keys)
+        push_series = _braking_series(det, {k: blocks[k] for k in pushes}, X,
+                                      bench.times_of(pushes), limit)
+        for k, a in _alarms(push_series, thresholds).items():
+            push_alarms[k] |= a
+    onsets = {Path(k).stem: [round(o, 2) for o in alarm_onsets(a, times[k] - times[k][0])]
+              for k, a in alarms.items()}
+    onsets = {k: v for k, v in onsets.items() if v}
+    hit = total = 0
+    for k, rec in pushes.items():
+        events, _ = bench.score_alarms(push_alarms[k], rec.time - rec.time[0],
+                                       labels[k]["events"])
+        hit, total = hit + sum(e["detected"] for e in events), total + len(events)
+    return (f"{sum(map(len, onsets.values()))} nested onsets {onsets}, pushes {hit}/{total}",
+            thresholds[0, :3])
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--study", required=True, choices=(
         "rest", "floor", "family", "select", "relax", "margin", "presliding", "impact",
-        "correction"))
+        "correction", "braking"))
     parser.add_argument("--data", default=None, help="folder of ur10e_mamedov")
     parser.add_argument("--n-support", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=0)
@@ -783,6 +1017,8 @@ def main(argv=None):
         study_impact(root, labels, args.n_support, args.seed)
     elif args.study == "correction":
         study_correction(root, labels, args.n_support, args.seed)
+    elif args.study == "braking":
+        study_braking(root, labels, args.n_support, args.seed)
     else:
         study_family(root, labels, args.n_support, args.seed)
 
