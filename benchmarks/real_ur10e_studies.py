@@ -94,14 +94,20 @@ Studies (``--study``):
   with each width, every band of ``IMPACT_BANDS``: the 2020 task (family
   calibration, braking regime on) and ``C`` at settle 3 s / rest reference
   2 s with the braking regime off and on (nested onsets, pushes, moving
-  thresholds of joints 1-3 against the peer's at the same settings).
+  thresholds of joints 1-3 against the peer's at the same settings). Then
+  the second band chosen honestly, braking regime on
+  (:func:`study_nested_band`): on ``C`` each recording is scored with the
+  band chosen on the other 20 (fewest nested onsets of the two bands'
+  union there, then the smallest time-weighted mean log threshold, the
+  ranking of ``calibrate_across_recordings``); each 2020 file with the band
+  chosen on its own calibration pool.
 
 Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
 2 cores), ``--study floor`` (seconds), ``--study family`` (about 3 min),
 ``--study select`` (about 2 min), ``--study relax`` (seconds), ``--study
 margin`` (about 7 min), ``--study presliding`` (about 8 min), ``--study impact``
 (about 1.5 min), ``--study correction`` (about 4 min), ``--study braking``
-(about 5 min). The
+(about 7 min). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -914,6 +920,107 @@ def study_braking(root, labels, n_support, seed):
                       f"{'off' if brake == np.inf else 'on'}: {line}; last band's moving j1-3 "
                       f"{np.round(moving, 2)} A ({np.round(moving / peer_thresholds[cell], 2)}x "
                       "the peer)", flush=True)
+    for name, model in models.items():
+        if name != bench.PEER:
+            study_nested_band(model, name, base, unseen, pushes, X_c, times, recs, free,
+                              X_2020, segments, labels, limit)
+
+
+def _band_series(model, band, rule, calibration, scored, X, times, limit):
+    """Braking-regime series of one band on the calibration recordings and on
+    the recordings to score (:func:`_braking_series`, detector settings from
+    :func:`calibrate_across_recordings` on ``calibration``)."""
+    det = calibrate_across_recordings(_banded(rule, band), calibration, times).detector
+    blocks = {**calibration, **scored}
+    return _braking_series(det, blocks, X, times, limit)
+
+
+def _union_onsets(series, keys):
+    """Nested onsets of the union of the bands ``series`` (a list of series) on
+    ``keys``, each recording scored with thresholds from the other ``keys``."""
+    count = 0
+    for r in keys:
+        others = [k for k in keys if k != r]
+        alarm = np.zeros(len(series[0][r][0]), dtype=bool)
+        for s in series:
+            alarm |= _alarms({r: s[r]}, _thresholds(s, others))[r]
+        count += len(alarm_onsets(alarm))
+    return count
+
+
+def _band_score(series, keys):
+    """The time-weighted mean log threshold of one band on ``keys`` (as
+    :func:`calibrate_across_recordings` ranks candidates)."""
+    thresholds = _thresholds(series, keys)
+    counts = sum(np.bincount(series[k][1], minlength=thresholds.shape[0]) for k in keys)
+    return float(counts / counts.sum() @ np.log(thresholds).mean(axis=1))
+
+
+def _choose_band(main, bands, keys):
+    """Index of the second band with the fewest nested onsets of the union on
+    ``keys``, then the smallest score."""
+    ranks = [(_union_onsets([main, b], keys), _band_score(b, keys)) for b in bands]
+    return min(range(len(bands)), key=ranks.__getitem__)
+
+
+def study_nested_band(model, name, base, unseen, pushes, X_c, times, recs, free, X_2020,
+                      segments, labels, limit):
+    """The second band chosen without the recording it is scored on, braking regime on."""
+    settle, reference = SP_C_SEL
+    rule = clone(base).set_params(settle_time=settle, rest_reference=reference)
+    blocks = {k: _with_prediction(model, X_c[k], r.current)
+              for k, r in {**unseen, **pushes}.items()}
+    calibration = {k: blocks[k] for k in unseen}
+    scored = {k: blocks[k] for k in pushes}
+    all_times = {**times, **bench.times_of(pushes)}
+    main = _band_series(model, MAIN_BAND, rule, calibration, scored, X_c, all_times, limit)
+    bands = [_band_series(model, b, rule, calibration, scored, X_c, all_times, limit)
+             for b in IMPACT_BANDS]
+    keys = list(unseen)
+    onsets, chosen = {}, Counter()
+    for r in keys:
+        others = [k for k in keys if k != r]
+        c = _choose_band(main, bands, others)
+        chosen[IMPACT_BANDS[c]] += 1
+        alarm = (_alarms({r: main[r]}, _thresholds(main, others))[r]
+                 | _alarms({r: bands[c][r]}, _thresholds(bands[c], others))[r])
+        found = alarm_onsets(alarm, times[r] - times[r][0])
+        if found:
+            onsets[Path(r).stem] = [round(o, 2) for o in found]
+    c = _choose_band(main, bands, keys)
+    hit = total = 0
+    for k, rec in pushes.items():
+        alarm = (_alarms({k: main[k]}, _thresholds(main, keys))[k]
+                 | _alarms({k: bands[c][k]}, _thresholds(bands[c], keys))[k])
+        events, _ = bench.score_alarms(alarm, rec.time - rec.time[0], labels[k]["events"])
+        hit, total = hit + sum(e["detected"] for e in events), total + len(events)
+    print(f"unseen, {name}, second band chosen without the scored recording (braking on): "
+          f"{sum(map(len, onsets.values()))} nested onsets {onsets}, bands chosen "
+          f"{dict(chosen)}; pushes {hit}/{total} with {IMPACT_BANDS[c]} (chosen on all 21)",
+          flush=True)
+    inputs = {k: _with_prediction(model, X_2020[k], r.current) for k, r in recs.items()}
+    free_block = {"collision_free": _with_prediction(model, X_2020["free"], free.current)}
+    hits = total = n_onsets = 0
+    missed, picks = [], []
+    for key, rec in recs.items():
+        pool, tms = bench.family_calibration(key, free_block, {"collision_free": free.time},
+                                             inputs, recs, segments)
+        rows = {**_pool_rows(pool, X_2020, segments), key: X_2020[key]}
+        tms = {**tms, key: rec.time}
+        main = _band_series(model, MAIN_BAND, base, pool, {key: inputs[key]}, rows, tms, limit)
+        bands = [_band_series(model, b, base, pool, {key: inputs[key]}, rows, tms, limit)
+                 for b in IMPACT_BANDS]
+        pool_keys = list(pool)
+        c = _choose_band(main, bands, pool_keys)
+        picks.append(IMPACT_BANDS[c])
+        alarm = (_alarms({key: main[key]}, _thresholds(main, pool_keys))[key]
+                 | _alarms({key: bands[c][key]}, _thresholds(bands[c], pool_keys))[key])
+        score = _score_2020(alarm, rec, labels[key]["events"], segments[key])
+        hits, total, n_onsets = hits + score[0], total + score[1], n_onsets + score[3]
+        missed += [f"{Path(key).stem[10:]} {start:.2f}" for start in score[2]]
+    print(f"2020, {name}, second band chosen on each file's calibration pool: {hits}/{total} "
+          f"collisions, {n_onsets} onsets on the event-free segments; missed {missed}; "
+          f"bands chosen {picks}", flush=True)
 
 
 def _braking_on_2020(model, bands, base, recs, free, X, segments, labels, limit):
@@ -926,9 +1033,7 @@ def _braking_on_2020(model, bands, base, recs, free, X, segments, labels, limit)
         blocks, tms = bench.family_calibration(key, free_block,
                                                {"collision_free": free.time}, inputs, recs,
                                                segments)
-        rows = {k: X[k.rsplit("#", 1)[0]][_segment_rows(k, segments)]
-                for k in blocks if "#" in k}
-        rows["collision_free"] = X["free"]
+        rows = _pool_rows(blocks, X, segments)
         alarm = np.zeros(rec.n_samples, dtype=bool)
         for b in bands:
             det = calibrate_across_recordings(_banded(base, b), blocks, tms).detector
@@ -936,22 +1041,34 @@ def _braking_on_2020(model, bands, base, recs, free, X, segments, labels, limit)
             mine = _braking_series(det, {key: inputs[key]}, {key: X[key]},
                                    {key: rec.time}, limit)
             alarm |= _alarms(mine, _thresholds(series, list(series)))[key]
-        t = rec.time - rec.time[0]
-        events, _ = bench.score_alarms(alarm, t, labels[key]["events"])
-        hits += sum(e["detected"] for e in events)
-        total += len(events)
-        missed += [f"{Path(key).stem[10:]} {e['start_s']:.2f}" for e in events
-                   if not e["detected"]]
-        n_onsets += sum(len(alarm_onsets(alarm[a:b], t[a:b])) for a, b in segments[key])
+        score = _score_2020(alarm, rec, labels[key]["events"], segments[key])
+        hits, total, n_onsets = hits + score[0], total + score[1], n_onsets + score[3]
+        missed += [f"{Path(key).stem[10:]} {start:.2f}" for start in score[2]]
     return f"{hits}/{total} collisions, {n_onsets} onsets on the event-free segments; " \
            f"missed {missed}"
 
 
-def _segment_rows(key, segments):
-    """Rows of the event-free segment ``"<file>#<i>"`` of ``bench.family_calibration``."""
-    name, i = key.rsplit("#", 1)
-    a, b = segments[name][int(i)]
-    return slice(a, b)
+def _pool_rows(pool, X, segments):
+    """Input rows of each recording of a 2020 calibration pool
+    (``bench.family_calibration``): ``collision_free`` and the event-free
+    segments ``"<file>#<i>"``."""
+    rows = {"collision_free": X["free"]}
+    for key in pool:
+        if "#" in key:
+            name, i = key.rsplit("#", 1)
+            a, b = segments[name][int(i)]
+            rows[key] = X[name][a:b]
+    return rows
+
+
+def _score_2020(alarm, rec, events, segments):
+    """Collisions detected, labelled, the start times missed, and the onsets on
+    the event-free ``segments`` of one 2020 file."""
+    t = rec.time - rec.time[0]
+    scored, _ = bench.score_alarms(alarm, t, events)
+    missed = [e["start_s"] for e in scored if not e["detected"]]
+    onsets = sum(len(alarm_onsets(alarm[a:b], t[a:b])) for a, b in segments)
+    return sum(e["detected"] for e in scored), len(scored), missed, onsets
 
 
 def _braking_on_unseen(model, bands, base, unseen, pushes, X, times, labels, limit):
