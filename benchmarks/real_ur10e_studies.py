@@ -96,7 +96,7 @@ Studies (``--study``):
   2 s with the braking regime off and on (nested onsets, pushes, moving
   thresholds of joints 1-3 against the peer's at the same settings). Then
   the second band chosen honestly, braking regime on
-  (:func:`study_nested_band`): on ``C`` each recording is scored with the
+  (:func:`_nested_band`): on ``C`` each recording is scored with the
   band chosen on the other 20 (fewest nested onsets of the two bands'
   union there, then the smallest time-weighted mean log threshold, the
   ranking of ``calibrate_across_recordings``); each 2020 file with the band
@@ -107,7 +107,7 @@ Run: ``python benchmarks/real_ur10e_studies.py --study rest`` (about 4 min on
 ``--study select`` (about 2 min), ``--study relax`` (seconds), ``--study
 margin`` (about 7 min), ``--study presliding`` (about 8 min), ``--study impact``
 (about 1.5 min), ``--study correction`` (about 4 min), ``--study braking``
-(about 7 min). The
+(about 1.5 min). The
 data must be in ``../shared/data/real/ur10e_mamedov`` (or ``--data``); the
 script exits with a message when it is not.
 """
@@ -835,17 +835,27 @@ def braking(X, time, limit, hold=BRAKE_HOLD):
     return out
 
 
-def _braking_series(det, blocks, X, times, limit):
-    """:func:`regime_excursions` with the samples of :func:`braking` in regime
-    ``BRAKING`` (their own per-joint levels); ``limit=inf`` leaves them as they are."""
+def _with_braking(excursions, X, times, limit):
+    """:func:`regime_excursions` output with the samples of :func:`braking` in
+    regime ``BRAKING`` (their own per-joint levels); ``limit=inf`` leaves them
+    as they are."""
     out = {}
-    for k, (debounced, regime, _) in regime_excursions(det, blocks).items():
+    for k, (debounced, regime, _) in excursions.items():
         regime = np.where(braking(X[k], times[k], limit), BRAKING, regime)
         peaks = np.zeros((BRAKING + 1, N_JOINTS))
         for g in np.unique(regime):
             peaks[g] = debounced[regime == g].max(axis=0)
         out[k] = (debounced, regime, peaks)
     return out
+
+
+def _band_series(rule, band, calibration, scored, X, times, limits):
+    """Per braking limit, the series of one band (detector settings from
+    :func:`calibrate_across_recordings` on ``calibration``) on the calibration
+    recordings and on the recordings to score."""
+    det = calibrate_across_recordings(_banded(rule, band), calibration, times).detector
+    excursions = regime_excursions(det, {**calibration, **scored})
+    return {limit: _with_braking(excursions, X, times, limit) for limit in limits}
 
 
 def _thresholds(series, keys):
@@ -857,6 +867,25 @@ def _thresholds(series, keys):
 def _alarms(series, thresholds):
     """Any-joint alarms of each recording of ``series`` at ``thresholds``."""
     return {k: (d > thresholds[g]).any(axis=1) for k, (d, g, _) in series.items()}
+
+
+def _nested_union(bands, keys):
+    """Nested alarms (:func:`nested_alarms` on ``keys``) of the union of the
+    bands' series."""
+    union = {k: False for k in keys}
+    for series in bands:
+        for k, a in nested_alarms({k: series[k] for k in keys}, bench.MARGIN_RULE).items():
+            union[k] = union[k] | a
+    return union
+
+
+def _union_alarm(bands, key, keys):
+    """Alarms of recording ``key`` under the union of the bands, each band's
+    thresholds calibrated on ``keys``."""
+    alarm = False
+    for series in bands:
+        alarm = alarm | _alarms({key: series[key]}, _thresholds(series, keys))[key]
+    return alarm
 
 
 def study_braking(root, labels, n_support, seed):
@@ -902,150 +931,106 @@ def study_braking(root, labels, n_support, seed):
         if n:
             print(f"{Path(k).stem}: {n} braking samples, largest |qdd| "
                   f"{np.abs(x[:, QDD]).max():.2f} rad/s^2", flush=True)
-    peer_thresholds = {}
+    settle, reference = SP_C_SEL
+    rule = clone(base).set_params(settle_time=settle, rest_reference=reference)
+    peer_thresholds, computed = {}, {}
     for name, model in models.items():
+        on_unseen = _unseen_series(model, rule, unseen, pushes, X_c, times, (np.inf, limit))
+        family = (None if name == bench.PEER else
+                  _family_series(model, base, recs, free, X_2020, segments, limit))
         for band in [None, *IMPACT_BANDS]:
             bands = [MAIN_BAND] + ([band] if band else [])
             text = f"2 Hz band{' + ' + str(band) if band else ' only'}"
-            if name != bench.PEER:
-                print(f"2020, {name}, {text}: "
-                      + _braking_on_2020(model, bands, base, recs, free, X_2020, segments,
-                                         labels, limit), flush=True)
+            if family is not None:
+                print(f"2020, {name}, {text}: " + _family_result(
+                    family, bands, recs, labels, segments), flush=True)
             for brake in (np.inf, limit):
-                line, moving = _braking_on_unseen(model, bands, base, unseen, pushes, X_c,
-                                                  times, labels, brake)
+                line, moving = _unseen_result([on_unseen[b][brake] for b in bands], unseen,
+                                              pushes, times, labels)
                 cell = (band, brake)
                 peer_thresholds.setdefault(cell, moving)
                 print(f"unseen, {name}, {text}, braking regime "
                       f"{'off' if brake == np.inf else 'on'}: {line}; last band's moving j1-3 "
                       f"{np.round(moving, 2)} A ({np.round(moving / peer_thresholds[cell], 2)}x "
                       "the peer)", flush=True)
-    for name, model in models.items():
-        if name != bench.PEER:
-            study_nested_band(model, name, base, unseen, pushes, X_c, times, recs, free,
-                              X_2020, segments, labels, limit)
+        if family is not None:
+            computed[name] = ({b: v[limit] for b, v in on_unseen.items()}, family)
+    for name, (on_unseen, family) in computed.items():
+        _nested_band(name, on_unseen, family, unseen, pushes, times, recs, labels, segments)
 
 
-def _band_series(model, band, rule, calibration, scored, X, times, limit):
-    """Braking-regime series of one band on the calibration recordings and on
-    the recordings to score (:func:`_braking_series`, detector settings from
-    :func:`calibrate_across_recordings` on ``calibration``)."""
-    det = calibrate_across_recordings(_banded(rule, band), calibration, times).detector
-    blocks = {**calibration, **scored}
-    return _braking_series(det, blocks, X, times, limit)
-
-
-def _union_onsets(series, keys):
-    """Nested onsets of the union of the bands ``series`` (a list of series) on
-    ``keys``, each recording scored with thresholds from the other ``keys``."""
-    count = 0
-    for r in keys:
-        others = [k for k in keys if k != r]
-        alarm = np.zeros(len(series[0][r][0]), dtype=bool)
-        for s in series:
-            alarm |= _alarms({r: s[r]}, _thresholds(s, others))[r]
-        count += len(alarm_onsets(alarm))
-    return count
-
-
-def _band_score(series, keys):
-    """The time-weighted mean log threshold of one band on ``keys`` (as
-    :func:`calibrate_across_recordings` ranks candidates)."""
-    thresholds = _thresholds(series, keys)
-    counts = sum(np.bincount(series[k][1], minlength=thresholds.shape[0]) for k in keys)
-    return float(counts / counts.sum() @ np.log(thresholds).mean(axis=1))
-
-
-def _choose_band(main, bands, keys):
-    """Index of the second band with the fewest nested onsets of the union on
-    ``keys``, then the smallest score."""
-    ranks = [(_union_onsets([main, b], keys), _band_score(b, keys)) for b in bands]
-    return min(range(len(bands)), key=ranks.__getitem__)
-
-
-def study_nested_band(model, name, base, unseen, pushes, X_c, times, recs, free, X_2020,
-                      segments, labels, limit):
-    """The second band chosen without the recording it is scored on, braking regime on."""
-    settle, reference = SP_C_SEL
-    rule = clone(base).set_params(settle_time=settle, rest_reference=reference)
-    blocks = {k: _with_prediction(model, X_c[k], r.current)
+def _unseen_series(model, rule, unseen, pushes, X, times, limits):
+    """Per band (the main band and ``IMPACT_BANDS``) and braking limit: the series
+    on ``C`` (the calibration recordings) and on the pushes."""
+    blocks = {k: _with_prediction(model, X[k], r.current)
               for k, r in {**unseen, **pushes}.items()}
     calibration = {k: blocks[k] for k in unseen}
     scored = {k: blocks[k] for k in pushes}
     all_times = {**times, **bench.times_of(pushes)}
-    main = _band_series(model, MAIN_BAND, rule, calibration, scored, X_c, all_times, limit)
-    bands = [_band_series(model, b, rule, calibration, scored, X_c, all_times, limit)
-             for b in IMPACT_BANDS]
+    return {b: _band_series(rule, b, calibration, scored, X, all_times, limits)
+            for b in (MAIN_BAND, *IMPACT_BANDS)}
+
+
+def _unseen_result(bands, unseen, pushes, times, labels):
+    """``C`` under the union of the bands' series: nested onsets, pushes (thresholds
+    from all of ``C``), and the moving thresholds of joints 1-3 of the last band."""
     keys = list(unseen)
-    onsets, chosen = {}, Counter()
-    for r in keys:
-        others = [k for k in keys if k != r]
-        c = _choose_band(main, bands, others)
-        chosen[IMPACT_BANDS[c]] += 1
-        alarm = (_alarms({r: main[r]}, _thresholds(main, others))[r]
-                 | _alarms({r: bands[c][r]}, _thresholds(bands[c], others))[r])
-        found = alarm_onsets(alarm, times[r] - times[r][0])
-        if found:
-            onsets[Path(r).stem] = [round(o, 2) for o in found]
-    c = _choose_band(main, bands, keys)
+    alarms = _nested_union(bands, keys)
+    onsets = {Path(k).stem: [round(o, 2) for o in alarm_onsets(a, times[k] - times[k][0])]
+              for k, a in alarms.items()}
+    onsets = {k: v for k, v in onsets.items() if v}
+    hit, total = _pushes(bands, keys, pushes, labels)
+    return (f"{sum(map(len, onsets.values()))} nested onsets {onsets}, pushes {hit}/{total}",
+            _thresholds(bands[-1], keys)[0, :3])
+
+
+def _pushes(bands, keys, pushes, labels):
+    """Pushes detected and labelled, under the union of the bands calibrated on ``keys``."""
     hit = total = 0
     for k, rec in pushes.items():
-        alarm = (_alarms({k: main[k]}, _thresholds(main, keys))[k]
-                 | _alarms({k: bands[c][k]}, _thresholds(bands[c], keys))[k])
-        events, _ = bench.score_alarms(alarm, rec.time - rec.time[0], labels[k]["events"])
+        events, _ = bench.score_alarms(_union_alarm(bands, k, keys), rec.time - rec.time[0],
+                                       labels[k]["events"])
         hit, total = hit + sum(e["detected"] for e in events), total + len(events)
-    print(f"unseen, {name}, second band chosen without the scored recording (braking on): "
-          f"{sum(map(len, onsets.values()))} nested onsets {onsets}, bands chosen "
-          f"{dict(chosen)}; pushes {hit}/{total} with {IMPACT_BANDS[c]} (chosen on all 21)",
-          flush=True)
-    inputs = {k: _with_prediction(model, X_2020[k], r.current) for k, r in recs.items()}
-    free_block = {"collision_free": _with_prediction(model, X_2020["free"], free.current)}
-    hits = total = n_onsets = 0
-    missed, picks = [], []
+    return hit, total
+
+
+def _family_series(model, base, recs, free, X, segments, limit):
+    """Per 2020 file: its calibration pool's keys and, per band, the series
+    (braking regime on) on the pool and on the file."""
+    inputs = {k: _with_prediction(model, X[k], r.current) for k, r in recs.items()}
+    free_block = {"collision_free": _with_prediction(model, X["free"], free.current)}
+    out = {}
     for key, rec in recs.items():
         pool, tms = bench.family_calibration(key, free_block, {"collision_free": free.time},
                                              inputs, recs, segments)
-        rows = {**_pool_rows(pool, X_2020, segments), key: X_2020[key]}
+        rows = {**_pool_rows(pool, X, segments), key: X[key]}
         tms = {**tms, key: rec.time}
-        main = _band_series(model, MAIN_BAND, base, pool, {key: inputs[key]}, rows, tms, limit)
-        bands = [_band_series(model, b, base, pool, {key: inputs[key]}, rows, tms, limit)
-                 for b in IMPACT_BANDS]
-        pool_keys = list(pool)
-        c = _choose_band(main, bands, pool_keys)
-        picks.append(IMPACT_BANDS[c])
-        alarm = (_alarms({key: main[key]}, _thresholds(main, pool_keys))[key]
-                 | _alarms({key: bands[c][key]}, _thresholds(bands[c], pool_keys))[key])
-        score = _score_2020(alarm, rec, labels[key]["events"], segments[key])
-        hits, total, n_onsets = hits + score[0], total + score[1], n_onsets + score[3]
-        missed += [f"{Path(key).stem[10:]} {start:.2f}" for start in score[2]]
-    print(f"2020, {name}, second band chosen on each file's calibration pool: {hits}/{total} "
-          f"collisions, {n_onsets} onsets on the event-free segments; missed {missed}; "
-          f"bands chosen {picks}", flush=True)
+        out[key] = (list(pool), {
+            b: _band_series(base, b, pool, {key: inputs[key]}, rows, tms, [limit])[limit]
+            for b in (MAIN_BAND, *IMPACT_BANDS)})
+    return out
 
 
-def _braking_on_2020(model, bands, base, recs, free, X, segments, labels, limit):
-    """The 2020 task (family calibration) with the braking regime: collisions, onsets."""
-    inputs = {k: _with_prediction(model, X[k], r.current) for k, r in recs.items()}
-    free_block = {"collision_free": _with_prediction(model, X["free"], free.current)}
+def _family_result(family, bands, recs, labels, segments, choose=None):
+    """The 2020 task under the union of the main band and the ``bands[1:]``
+    (or, with ``choose``, the second band it picks from each file's pool)."""
     hits = total = n_onsets = 0
-    missed = []
+    missed, picks = [], []
     for key, rec in recs.items():
-        blocks, tms = bench.family_calibration(key, free_block,
-                                               {"collision_free": free.time}, inputs, recs,
-                                               segments)
-        rows = _pool_rows(blocks, X, segments)
-        alarm = np.zeros(rec.n_samples, dtype=bool)
-        for b in bands:
-            det = calibrate_across_recordings(_banded(base, b), blocks, tms).detector
-            series = _braking_series(det, blocks, rows, tms, limit)
-            mine = _braking_series(det, {key: inputs[key]}, {key: X[key]},
-                                   {key: rec.time}, limit)
-            alarm |= _alarms(mine, _thresholds(series, list(series)))[key]
-        score = _score_2020(alarm, rec, labels[key]["events"], segments[key])
+        pool_keys, series = family[key]
+        if choose is not None:
+            second = IMPACT_BANDS[choose(series[MAIN_BAND],
+                                         [series[b] for b in IMPACT_BANDS], pool_keys)]
+            picks.append(second)
+            bands = [MAIN_BAND, second]
+        chosen = [series[b] for b in bands]
+        score = _score_2020(_union_alarm(chosen, key, pool_keys), rec,
+                            labels[key]["events"], segments[key])
         hits, total, n_onsets = hits + score[0], total + score[1], n_onsets + score[3]
         missed += [f"{Path(key).stem[10:]} {start:.2f}" for start in score[2]]
-    return f"{hits}/{total} collisions, {n_onsets} onsets on the event-free segments; " \
-           f"missed {missed}"
+    text = (f"{hits}/{total} collisions, {n_onsets} onsets on the event-free segments; "
+            f"missed {missed}")
+    return text + (f"; bands chosen {picks}" if choose is not None else "")
 
 
 def _pool_rows(pool, X, segments):
@@ -1071,39 +1056,46 @@ def _score_2020(alarm, rec, events, segments):
     return sum(e["detected"] for e in scored), len(scored), missed, onsets
 
 
-def _braking_on_unseen(model, bands, base, unseen, pushes, X, times, labels, limit):
-    """``C`` at settle 3 s / rest reference 2 s with the braking regime: nested
-    onsets, pushes, and the moving thresholds of joints 1-3 of the last band."""
-    settle, reference = SP_C_SEL
-    rule = clone(base).set_params(settle_time=settle, rest_reference=reference)
-    recordings = {**unseen, **pushes}
-    blocks = {k: _with_prediction(model, X[k], r.current) for k, r in recordings.items()}
-    calibration = {k: blocks[k] for k in unseen}
-    alarms = {k: np.zeros(len(t), dtype=bool) for k, t in times.items()}
-    push_alarms = {k: np.zeros(r.n_samples, dtype=bool) for k, r in pushes.items()}
-    keys = list(unseen)
-    for b in bands:
-        det = calibrate_across_recordings(_banded(rule, b), calibration, times).detector
-        series = _braking_series(det, calibration, X, times, limit)
-        for r in keys:
-            alarms[r] |= _alarms({r: series[r]},
-                                 _thresholds(series, [k for k in keys if k != r]))[r]
-        thresholds = _thresholds(series, keys)
-        push_series = _braking_series(det, {k: blocks[k] for k in pushes}, X,
-                                      bench.times_of(pushes), limit)
-        for k, a in _alarms(push_series, thresholds).items():
-            push_alarms[k] |= a
-    onsets = {Path(k).stem: [round(o, 2) for o in alarm_onsets(a, times[k] - times[k][0])]
-              for k, a in alarms.items()}
-    onsets = {k: v for k, v in onsets.items() if v}
-    hit = total = 0
-    for k, rec in pushes.items():
-        events, _ = bench.score_alarms(push_alarms[k], rec.time - rec.time[0],
-                                       labels[k]["events"])
-        hit, total = hit + sum(e["detected"] for e in events), total + len(events)
-    return (f"{sum(map(len, onsets.values()))} nested onsets {onsets}, pushes {hit}/{total}",
-            thresholds[0, :3])
+def _band_score(series, keys):
+    """The time-weighted mean log threshold of one band on ``keys`` (as
+    :func:`calibrate_across_recordings` ranks candidates)."""
+    thresholds = _thresholds(series, keys)
+    counts = sum(np.bincount(series[k][1], minlength=thresholds.shape[0]) for k in keys)
+    return float(counts / counts.sum() @ np.log(thresholds).mean(axis=1))
 
+
+def _choose_band(main, bands, keys):
+    """Index of the second band with the fewest nested onsets of the union on
+    ``keys`` (each recording scored with thresholds from the others), then the
+    smallest score."""
+    ranks = [(sum(len(alarm_onsets(a)) for a in _nested_union([main, b], keys).values()),
+              _band_score(b, keys)) for b in bands]
+    return min(range(len(bands)), key=ranks.__getitem__)
+
+
+def _nested_band(name, on_unseen, family, unseen, pushes, times, recs, labels, segments):
+    """The second band chosen without the recording it is scored on (braking
+    regime on): on ``C`` each recording with the band chosen on the other 20,
+    each 2020 file with the band chosen on its calibration pool."""
+    main, bands = on_unseen[MAIN_BAND], [on_unseen[b] for b in IMPACT_BANDS]
+    keys = list(unseen)
+    onsets, chosen = {}, Counter()
+    for r in keys:
+        others = [k for k in keys if k != r]
+        c = _choose_band(main, bands, others)
+        chosen[IMPACT_BANDS[c]] += 1
+        found = alarm_onsets(_union_alarm([main, bands[c]], r, others), times[r] - times[r][0])
+        if found:
+            onsets[Path(r).stem] = [round(o, 2) for o in found]
+    c = _choose_band(main, bands, keys)
+    hit, total = _pushes([main, bands[c]], keys, pushes, labels)
+    print(f"unseen, {name}, second band chosen without the scored recording (braking on): "
+          f"{sum(map(len, onsets.values()))} nested onsets {onsets}, bands chosen "
+          f"{dict(chosen)}; pushes {hit}/{total} with {IMPACT_BANDS[c]} (chosen on all 21)",
+          flush=True)
+    print(f"2020, {name}, second band chosen on each file's calibration pool: "
+          + _family_result(family, None, recs, labels, segments, choose=_choose_band),
+          flush=True)
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
