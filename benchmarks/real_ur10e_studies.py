@@ -86,8 +86,9 @@ Studies (``--study``):
   stops of the jointwise runs (causal ``|qdd|`` up to 9.6 rad/s^2, against at
   most 5.05 in the training runs and 2.4 in the 2020 collision files) ring
   the current by several ampere for about half a second, for the peer too
-  (jointwise_2 at 61.7 s). Tried: P_f with :class:`SmoothCoulomb`
-  (``tanh(qd / width)``, ``COULOMB_WIDTHS``) and a fourth regime,
+  (jointwise_2 at 61.7 s). Tried: P_f with a smooth Coulomb column
+  (``tanh(qd / width)``, ``RigidBodyRegressor(coulomb_width=...)``,
+  ``COULOMB_WIDTHS``) and a fourth regime,
   ``braking`` (:func:`braking`: causal ``|qdd|`` on some joint above the
   largest of the training runs, held ``BRAKE_HOLD`` s), with its own
   per-joint levels, calibrated like the others. For the peer, P_f and P_f
@@ -797,35 +798,6 @@ COULOMB_WIDTHS = (0.01, 0.03)
 QDD = block_columns("qdd", N_JOINTS)
 
 
-class SmoothCoulomb(TransformerMixin, BaseEstimator):
-    """One joint's rigid-body regressor with Coulomb friction ``tanh(qd / width)``.
-
-    The paper's P_f has :math:`\\mathrm{sign}(\\dot q_\\ell)`. The UR10e logs
-    the velocity of a still joint with a jitter of about 1e-4 rad/s, so the
-    sign, and with it the predicted friction, flips by the whole Coulomb level
-    from one sample to the next (about 1.2 A on joint 2). The hyperbolic
-    tangent turns over within ``width`` instead.
-    """
-
-    def __init__(self, robot="ur10e", joint=0, width=0.01):
-        self.robot = robot
-        self.joint = joint
-        self.width = width
-
-    def fit(self, X, y=None):
-        self.rigid_ = RigidBodyRegressor(self.robot, joint=self.joint).fit(X)
-        names = list(self.rigid_.get_feature_names_out())
-        self.coulomb_column_ = names.index(f"coulomb_{self.joint}")
-        self.friction_columns_ = self.rigid_.friction_columns_
-        self.velocity_column_ = column_index("qd", self.joint, N_JOINTS)
-        return self
-
-    def transform(self, X):
-        Phi = np.array(self.rigid_.transform(X), dtype=float)
-        Phi[:, self.coulomb_column_] = np.tanh(X[:, self.velocity_column_] / self.width)
-        return Phi
-
-
 def braking(X, time, limit, hold=BRAKE_HOLD):
     """Causal braking flag: from a sample whose causal ``|qdd|`` exceeds
     ``limit`` on some joint until ``hold`` seconds after the last such sample."""
@@ -903,7 +875,8 @@ def study_braking(root, labels, n_support, seed):
               random_state=seed, n_jobs=None)
     gp["batch_size"] = min(512, gp["n_support"])
     for width in COULOMB_WIDTHS:
-        phi = [SmoothCoulomb("ur10e", joint, width) for joint in range(N_JOINTS)]
+        phi = [RigidBodyRegressor("ur10e", joint=joint, coulomb_width=width)
+               for joint in range(N_JOINTS)]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             models[f"P_f, tanh(qd / {width:g})"] = make_p_f(phi, N_JOINTS, **gp).fit(

@@ -111,7 +111,8 @@ def main(argv=None):
     if args.model == "sp_p":
         features = [RigidBodyRegressor("ur10e", joint=joint, sigma_v=SIGMA_V)
                     for joint in range(N_JOINTS)]
-    regressor = make_sp_p(features, N_JOINTS, sigma_v=SIGMA_V, optimizer=None, n_jobs=2)
+    regressor = make_sp_p(features, N_JOINTS, sigma_v=SIGMA_V, optimizer=None, n_jobs=2,
+                          n_support=args.n_support)
     detector = CollisionDetector(
         regressor, n_joints=N_JOINTS, filter_cutoff=10.0, filter_order=2, min_duration=3
     )

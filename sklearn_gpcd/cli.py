@@ -365,7 +365,8 @@ def _cmd_train(args):
     trained = train_model(
         recordings, robot, args.model, inputs=args.inputs, n_support=args.n_support,
         optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed, n_jobs=n_jobs,
-        progress=lambda label, total: _Progress(label, total, enabled=not quiet))
+        progress=lambda label, total: _Progress(label, total, enabled=not quiet),
+        coulomb_width=args.coulomb_width)
     fit_seconds = time.perf_counter() - start
     save_model(trained, args.output)
     model, info = trained.regressor, trained.training
@@ -375,7 +376,10 @@ def _cmd_train(args):
              if info["step"] > 1 else ""))
     print(f"  GP support {info['n_support']} rows per joint, optimizer {model.optimizer_}, "
           f"iterations per joint {np.atleast_1d(model.n_iter_).tolist()}, "
-          f"sigma_v {info['sigma_v'] if info['sigma_v'] is not None else '-'}, seed "
+          f"sigma_v {info['sigma_v'] if info['sigma_v'] is not None else '-'}, "
+          + (f"Coulomb tanh(qd / {info['coulomb_width']:g}), "
+             if info.get("coulomb_width") is not None else "")
+          + f"seed "
           f"{info['seed']}, controller signals {', '.join(info['signals']) or 'none'}")
     lml = np.atleast_1d(model.log_marginal_likelihood_value_)
     print("  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml))
@@ -520,6 +524,10 @@ def build_parser():
     tra.add_argument("--sigma-v", type=_positive_float, default=None,
                      help="quasi-static velocity threshold [rad/s] (default 0.01 for sp_p; "
                      "p_f and sp_s use the paper's unmasked friction unless given)")
+    tra.add_argument("--coulomb-width", type=_positive_float, default=None, metavar="W",
+                     help="Coulomb friction column tanh(qd / W) [rad/s] instead of the "
+                     "paper's sign(qd), which flips on the velocity jitter of a still "
+                     "joint (p_f, sp_s, sp_p; e.g. 0.01 on a UR10e)")
     tra.add_argument("--n-support", type=_n_support_arg, default="auto",
                      help="GP support rows per joint (default auto: at most 2000)")
     tra.add_argument("--inputs", choices=INPUTS, default=INPUTS[0],

@@ -214,7 +214,8 @@ class TrainedModel:
         monitor`` compute the detector's inputs with it.
     training : dict
         ``model``, ``inputs``, ``n_support``, ``optimizer`` (asked and
-        used), ``batch_size``, ``seed``, ``sigma_v``, ``signals``, ``robot``,
+        used), ``batch_size``, ``seed``, ``sigma_v``, ``coulomb_width``,
+        ``signals``, ``robot``,
         ``recordings``, ``n_rows``, ``n_rows_used``, ``step``.
 
     Examples
@@ -234,22 +235,26 @@ class TrainedModel:
     training: dict = field(default_factory=dict)
 
 
-def _build(model, robot, n_joints, params):
+def _build(model, robot, n_joints, params, coulomb_width=None):
     from .dynamics import RigidBodyRegressor
     from .gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
     if model == "sp_c":
+        if coulomb_width is not None:
+            raise ValueError("coulomb_width is a column of the rigid-body regressor; model "
+                             "'sp_c' has none (use p_f, sp_s or sp_p)")
         return make_sp_c(n_joints, **params)
     if robot is None:
         raise ValueError(f"model {model!r} needs the robot (its rigid-body regressor)")
-    phi = [RigidBodyRegressor(robot, joint=j) for j in range(n_joints)]
+    phi = [RigidBodyRegressor(robot, joint=j, coulomb_width=coulomb_width)
+           for j in range(n_joints)]
     return {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[model](
         phi, n_joints, **params)
 
 
 def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_support="auto",
                 optimizer="auto", sigma_v=None, seed=0, n_jobs=None,
-                max_rows=MAX_TRAIN_ROWS, progress=None):
+                max_rows=MAX_TRAIN_ROWS, progress=None, coulomb_width=None):
     """Fit P_f, SP_S, SP_P or SP_C on collision-free recordings (:data:`TRAIN_RULE`).
 
     Parameters
@@ -280,6 +285,10 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         ``progress(label, total)`` returning an object with ``update(n=1)``:
         one bar for the inputs (one step per recording), one for the fit
         (one step per joint).
+    coulomb_width : float > 0 or None, default=None
+        Coulomb column ``tanh(qd / coulomb_width)`` of the rigid-body
+        regressor instead of the paper's ``sign(qd)`` (P_f, SP_S, SP_P; see
+        :class:`~sklearn_gpcd.dynamics.RigidBodyRegressor`).
 
     Returns
     -------
@@ -323,7 +332,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
                   batch_size=min(512, n_support), random_state=seed, n_jobs=n_jobs)
     if sigma_v is not None or model == "sp_p":
         params["sigma_v"] = 1e-2 if sigma_v is None else sigma_v
-    regressor = _build(model, robot, n, params)
+    regressor = _build(model, robot, n, params, coulomb_width)
     bar = _bar(progress, f"fitting {model.upper()} ({n} joints)", n)
     with (_count_fitted_outputs(bar) if progress is not None else contextlib.nullcontext()):
         regressor.fit(data.X, data.y)
@@ -331,7 +340,8 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "model": model, "inputs": data.inputs, "n_support": int(n_support),
         "optimizer": optimizer, "optimizer_used": str(regressor.optimizer_),
         "batch_size": int(params["batch_size"]), "seed": seed,
-        "sigma_v": params.get("sigma_v"), "signals": list(data.features.signals_),
+        "sigma_v": params.get("sigma_v"), "coulomb_width": coulomb_width,
+        "signals": list(data.features.signals_),
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
     }

@@ -308,6 +308,30 @@ def test_train_inputs_optimizer_and_seed_options(sims, tmp_path, capsys):
                                   causal.regressor.predict(X_causal))
 
 
+def test_train_coulomb_width_reaches_every_joint_and_is_recorded(sims, tmp_path, capsys):
+    from sklearn_gpcd.workflow import load_model
+
+    out = tmp_path / "pf.joblib"
+    assert main(["train", str(sims["rtde"]), "--model", "p_f", "--coulomb-width", "0.02",
+                 "--n-support", "50", "-q", "-o", str(out)]) == 0
+    assert "Coulomb tanh(qd / 0.02)" in capsys.readouterr().out
+    trained = load_model(out)
+    assert trained.training["coulomb_width"] == 0.02
+    assert [mean.features.coulomb_width for mean in trained.regressor.mean] == [0.02] * 6
+    sign = main(["train", str(sims["rtde"]), "--model", "p_f", "--n-support", "50", "-q",
+                 "-o", str(tmp_path / "sign.joblib")])
+    assert sign == 0 and load_model(tmp_path / "sign.joblib").training["coulomb_width"] is None
+    X = trained.features.transform(load_recording(sims["rtde"]))
+    assert not np.array_equal(trained.regressor.predict(X),
+                              load_model(tmp_path / "sign.joblib").regressor.predict(X))
+    for args, message in ((["--model", "p_f", "--coulomb-width", "0"], "expected a number > 0"),
+                          (["--model", "sp_c", "--coulomb-width", "0.01"], "has none")):
+        capsys.readouterr()
+        assert main(["train", str(sims["rtde"]), *args, "-q",
+                     "-o", str(tmp_path / "bad.joblib")]) == 2
+        assert message in capsys.readouterr().err
+
+
 def test_train_sp_c_needs_the_target_current(sims, tmp_path, capsys):
     rec = load_recording(sims["rtde"]).replace(target_current=None)
     path = write_rtde_csv(rec, tmp_path / "no_ic.csv", robot_comment=True)

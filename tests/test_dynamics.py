@@ -151,6 +151,29 @@ def test_sigma_v_zeroes_friction_columns_only(rng):
     np.testing.assert_array_equal(A[:, names == "coulomb_2"].ravel(), np.sign(qd[:, 2]))
 
 
+def test_coulomb_width_smooths_the_coulomb_column_only(rng):
+    """tanh(qd / w) replaces sign(qd): equal far from rest, no jump on jitter."""
+    q, qd, qdd = random_states(rng, 200)
+    qd[::3] *= 1e-4  # velocity jitter of a still joint
+    X = np.hstack([q, qd, qdd])
+    sign = RigidBodyRegressor("ur10", joint=2).fit(X)
+    smooth = RigidBodyRegressor("ur10", joint=2, coulomb_width=0.01).fit(X)
+    names = smooth.get_feature_names_out()
+    assert np.array_equal(names, sign.get_feature_names_out())
+    A, B = sign.transform(X), smooth.transform(X)
+    coulomb = names == "coulomb_2"
+    np.testing.assert_array_equal(A[:, ~coulomb], B[:, ~coulomb])
+    np.testing.assert_allclose(B[:, coulomb].ravel(), np.tanh(qd[:, 2] / 0.01), rtol=1e-15)
+    jitter = np.abs(qd[:, 2]) < 1e-3
+    fast = np.abs(qd[:, 2]) > 0.2
+    assert jitter.any() and fast.any()
+    assert np.abs(B[jitter][:, coulomb]).max() < 0.1  # the sign is +-1 there
+    np.testing.assert_allclose(B[fast][:, coulomb], A[fast][:, coulomb], atol=1e-15)
+    # the velocity gate (Eq. 17) still zeroes it at rest
+    gated = RigidBodyRegressor("ur10", joint=2, coulomb_width=0.01, sigma_v=0.01).fit(X)
+    np.testing.assert_array_equal(gated.transform(X)[jitter][:, coulomb], 0.0)
+
+
 def test_currents_divides_by_torque_constants(rng):
     X = np.hstack(random_states(rng, 30))
     robot = load_robot("ur10e", torque_constants=[10, 11, 12, 13, 14, 15])
@@ -302,6 +325,9 @@ def test_nan_is_named(rng):
         ({"joint": 1.5}, TypeError, "joint"),
         ({"sigma_v": -0.1}, ValueError, "sigma_v"),
         ({"rank_tol": 0.0}, ValueError, "rank_tol"),
+        ({"coulomb_width": 0.0}, ValueError, "coulomb_width"),
+        ({"coulomb_width": np.inf}, ValueError, "coulomb_width"),
+        ({"coulomb_width": True}, ValueError, "coulomb_width"),
         ({"robot": "ur99"}, ValueError, "ur99"),
         ({"robot": 3}, TypeError, "robot"),
     ],
@@ -355,6 +381,7 @@ def test_joint_selection_and_batch_cache_give_the_same_rows(rng, monkeypatch):
     {"offset": True, "sigma_v": 0.01},
     {"rotor_inertia": False, "friction": ("viscous",)},
     {"rotor_inertia": False, "friction": (), "offset": True},
+    {"coulomb_width": 0.01, "sigma_v": 0.001},
 ])
 def test_sample_regressor_equals_the_batch_one_in_place_too(options, rng):
     """One state at a time, into a fresh array or over the previous result."""

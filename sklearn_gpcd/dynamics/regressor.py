@@ -194,19 +194,31 @@ def _diagonal_block(values, rows=None):
     return block
 
 
-def friction_features(qd, term, sigma_v=None):
+def friction_features(qd, term, sigma_v=None, coulomb_width=None):
     """Per-joint friction regressors, gated by the velocity threshold.
 
-    Coulomb: :math:`\\mathrm{sign}(\\dot q_l)`; viscous: :math:`\\dot q_l`.
-    With ``sigma_v`` set they are zeroed where :math:`|\\dot q_l| < \\sigma_v`
-    (the paper's :math:`\\bar\\phi`, Eq. 17), because friction at rest is not
-    a function of velocity.
+    Coulomb: :math:`\\mathrm{sign}(\\dot q_l)` (the paper's Eq. 9), or with
+    ``coulomb_width`` :math:`w` the smooth law :math:`\\tanh(\\dot q_l / w)`;
+    viscous: :math:`\\dot q_l`. With ``sigma_v`` set they are zeroed where
+    :math:`|\\dot q_l| < \\sigma_v` (the paper's :math:`\\bar\\phi`, Eq. 17),
+    because friction at rest is not a function of velocity.
+
+    The smooth law is ours, not the paper's. A logged velocity is never
+    exactly zero: a still UR10e joint reads about :math:`\\pm 10^{-4}` rad/s,
+    and the sign column then flips by the whole Coulomb level from one
+    sample to the next (about 1.2 A predicted on joint 2 while the measured
+    current stays flat). :math:`\\tanh(\\dot q / w)` turns over within
+    :math:`|\\dot q| \\lesssim w` and equals the sign to within
+    :math:`2 e^{-2 |\\dot q| / w}` beyond.
 
     Parameters
     ----------
     qd : ndarray of shape (n_samples, n_joints)
     term : {"coulomb", "viscous"}
     sigma_v : float, default=None
+    coulomb_width : float > 0, default=None
+        Velocity scale :math:`w` [rad/s] of the smooth Coulomb law; ``None``
+        is the sign.
 
     Returns
     -------
@@ -217,15 +229,22 @@ def friction_features(qd, term, sigma_v=None):
     >>> import numpy as np
     >>> friction_features(np.array([[0.001, -0.5]]), "coulomb", sigma_v=0.01).tolist()
     [[0.0, -1.0]]
+    >>> friction_features(np.array([[1e-4, -0.5]]), "coulomb", coulomb_width=0.01).round(3)
+    array([[ 0.01, -1.  ]])
     """
-    values = np.sign(qd) if term == "coulomb" else np.array(qd, dtype=float)
+    if term != "coulomb":
+        values = np.array(qd, dtype=float)
+    elif coulomb_width is None:
+        values = np.sign(qd)
+    else:
+        values = np.tanh(np.asarray(qd, dtype=float) / coulomb_width)
     if sigma_v is not None:
         values = np.where(quasi_static(np.asarray(qd), sigma_v), 0.0, values)
     return values
 
 
 def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERMS,
-                   offset=False, sigma_v=None, joints=None):
+                   offset=False, sigma_v=None, joints=None, coulomb_width=None):
     """Regressor of the full parameter vector for a batch of states.
 
     Parameters
@@ -241,6 +260,9 @@ def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERM
         Velocity threshold of the friction gate (Eq. 17).
     joints : int or sequence of int, default=None
         Keep only the regressor rows of these joints (all by default).
+    coulomb_width : float > 0, default=None
+        Coulomb column :math:`\\tanh(\\dot q_l / w)` instead of the sign
+        (see :func:`friction_features`).
 
     Returns
     -------
@@ -263,16 +285,17 @@ def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERM
     qdd, _ = as_joint_batch(qdd, n, "qdd")
     rows = np.arange(n) if joints is None else np.atleast_1d(np.asarray(joints, dtype=int))
     return _assemble(_joint_torque_rows(robot.model, q, qd, qdd, rows), qd, qdd, rows,
-                     rotor_inertia, friction, offset, sigma_v)
+                     rotor_inertia, friction, offset, sigma_v, coulomb_width)
 
 
-def _assemble(torque_rows, qd, qdd, rows, rotor_inertia, friction, offset, sigma_v):
+def _assemble(torque_rows, qd, qdd, rows, rotor_inertia, friction, offset, sigma_v,
+              coulomb_width=None):
     """The blocks of :func:`full_regressor` after pinocchio's rows ``torque_rows``."""
     blocks = [torque_rows]
     if rotor_inertia:
         blocks.append(_diagonal_block(qdd, rows))
     for term in check_friction(friction):
-        blocks.append(_diagonal_block(friction_features(qd, term, sigma_v), rows))
+        blocks.append(_diagonal_block(friction_features(qd, term, sigma_v, coulomb_width), rows))
     if offset:
         blocks.append(_diagonal_block(np.ones_like(qd), rows))
     return np.concatenate(blocks, axis=2)
@@ -339,7 +362,7 @@ class SampleRegressor:
     Parameters
     ----------
     robot : Robot or str
-    rotor_inertia, friction, offset, sigma_v
+    rotor_inertia, friction, offset, sigma_v, coulomb_width
         As in :func:`full_regressor`.
 
     Examples
@@ -354,10 +377,10 @@ class SampleRegressor:
     """
 
     def __init__(self, robot, rotor_inertia=True, friction=FRICTION_TERMS, offset=False,
-                 sigma_v=None):
+                 sigma_v=None, coulomb_width=None):
         self.robot = resolve_robot(robot)
         self.options = (bool(rotor_inertia), tuple(check_friction(friction)), bool(offset),
-                        sigma_v)
+                        sigma_v, coulomb_width)
         self._data = self.robot.model.createData()
         n = self.robot.n_joints
         self._rows = np.arange(n)
@@ -374,7 +397,7 @@ class SampleRegressor:
 
         ``out``, an earlier result of this call, is overwritten and returned.
         """
-        rotor_inertia, friction, offset, sigma_v = self.options
+        rotor_inertia, friction, offset, sigma_v, coulomb_width = self.options
         Y = pin.computeJointTorqueRegressor(self.robot.model, self._data, q, qd, qdd)
         if out is None:
             out = np.zeros((len(self._rows), self.n_parameters))
@@ -384,5 +407,6 @@ class SampleRegressor:
         if rotor_inertia:
             np.put(out, self._diagonal(0), qdd)
         for block, term in enumerate(friction, start=int(rotor_inertia)):
-            np.put(out, self._diagonal(block), friction_features(qd, term, sigma_v))
+            np.put(out, self._diagonal(block),
+                   friction_features(qd, term, sigma_v, coulomb_width))
         return out

@@ -2,6 +2,7 @@
 
 import hashlib
 from collections import OrderedDict
+from numbers import Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
@@ -128,6 +129,12 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     friction : tuple of str or None, default=("coulomb", "viscous")
         Friction columns per joint: Coulomb :math:`\\mathrm{sign}(\\dot q_l)`
         and/or viscous :math:`\\dot q_l` (always in that order).
+    coulomb_width : float > 0, default=None
+        Smooth Coulomb column :math:`\\tanh(\\dot q_l / w)` with this
+        velocity scale :math:`w` [rad/s] instead of the sign (ours, not the
+        paper's: a still joint's logged velocity jitters around zero and
+        flips the sign; see
+        :func:`~sklearn_gpcd.dynamics.regressor.friction_features`).
     rotor_inertia : bool, default=True
         Add a :math:`\\ddot q_l` column per joint (reflected rotor inertia,
         Eq. 4). pinocchio's regressor lacks this term, ``rnea`` includes it.
@@ -196,10 +203,11 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
 
     def __init__(self, robot="ur10", joint=None, friction=FRICTION_TERMS, rotor_inertia=True,
                  offset=False, base_parameters=True, rank_tol=None, sigma_v=None,
-                 currents=False, random_state=0):
+                 currents=False, random_state=0, coulomb_width=None):
         self.robot = robot
         self.joint = joint
         self.friction = friction
+        self.coulomb_width = coulomb_width
         self.rotor_inertia = rotor_inertia
         self.offset = offset
         self.base_parameters = base_parameters
@@ -217,6 +225,13 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
             if not 0 <= self.joint < n:
                 raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
         check_sigma_v(self.sigma_v, type(self).__name__, allow_none=True)
+        width = self.coulomb_width
+        if width is not None and (isinstance(width, bool) or not isinstance(width, Real)
+                                  or not (np.isfinite(width) and width > 0)):
+            raise ValueError(
+                f"{type(self).__name__}: coulomb_width must be a finite velocity scale > 0 "
+                f"[rad/s] or None (the sign), got {width!r}"
+            )
         if self.rank_tol is not None and not (np.isfinite(self.rank_tol) and self.rank_tol > 0):
             raise ValueError(f"rank_tol must be a positive number or None, got {self.rank_tol!r}")
         if self.currents and robot.torque_constants is None:
@@ -241,7 +256,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     def _regressor(self, q, qd, qdd, sigma_v, joints=None):
         return full_regressor(self.robot_, q, qd, qdd, rotor_inertia=self.rotor_inertia,
                               friction=self.friction_, offset=self.offset, sigma_v=sigma_v,
-                              joints=joints)
+                              joints=joints, coulomb_width=self.coulomb_width)
 
     # ---------------------------------------------------------------- API
     def fit(self, X, y=None):
@@ -268,7 +283,8 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         p = len(self.parameter_names_)
 
         n_states = max(_MIN_IDENTIFICATION_STATES, -(-3 * p // n))
-        options = (bool(self.rotor_inertia), self.friction_, bool(self.offset))
+        options = (bool(self.rotor_inertia), self.friction_, bool(self.offset),
+                   self.coulomb_width)
         Phi, info = _identification(self.robot_, p, self._regressor, n_states,
                                     self.random_state, self.base_parameters, self.rank_tol,
                                     options)
@@ -347,7 +363,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         if self.currents:
             scale = 1.0 / np.asarray(self.robot_.torque_constants, dtype=float)[rows]
         options = (bool(self.rotor_inertia), tuple(self.friction_), bool(self.offset),
-                   self.sigma_v)
+                   self.sigma_v, self.coulomb_width)
         return Bunch(
             full=SampleRegressor(self.robot_, *options),
             key=(_robot_key(self.robot_),) + options,
