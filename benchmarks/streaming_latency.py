@@ -178,6 +178,10 @@ def main(argv=None):
     for label, value in (("wall", wall_p99), ("cpu", cpu_p99)):
         verdict = "met" if value < 250 else "NOT met"
         print(f"target p99 < 250 us ({label}): {verdict} (p99 = {value:.1f} us)")
+    ratio = wall_p99 / peer_p50
+    print(f"issue 17 bar, update p99 <= 0.5 x peer p50 (wall): "
+          f"{'met' if ratio <= 0.5 else 'NOT met'} ({wall_p99:.1f} / {peer_p50:.1f} us = "
+          f"{ratio:.2f})")
 
 
 if __name__ == "__main__":

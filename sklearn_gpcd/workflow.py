@@ -33,12 +33,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "OPTIMIZERS", "TRAIN_RULE",
-           "TrainedModel", "TrainingSet", "load_model", "save_model", "train_model",
-           "training_rows", "training_set"]
+__all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", "OPTIMIZERS",
+           "TRAIN_RULE", "TrainedModel", "TrainingSet", "load_model", "save_model",
+           "train_model", "training_rows", "training_set"]
 
 #: Estimators :func:`train_model` builds (``gpcd train --model``).
 MODELS = ("sp_p", "sp_s", "p_f", "sp_c")
+#: Controller signals each model's inputs use (``CausalFeatures(signals=...)``):
+#: SP_P (the augmented inputs of Eq. 13) and SP_C (the target current) use
+#: every one the training recordings log; P_f and SP_S read only
+#: ``[q, qd, qdd]``, so their model files do not require the controller's
+#: signals of the recordings they monitor.
+MODEL_SIGNALS = {"sp_p": "auto", "sp_s": (), "p_f": (), "sp_c": "auto"}
 #: Training inputs (``gpcd train --inputs``); the first is the default.
 INPUTS = ("causal", "zero-phase")
 #: Hyperparameter optimizers (``gpcd train --optimizer``), see
@@ -133,7 +139,7 @@ class TrainingSet:
 
 
 def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
-                 allow_missing=False, progress=None):
+                 allow_missing=False, progress=None, signals="auto"):
     """Inputs and currents of ``recordings`` for :func:`train_model`.
 
     Parameters
@@ -152,6 +158,9 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     progress : callable or None, default=None
         ``progress(label, total)`` returning an object with ``update()``,
         called once per recording.
+    signals : "auto" or tuple of str, default="auto"
+        Passed to :class:`~sklearn_gpcd.features.CausalFeatures`: the
+        controller signals the inputs use (and later require).
 
     Returns
     -------
@@ -175,7 +184,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     recordings = recordings if isinstance(recordings, list) else list(recordings)
     if not recordings:
         raise ValueError("no training recordings")
-    features = CausalFeatures(allow_missing=allow_missing).fit(recordings)
+    features = CausalFeatures(allow_missing=allow_missing, signals=signals).fit(recordings)
     names = [rec.name for rec in recordings]
     has_ic = all(rec.target_current is not None for rec in recordings)
     n_rows = sum(rec.n_samples for rec in recordings)
@@ -322,7 +331,8 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
                                             if r.target_current is None]):
             raise ValueError(f"model sp_c needs the target current; {lacking[0]} does not "
                              "log it")
-        data = training_set(recordings, inputs, max_rows=max_rows, progress=progress)
+        data = training_set(recordings, inputs, max_rows=max_rows, progress=progress,
+                            signals=MODEL_SIGNALS[model])
     elif model == "sp_c" and not data.has_target_current:
         raise ValueError("model sp_c needs the target current; the training recordings do "
                          "not all log it")

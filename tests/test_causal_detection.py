@@ -81,6 +81,51 @@ def test_missing_controller_signal_is_an_error_unless_allowed():
         features.online().step(0.0, [0, 0], [0, 0])
 
 
+def test_signals_choose_which_controller_signals_are_used_and_required():
+    trained = _recording(target_current=np.ones((400, 2)), target_q=np.zeros((400, 2)))
+    bare = _recording(seed=1)
+    none = CausalFeatures(signals=()).fit(trained)
+    assert none.signals_ == ()
+    assert none.missing_signals_ == ("target_q", "target_qd", "target_current")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing missing: no MissingSignalWarning
+        X = none.transform(bare)
+        state = none.online()
+        rows = np.array([state.step(bare.time[k], bare.q[k], bare.qd[k]).copy()
+                         for k in range(bare.n_samples)])
+    assert not X[:, 6:].any()  # e_q, de_q and i_c: unused, zero
+    np.testing.assert_array_equal(rows, X)
+    # the state columns [q, qd, qdd] do not depend on the choice
+    np.testing.assert_array_equal(none.transform(trained)[:, :6],
+                                  CausalFeatures().fit(trained).transform(trained)[:, :6])
+    one = CausalFeatures(signals=["target_current"]).fit(trained)
+    assert one.signals_ == ("target_current",) and CausalFeatures().fit(trained).signals_ == (
+        "target_q", "target_current")
+    with pytest.raises(ValueError, match="does not log target_current"):
+        one.transform(bare)
+    with pytest.raises(ValueError, match="recording index 1 does not log it"):
+        CausalFeatures(signals=("target_current",)).fit([trained, bare])
+    for bad in ("all", ("target_current", "target_current"), ("i_des",), 3):
+        with pytest.raises(ValueError, match="signals must be 'auto' or a tuple"):
+            CausalFeatures(signals=bad).fit(trained)
+    with pytest.raises(ValueError, match="needs augmented=True"):
+        CausalFeatures(signals=("target_q",), augmented=False).fit(trained)
+
+
+def test_features_saved_before_the_signals_parameter_load_as_auto():
+    import pickle
+
+    trained = _recording(target_current=np.ones((400, 2)))
+    features = CausalFeatures().fit(trained)
+    old = features.__getstate__()
+    del old["signals"]  # what a file written before the parameter holds
+    loaded = CausalFeatures.__new__(CausalFeatures)
+    loaded.__setstate__(old)
+    assert loaded.get_params()["signals"] == "auto" and loaded.signals_ == ("target_current",)
+    again = pickle.loads(pickle.dumps(loaded))
+    np.testing.assert_array_equal(again.transform(trained), features.transform(trained))
+
+
 def test_time_must_advance_in_the_online_state():
     state = CausalFeatures(augmented=False).online(n_joints=1)
     state.step(1.0, [0.0], [0.0])

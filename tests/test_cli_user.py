@@ -265,10 +265,15 @@ def test_train_p_f_with_robot_from_metadata(sims, tmp_path, capsys):
     X = trained.features.transform(load_recording(sims["rtde"]))
     assert model.predict(X).shape == rec.current.shape
     assert len(model.support_indices_[0]) == 2000 < len(X)
+    # P_f reads only [q, qd, qdd]: its file requires none of the controller's signals
     assert {k: trained.training[k] for k in ("model", "inputs", "n_support", "optimizer",
                                              "seed", "robot", "signals")} == {
         "model": "p_f", "inputs": "causal", "n_support": 2000, "optimizer": "auto",
-        "seed": 0, "robot": "ur10e", "signals": ["target_q", "target_qd", "target_current"]}
+        "seed": 0, "robot": "ur10e", "signals": []}
+    bare = load_recording(sims["rtde"]).replace(target_q=None, target_qd=None,
+                                                target_current=None)
+    np.testing.assert_array_equal(model.predict(trained.features.transform(bare)),
+                                  model.predict(X))
 
 
 def test_train_inputs_optimizer_and_seed_options(sims, tmp_path, capsys):

@@ -205,13 +205,16 @@ class CausalFeatures(_RecordingFeatures):
     same state over each recording, so batch == streaming, row for row.
 
     **Missing signals.** ``fit`` records which controller signals
-    (``target_q``, ``target_qd``, ``target_current``) every training
-    recording logs (``signals_``). ``transform`` then requires them: a
-    recording without one raises ``ValueError`` (a model trained with the
-    controller current and silently fed zeros misses collisions), unless
-    ``allow_missing=True``, which fills zeros and warns
-    (:class:`MissingSignalWarning`). Signals absent from some training
-    recording are zero everywhere (``missing_signals_``).
+    (``target_q``, ``target_qd``, ``target_current``) the inputs use
+    (``signals_``): with ``signals="auto"`` every one that all training
+    recordings log. ``transform`` then requires them: a recording without
+    one raises ``ValueError`` (a model trained with the controller current
+    and silently fed zeros misses collisions), unless ``allow_missing=True``,
+    which fills zeros and warns (:class:`MissingSignalWarning`). The signals
+    not used are zero everywhere (``missing_signals_``). A model that reads
+    none of their columns (P_f and SP_S read only :math:`[q, \\dot q,
+    \\ddot q]`) should not require them: ``signals=()`` keeps their columns
+    zero and accepts recordings that do not log them.
 
     Parameters
     ----------
@@ -226,16 +229,21 @@ default="target-minus-actual"
     allow_missing : bool, default=False
         Fill controller signals missing at transform time with zeros (with a
         warning) instead of raising.
+    signals : "auto" or tuple of str, default="auto"
+        Controller signals the inputs use: "auto", every one logged by all
+        training recordings; or some of ``"target_q"``, ``"target_qd"``,
+        ``"target_current"`` (each must be logged by every training
+        recording; ``()`` uses none).
 
     Attributes
     ----------
     n_joints_ : int
         Number of joints seen in ``fit``.
     signals_ : tuple of str
-        Controller signals logged by every training recording, hence used.
+        Controller signals used (and then required by ``transform``).
     missing_signals_ : tuple of str
-        Controller signals absent from at least one training recording
-        (their columns are zero).
+        Controller signals not used, absent from some training recording or
+        left out by ``signals`` (their columns are zero).
 
     See Also
     --------
@@ -261,14 +269,21 @@ default="target-minus-actual"
     ...                             target_current=q[k]).copy() for k in range(100)])
     >>> bool(np.array_equal(rows, X))              # batch == streaming
     True
+    >>> CausalFeatures(signals=()).fit(rec).missing_signals_   # e.g. for P_f
+    ('target_q', 'target_qd', 'target_current')
     """
 
     def __init__(self, augmented=True, acceleration_cutoff=5.0,
-                 sign="target-minus-actual", allow_missing=False):
+                 sign="target-minus-actual", allow_missing=False, signals="auto"):
         self.augmented = augmented
         self.acceleration_cutoff = acceleration_cutoff
         self.sign = sign
         self.allow_missing = allow_missing
+        self.signals = signals
+
+    def __setstate__(self, state):
+        state.setdefault("signals", "auto")  # files written before the parameter
+        super().__setstate__(state)
 
     def _check_params(self):
         self._check_common()
@@ -277,6 +292,24 @@ default="target-minus-actual"
             raise ValueError(f"acceleration_cutoff must be a positive number (Hz), got {cutoff!r}")
         if not isinstance(self.allow_missing, (bool, np.bool_)):
             raise ValueError(f"allow_missing must be a bool, got {self.allow_missing!r}")
+        return self._requested_signals()
+
+    def _requested_signals(self):
+        """``signals`` checked: "auto", or a tuple of known names without repeats."""
+        signals = self.signals
+        if isinstance(signals, str) and signals == "auto":
+            return signals
+        names = tuple(signals) if isinstance(signals, (tuple, list)) else None
+        if names is None or not set(names) <= set(_AUGMENTED_SIGNALS) or (
+                len(set(names)) < len(names)):
+            raise ValueError(
+                f"signals must be 'auto' or a tuple of distinct names among "
+                f"{_AUGMENTED_SIGNALS}, got {signals!r}"
+            )
+        if names and not self.augmented:
+            raise ValueError(f"signals={signals!r} needs augmented=True (the inputs x have "
+                             "no controller columns)")
+        return names
 
     def fit(self, recordings, y=None):
         """Check the parameters; record the joint count and the signals logged.
@@ -292,13 +325,23 @@ default="target-minus-actual"
         -------
         self : CausalFeatures
         """
-        self._check_params()
+        requested = self._check_params()
         recordings = _as_recordings(recordings)
         self.n_joints_ = _check_joint_counts(recordings)
         present = [
             s for s in _AUGMENTED_SIGNALS
             if self.augmented and all(getattr(r, s) is not None for r in recordings)
         ]
+        if requested != "auto":
+            for name in requested:
+                lacking = next((i for i, r in enumerate(recordings)
+                                if getattr(r, name) is None), None)
+                if lacking is not None:
+                    raise ValueError(
+                        f"signals asks for {name}, but training recording "
+                        f"{_label(recordings[lacking], lacking)} does not log it"
+                    )
+            present = [s for s in _AUGMENTED_SIGNALS if s in requested]
         self.signals_ = tuple(present)
         self.missing_signals_ = tuple(
             s for s in _AUGMENTED_SIGNALS if self.augmented and s not in present
