@@ -12,10 +12,9 @@ p99, max), how far the decisions fall behind the stream's clock (packages
 waiting in the socket buffer included), dropped samples (gaps in the
 controller time stamps) and whether
 the alarm events equal ``gpcd monitor DETECTOR FILE`` on the same recording.
-The detector is made by the CLI too: ``gpcd train --model sp_c`` (the model
-whose single-sample prediction is compiled; ``--model sp_p`` shows the
-rigid-body mean's per-tick cost) and ``gpcd calibrate`` on collision-free
-500 Hz runs.
+The detector is made by the CLI too: ``gpcd train --model sp_c`` (or
+``--model sp_p``, which adds the rigid-body mean's per-tick pinocchio call)
+and ``gpcd calibrate`` on collision-free 500 Hz runs.
 
 Run::
 
