@@ -113,6 +113,11 @@ def add_commands(sub):
                      "chosen without it")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
+    cal.add_argument("--split", type=cli._positive_float, default=None, metavar="SECONDS",
+                     help="cut every recording into pieces of at least SECONDS, each left "
+                     "out in turn like a recording of its own (for one long collision-free "
+                     "log; pieces of one log are less independent than separate runs, so "
+                     "the margin and the false-alarm figure are less safe)")
     cal.add_argument("-o", "--output", type=cli._model_file_arg, required=True,
                      help="detector file to write (.skops, or .joblib / .pkl)")
     cal.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
@@ -203,9 +208,10 @@ def _cmd_calibrate(args):
     if (twice := sorted({str(p) for p in paths if paths.count(p) > 1})):
         raise ValueError(f"{twice[0]} is given twice; a left-out recording must not stay in "
                          "the others (check overlapping patterns)")
-    if len(paths) < 2:  # before any work
+    if len(paths) < 2 and args.split is None:  # before any work
         raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
-                         f"give at least 2 collision-free recordings, got {len(paths)}")
+                         f"give at least 2 collision-free recordings, got {len(paths)} "
+                         "(or cut a long one into pieces with --split SECONDS)")
     if args.select and (args.no_regimes or args.rest_reference is not None):
         raise ValueError("--select chooses the settle time and the rest reference of the "
                          "regimes: drop " + ("--no-regimes" if args.no_regimes
@@ -222,6 +228,9 @@ def _cmd_calibrate(args):
         features = CausalFeatures().fit(recordings)
     _check_model_inputs(model, features, args.model)
     keys = _recording_keys(recordings)
+    n_files = len(recordings)
+    if args.split is not None:
+        keys, recordings = split_recordings(keys, recordings, args.split)
     bar = _Progress("causal inputs", len(recordings), enabled=not args.quiet)
     blocks, times = {}, {}
     for key, rec in zip(keys, recordings):
@@ -238,7 +247,8 @@ def _cmd_calibrate(args):
     det = result.detector
     thresholds = np.atleast_2d(det.thresholds_)
     summary = {
-        "recordings": keys, "hours": result.hours, "margin": float(result.margin.max()),
+        "recordings": keys, "split_s": args.split, "n_files": n_files,
+        "hours": result.hours, "margin": float(result.margin.max()),
         "margin_rule": "global", "regimes": list(result.regime_names),
         "settle_time_s": det.settle_time, "rest_reference_s": det.rest_reference,
         "selected": bool(args.select),
@@ -262,6 +272,62 @@ def _cmd_calibrate(args):
     return 0
 
 
+def split_recordings(keys, recordings, seconds):
+    """Each recording cut into pieces of at least ``seconds``, keyed ``"name#i"``.
+
+    A recording shorter than ``2 * seconds`` stays whole. The pieces of a
+    recording have about equal numbers of samples (``floor(duration / seconds)``
+    of them); filters and debounce restart at each piece, as at the start of
+    a recording.
+
+    Parameters
+    ----------
+    keys : list of str
+        Names of the recordings.
+    recordings : list of Recording
+    seconds : float
+        Shortest piece [s].
+
+    Returns
+    -------
+    keys, pieces : list of str, list of Recording
+
+    Raises
+    ------
+    ValueError
+        When the pieces are fewer than 2.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> rec = Recording(time=np.arange(1000) * 0.01, q=np.zeros((1000, 1)),
+    ...                 qd=np.zeros((1000, 1)), current=np.zeros((1000, 1)))
+    >>> keys, pieces = split_recordings(["free.csv"], [rec], 3.0)
+    >>> keys, [p.n_samples for p in pieces]
+    (['free.csv#1', 'free.csv#2', 'free.csv#3'], [333, 334, 333])
+    """
+    import numpy as np
+
+    out_keys, pieces = [], []
+    for key, rec in zip(keys, recordings):
+        n_pieces = int(rec.duration // seconds) if rec.duration >= 2 * seconds else 1
+        if n_pieces == 1:
+            out_keys.append(key)
+            pieces.append(rec)
+            continue
+        bounds = np.linspace(0, rec.n_samples, n_pieces + 1).round().astype(int)
+        for i, (start, stop) in enumerate(zip(bounds[:-1], bounds[1:]), start=1):
+            out_keys.append(f"{key}#{i}")
+            pieces.append(rec.slice(start, stop))
+    if len(pieces) < 2:
+        longest = max(rec.duration for rec in recordings)
+        raise ValueError(f"--split {seconds:g} leaves {len(pieces)} piece: the longest "
+                         f"recording lasts {longest:.1f} s; use a split of at most "
+                         f"{longest / 2:.1f} s")
+    return out_keys, pieces
+
+
 def _json_params(params):
     """Candidate settings with JSON keys: ``settle_time`` -> ``settle_time_s``."""
     return {f"{k}_s" if k in ("settle_time", "rest_reference") else k: v
@@ -274,6 +340,10 @@ def _seconds(value):
 
 def _print_calibration(summary, n_recordings):
     n = len(summary["thresholds_A"][0])
+    if summary.get("split_s") is not None:
+        print(f"cut {summary['n_files']} recording(s) into {n_recordings} pieces of at least "
+              f"{summary['split_s']:g} s (--split), each left out in turn like a recording; "
+              "pieces of one log are less independent than separate runs")
     print(f"calibrated on {n_recordings} collision-free recording(s), "
           f"{summary['hours'] * 60:.1f} min, sample time {summary['sample_time_s']:g} s, "
           f"controller signals used: {', '.join(summary['signals']) or 'none'}; settle "

@@ -109,7 +109,38 @@ def test_calibrate_needs_two_recordings(work, capsys):
     assert main(["calibrate", str(work["model"]), str(work["free"][0]),
                  "-o", str(work["folder"] / "one.skops")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "at least 2" in err[0]
+    assert len(err) == 1 and "at least 2" in err[0] and "--split" in err[0]
+
+
+def test_calibrate_split_cuts_one_long_log_into_left_out_pieces(work, capsys):
+    """--split: one recording, cut into pieces that leave-one-recording-out treats as
+    recordings; the same thresholds as calibrate_across_recordings on those pieces."""
+    from sklearn_gpcd.cli_monitor import split_recordings
+
+    rec = load_recording(work["free"][2])
+    out = work["folder"] / "split.skops"
+    seconds = rec.duration / 3.5  # three pieces
+    assert main(["calibrate", str(work["model"]), str(work["free"][2]), "--split",
+                 f"{seconds}", "-q", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "cut 1 recording(s) into 3 pieces" in text
+    detector, features, calibration = load_detector(out)
+    keys, pieces = split_recordings([work["free"][2].name], [rec], seconds)
+    assert calibration["recordings"] == keys == [f"free2.csv#{i}" for i in (1, 2, 3)]
+    assert sum(p.n_samples for p in pieces) == rec.n_samples
+    np.testing.assert_array_equal(np.concatenate([p.time for p in pieces]), rec.time)
+    trained = load_model(work["model"])
+    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
+                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    expected = calibrate_across_recordings(
+        template, {k: stack_currents(features.transform(p), p.current)
+                   for k, p in zip(keys, pieces)},
+        {k: p.time for k, p in zip(keys, pieces)})
+    np.testing.assert_allclose(detector.thresholds_, expected.detector.thresholds_)
+    # too coarse a split leaves one piece: an error that says what would work
+    assert main(["calibrate", str(work["model"]), str(work["free"][2]), "--split",
+                 f"{rec.duration}", "-o", str(work["folder"] / "one.skops")]) == 2
+    assert "leaves 1 piece" in capsys.readouterr().err
 
 
 def test_calibrate_refuses_a_recording_given_twice(work, capsys):
