@@ -37,3 +37,23 @@ def assert_raw_stream_equals_batch(detector, features, recording):
     np.testing.assert_allclose(out.signal, batch.signal, rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(out.regime, batch.regime)
     return out
+
+
+def simulated_interaction():
+    """A simulated UR10 interaction test (pushes at rest) and a collision-free D2 run."""
+    from sklearn_gpcd import datasets
+
+    rec = datasets.make_interaction_test("ur10", n_turns=0.2, rest_duration=8.0, random_state=0)
+    free = datasets.make_d2("ur10", n_targets=2, n_turns=0.3, random_state=1)
+    return rec, free
+
+
+def controller_detector():
+    """The controller's current as the model, per-joint regime thresholds, rest
+    reference: a detector that calibrates in milliseconds on simulated runs."""
+    from sklearn_gpcd.detection import CollisionDetector
+    from sklearn_gpcd.dynamics import ControllerCurrent
+
+    return CollisionDetector(ControllerCurrent(6), n_joints=6, threshold="per_joint",
+                             false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
+                             sample_time="auto", regimes=True, rest_reference=5.0)

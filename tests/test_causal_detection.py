@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from sklearn.linear_model import LinearRegression
 
-from sklearn_gpcd import datasets
 from sklearn_gpcd.detection import (
     REGIME_NAMES,
     CollisionDetector,
@@ -25,7 +24,11 @@ from sklearn_gpcd.features import CausalFeatures, MissingSignalWarning
 from sklearn_gpcd.gp import make_sp_c
 from sklearn_gpcd.io import Recording
 
-from _synthetic import assert_raw_stream_equals_batch
+from _synthetic import (
+    assert_raw_stream_equals_batch,
+    controller_detector,
+    simulated_interaction,
+)
 
 
 def _recording(n=400, n_joints=2, seed=0, dt=0.01, jitter=0.0, **signals):
@@ -217,19 +220,14 @@ def test_streaming_with_regimes_and_reference_equals_batch():
 # ----------------------------------------------- raw samples on the simulator
 @pytest.fixture(scope="module")
 def simulated():
-    rec = datasets.make_interaction_test("ur10", n_turns=0.2, rest_duration=8.0, random_state=0)
-    free = datasets.make_d2("ur10", n_targets=2, n_turns=0.3, random_state=1)
-    return rec, free
+    return simulated_interaction()
 
 
 def test_raw_stream_equals_batch_on_a_simulated_recording(simulated):
     rec, free = simulated
     features = CausalFeatures().fit(free)
     Z = stack_currents(features.transform(free), free.current)
-    det = CollisionDetector(ControllerCurrent(6), n_joints=6, threshold="per_joint",
-                            false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
-                            sample_time="auto", regimes=True, rest_reference=5.0)
-    det.fit(Z, time=free.time)
+    det = controller_detector().fit(Z, time=free.time)
     out = assert_raw_stream_equals_batch(det, features, rec)
     assert set(np.unique(out.regime)) == {0, 1, 2}
 

@@ -12,6 +12,9 @@
 * :func:`calibrate_across_recordings` -- thresholds (and optionally settle
   time, rest reference, filter) chosen across recordings
   (leave-one-recording-out margin, nested false alarms);
+* :class:`MultiBandDetector` / :class:`MultiBandMonitor` -- several bands
+  (filter, debounce, thresholds) on one model, alarm when any does (short
+  taps need a faster band than pushes);
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
 """
 
@@ -28,6 +31,7 @@ from .calibration import (
 )
 from .detector import CollisionDetector, SampleTimeWarning, default_regressor, stack_currents
 from .model_selection import CollisionThresholdCV, DetectionRefit, select_candidate
+from .multiband import MultiBandDetector, MultiBandMonitor
 from .streaming import MonitorStatus, StreamingMonitor
 
 __all__ = [
@@ -36,6 +40,8 @@ __all__ = [
     "DetectionRefit",
     "MARGIN_RULES",
     "MonitorStatus",
+    "MultiBandDetector",
+    "MultiBandMonitor",
     "REGIME_NAMES",
     "SELECTABLE_PARAMS",
     "SampleTimeWarning",

@@ -6,6 +6,7 @@ from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, OutlierMixin, clone
+from sklearn.frozen import FrozenEstimator
 from sklearn.utils import Bunch
 from sklearn.utils.validation import _num_samples, check_is_fitted, validate_data
 
@@ -564,7 +565,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                     f"{len(kernels)} joints, or the regressor was built for another robot; "
                     f"set n_joints={len(kernels)} or rebuild the regressor"
                 )
-        if self.sigma_v is not None:
+        if self.sigma_v is not None and not isinstance(regressor, FrozenEstimator):
+            # a frozen (already fitted) model keeps its own; sigma_v then sets the regimes only
             if "sigma_v" not in regressor.get_params(deep=False):
                 raise ValueError(
                     f"sigma_v={self.sigma_v!r} was given but the regressor "

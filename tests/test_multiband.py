@@ -1,0 +1,194 @@
+"""Several bands on one model (MultiBandDetector) and their streaming twin."""
+
+import pickle
+
+import numpy as np
+import pytest
+from sklearn.frozen import FrozenEstimator
+from sklearn.linear_model import Ridge
+from sklearn.utils.estimator_checks import parametrize_with_checks
+
+from sklearn_gpcd.detection import (
+    CollisionDetector,
+    MonitorStatus,
+    MultiBandDetector,
+    MultiBandMonitor,
+    stack_currents,
+)
+from sklearn_gpcd.features import CausalFeatures
+from sklearn_gpcd.gp import make_sp_p
+
+from _synthetic import augmented_run, controller_detector, simulated_interaction
+
+SIGMA_V = 1e-2
+FAST = {"filter_cutoff": 10.0, "filter_order": 1, "min_duration": 2}
+
+
+def _order_dependent(estimator):
+    """A band with a low-pass filter or a debounce is a filter over time: its
+    output depends on the order of the samples, by design (as for a
+    CollisionDetector with filter_cutoff or min_duration > 1)."""
+    filtered = any(band.get("filter_cutoff") or band.get("min_duration", 1) > 1
+                   for band in estimator.bands)
+    reason = "a filter over time depends on the order and the neighbours of a sample"
+    checks = ("check_methods_sample_order_invariance", "check_methods_subset_invariance")
+    return {check: reason for check in checks} if filtered else {}
+
+
+@parametrize_with_checks([
+    MultiBandDetector(CollisionDetector(Ridge()), bands=[{}, {"contamination": 0.05}]),
+    MultiBandDetector(CollisionDetector(Ridge())),  # the default fast band
+    MultiBandDetector(CollisionDetector(Ridge(), contamination=0.05),
+                      bands=[{}, {"filter_cutoff": 20.0, "sample_time": 0.01}]),
+], expected_failed_checks=_order_dependent)
+def test_sklearn_compatible(estimator, check):
+    check(estimator)
+
+
+class CountingRidge(Ridge):
+    """Ridge that counts its fits (module level so it pickles)."""
+
+    fits = 0
+
+    def fit(self, X, y, sample_weight=None):
+        type(self).fits += 1
+        return super().fit(X, y, sample_weight)
+
+
+def _taps(rng, n=3000, period=0.01):
+    """One joint whose current follows x, with 0.1 s taps and a 1 s push."""
+    x = np.cumsum(rng.normal(size=(n, 2)), axis=0) * 0.01
+    current = np.column_stack([2.0 * x[:, 0], x[:, 1] - x[:, 0]])
+    noisy = current + 0.05 * rng.normal(size=current.shape)
+    return x, current, noisy
+
+
+def test_bands_are_detectors_on_one_fitted_model(rng):
+    x, _, noisy = _taps(rng)
+    X = stack_currents(x, noisy)
+    CountingRidge.fits = 0
+    template = CollisionDetector(CountingRidge(), n_joints=2, sample_time=0.01,
+                                 filter_cutoff=2.0, min_duration=5)
+    det = MultiBandDetector(template, bands=[{}, FAST, {"filter_cutoff": 5.0}]).fit(X)
+    assert CountingRidge.fits == 1  # the model is fitted once
+    assert [d.filter_cutoff for d in det.detectors_] == [2.0, 10.0, 5.0]
+    assert all(isinstance(d.regressor_, FrozenEstimator) for d in det.detectors_[1:])
+    assert all(d.regressor_.estimator is det.regressor_ for d in det.detectors_[1:])
+    # each band is the detector fitted alone on the frozen model
+    alone = template.set_params(regressor=FrozenEstimator(det.regressor_), **FAST).fit(X)
+    np.testing.assert_array_equal(alone.thresholds_, det.detectors_[1].thresholds_)
+    test = noisy.copy()
+    test[1000:1010, 0] += 0.6  # a 0.1 s tap
+    test[2000:2100, 1] -= 0.4  # a 1 s push
+    Z = stack_currents(x, test)
+    out = det.monitoring_signal(Z)
+    for band, member in zip(out.bands, det.detectors_):
+        np.testing.assert_array_equal(band.alarms, member.predict_joints(Z))
+        np.testing.assert_allclose(band.ratio, member.monitoring_signal(Z).ratio)
+    union = np.logical_or.reduce([m.predict_joints(Z) for m in det.detectors_])
+    np.testing.assert_array_equal(out.alarms, union)
+    np.testing.assert_array_equal(det.predict_joints(Z), union)
+    np.testing.assert_array_equal(det.predict(Z) == -1, union.any(axis=1))
+    np.testing.assert_array_equal(det.decision_function(Z) < 0, union.any(axis=1))
+    decisions = np.min([m.decision_function(Z) for m in det.detectors_], axis=0)
+    np.testing.assert_allclose(det.score_samples(Z), decisions)
+    assert union[1000:1030, 0].any() and union[2000:2120, 1].any()
+
+
+@pytest.mark.parametrize("bands, match", [
+    ([], "non-empty list"),
+    ({"filter_cutoff": 10.0}, "non-empty list"),
+    ([{}, {"regressor": Ridge()}], "'regressor' is not a parameter a band may set"),
+    ([{"n_joints": 2}], "'n_joints'"),
+    ([{"filter_cutof": 10.0}], "'filter_cutof'"),
+])
+def test_bad_bands_are_named(bands, match, rng):
+    X = stack_currents(rng.normal(size=(50, 1)), rng.normal(size=50))
+    with pytest.raises(ValueError, match=match):
+        MultiBandDetector(CollisionDetector(Ridge()), bands=bands).fit(X)
+
+
+def test_a_frozen_model_keeps_its_sigma_v_and_the_regimes_use_the_detectors(rng):
+    X, current = augmented_run(400, 2, rng)
+    Z = stack_currents(X, current)
+    template = CollisionDetector(make_sp_p(None, 2, sigma_v=SIGMA_V, n_support=40,
+                                           optimizer=None),
+                                 n_joints=2, sigma_v=0.02, regimes=True,
+                                 threshold="per_joint", margin=1.5, sample_time=0.008)
+    det = MultiBandDetector(template).fit(Z)
+    assert det.regressor_.sigma_v == 0.02  # set on the fitted model by the first band
+    assert det.detectors_[1]._regime_settings()["sigma_v"] == 0.02
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    return simulated_interaction()
+
+
+def _gp_detector(n_joints, Z, **params):
+    template = CollisionDetector(
+        make_sp_p(None, n_joints, sigma_v=SIGMA_V, n_support=60, random_state=0,
+                  optimizer=None),
+        n_joints=n_joints, contamination=0.01, filter_cutoff=2.0, min_duration=5, **params)
+    return MultiBandDetector(template).fit(Z)
+
+
+def test_streaming_equals_batch_with_faults_restarts_and_one_prediction(rng):
+    X, current = augmented_run(800, 2, rng)
+    det = _gp_detector(2, stack_currents(X[::2], current[::2]), sample_time=0.008)
+    test = current + 0.01 * rng.normal(size=current.shape)
+    test[100:110, 0] += 1.0
+    test[300:380, 1] -= 1.0
+    Z = stack_currents(X, test)
+    monitor = MultiBandMonitor(det)
+    assert monitor.monitors[0].predictor_kind == "gaussian_process"
+    calls = []
+    inner = monitor.monitors[0]._predictor.predictor
+    original = inner.predict_one
+    inner.predict_one = lambda x, out: calls.append(1) or original(x, out)
+    bad = {50, 51, 600}  # sensor faults: dropped by every band, as if never there
+    streamed, kept = [], []
+    for k, row in enumerate(Z):
+        if k == 400:
+            monitor.reset()  # a new recording
+        if k in bad:
+            faulty = row.copy()
+            faulty[3] = np.nan
+            assert monitor.update(faulty) == MonitorStatus.SENSOR_FAULT
+            assert not monitor.alarms.any() and np.isnan(monitor.score)
+            continue
+        streamed.append(monitor.update(row) == MonitorStatus.COLLISION)
+        kept.append(k)
+    # one prediction per valid tick, by the first band; the others copy it
+    assert len(calls) == len(Z) - len(bad)
+    assert all(type(m._predictor).__name__ == "_CopiedPrediction" for m in monitor.monitors[1:])
+    groups = np.repeat([0, 1], 400)[kept]
+    batch = det.predict(Z[kept], groups=groups) == -1
+    np.testing.assert_array_equal(streamed, batch)
+    assert batch[100:112].any() and batch[300:380].any()
+    # the score too, on the last tick
+    np.testing.assert_allclose(monitor.score,
+                               det.score_samples(Z[kept], groups=groups)[-1], rtol=1e-6)
+
+
+def test_raw_stream_equals_batch_and_pickles_mid_stream(simulated):
+    rec, free = simulated
+    features = CausalFeatures().fit(free)
+    Z = stack_currents(features.transform(free), free.current)
+    det = MultiBandDetector(controller_detector()).fit(Z, time=free.time)
+    monitor = MultiBandMonitor(det, features=features)
+    half = rec.n_samples // 2
+    signals = {"target_q": rec.target_q, "target_qd": rec.target_qd,
+               "target_current": rec.target_current}
+
+    def raw(m, k):
+        return m.update_raw(rec.time[k], rec.q[k], rec.qd[k], rec.current[k],
+                            **{s: v[k] for s, v in signals.items() if v is not None})
+
+    streamed = [raw(monitor, k) == MonitorStatus.COLLISION for k in range(half)]
+    resumed = pickle.loads(pickle.dumps(monitor))
+    assert isinstance(resumed.monitors[1]._predictor, type(monitor.monitors[1]._predictor))
+    streamed += [raw(resumed, k) == MonitorStatus.COLLISION for k in range(half, rec.n_samples)]
+    batch = det.predict(stack_currents(features.transform(rec), rec.current)) == -1
+    np.testing.assert_array_equal(streamed, batch)
+    assert batch.any()
