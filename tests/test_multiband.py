@@ -192,3 +192,55 @@ def test_raw_stream_equals_batch_and_pickles_mid_stream(simulated):
     batch = det.predict(stack_currents(features.transform(rec), rec.current)) == -1
     np.testing.assert_array_equal(streamed, batch)
     assert batch.any()
+
+
+def test_calibrate_bands_counts_the_nested_alarms_of_the_union():
+    from sklearn.linear_model import LinearRegression
+
+    from sklearn_gpcd.detection import (
+        calibrate_across_recordings,
+        calibrate_bands_across_recordings,
+        nested_alarms,
+    )
+    from sklearn_gpcd.metrics import alarm_onsets
+
+    blocks, times = {}, {}
+    rng = np.random.default_rng(0)
+    for name in "abcde":
+        x = np.cumsum(rng.normal(size=(800, 1)), axis=0) * 0.01
+        current = 2.0 * x[:, 0] + 0.05 * rng.normal(size=800)
+        if name == "c":
+            current[400:403] += 1.0  # a 30 ms tap
+        if name == "d":  # a slow collision-free swell: it widens the 2 Hz band's margin
+            current[200:500] += 0.1 * np.sin(np.linspace(0, np.pi, 300))
+        blocks[name] = stack_currents(x, current)
+        times[name] = np.arange(800) * 0.01
+    model = FrozenEstimator(LinearRegression().fit(blocks["a"][:, :1], blocks["a"][:, 1]))
+    template = CollisionDetector(model, threshold="per_joint", false_alarm_rate=0.0,
+                                 sample_time=0.01, filter_cutoff=2.0, min_duration=5)
+    result = calibrate_bands_across_recordings(MultiBandDetector(template), blocks, times)
+    alone = [calibrate_across_recordings(template, blocks, times),
+             calibrate_across_recordings(clone_with(template, FAST), blocks, times)]
+    for band, single, fitted in zip(result.bands, alone, result.detector.detectors_):
+        np.testing.assert_array_equal(fitted.thresholds_, single.detector.thresholds_)
+        assert band.n_false_alarms == single.n_false_alarms
+    for key in blocks:
+        union = nested_alarms(alone[0].series)[key] | nested_alarms(alone[1].series)[key]
+        assert result.folds[key]["onsets"] == alarm_onsets(union, times[key])
+    n_alone = [single.n_false_alarms for single in alone]
+    assert result.n_false_alarms == sum(len(f["onsets"]) for f in result.folds.values())
+    assert result.n_false_alarms >= max(n_alone)
+    # the tap: too short for the 2 Hz band, a nested alarm of the fast band and the union
+    assert n_alone == [0, 1] and result.folds["c"]["onsets"] == [4.01]
+    assert result.false_alarms_per_hour == pytest.approx(result.n_false_alarms / result.hours)
+    # the fitted detector is a MultiBandDetector like any other
+    Z = blocks["c"]
+    np.testing.assert_array_equal(
+        result.detector.predict_joints(Z),
+        np.logical_or.reduce([d.predict_joints(Z) for d in result.detector.detectors_]))
+
+
+def clone_with(template, params):
+    from sklearn.base import clone
+
+    return clone(template).set_params(**params)

@@ -31,7 +31,7 @@ from .calibration import (
 )
 from .detector import CollisionDetector, SampleTimeWarning, default_regressor, stack_currents
 from .model_selection import CollisionThresholdCV, DetectionRefit, select_candidate
-from .multiband import MultiBandDetector, MultiBandMonitor
+from .multiband import MultiBandDetector, MultiBandMonitor, calibrate_bands_across_recordings
 from .streaming import MonitorStatus, StreamingMonitor
 
 __all__ = [
@@ -47,6 +47,7 @@ __all__ = [
     "SampleTimeWarning",
     "StreamingMonitor",
     "calibrate_across_recordings",
+    "calibrate_bands_across_recordings",
     "default_regressor",
     "loro_margin",
     "nested_alarms",

@@ -238,8 +238,13 @@ def nested_false_alarms(series, times, rule="global"):
     >>> folds["c"]["onsets"], folds["a"]["onsets"]
     ([1.0], [])
     """
+    return _folds(nested_alarms(series, rule), times)
+
+
+def _folds(alarms, times):
+    """Onsets, duration and first-second alarm samples of each recording's alarms."""
     out = {}
-    for r, alarm in nested_alarms(series, rule).items():
+    for r, alarm in alarms.items():
         t = np.asarray(times[r], dtype=float)
         t = t - t[0]
         out[r] = {"onsets": alarm_onsets(alarm, t), "hours": float(t[-1] / 3600.0),

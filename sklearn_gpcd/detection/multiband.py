@@ -27,10 +27,11 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._persistence import VersionedStateMixin
 from ._signal import segment_starts
+from .calibration import _folds, calibrate_across_recordings, nested_alarms
 from .detector import CollisionDetector
 from .streaming import MonitorStatus, StreamingMonitor
 
-__all__ = ["MultiBandDetector", "MultiBandMonitor"]
+__all__ = ["MultiBandDetector", "MultiBandMonitor", "calibrate_bands_across_recordings"]
 
 
 class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
@@ -148,10 +149,15 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         first, *others = self._band_templates()
         first.fit(X, labels=labels, groups=groups, time=time)
         frozen = FrozenEstimator(first.regressor_)
-        self.detectors_ = [first] + [
+        return self._adopt([first] + [
             band.set_params(regressor=frozen).fit(X, labels=labels, groups=groups, time=time)
             for band in others
-        ]
+        ])
+
+    def _adopt(self, detectors):
+        """Set the fitted attributes from fitted bands (one model)."""
+        first = detectors[0]
+        self.detectors_ = list(detectors)
         self.regressor_ = first.regressor_
         self.n_features_in_ = first.n_features_in_
         if hasattr(first, "feature_names_in_"):
@@ -249,6 +255,75 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         fired : ndarray of bool, shape (n_samples, n_joints)
         """
         return self.monitoring_signal(X, groups).alarms
+
+
+def calibrate_bands_across_recordings(detector, blocks, times, rule="global"):
+    """:func:`~sklearn_gpcd.detection.calibrate_across_recordings` for every band;
+    nested false alarms of their union.
+
+    Each band of ``detector`` is calibrated across the recordings on its own
+    (leave-one-recording-out margin, levels on all of them). Recording ``r``
+    is then scored as the monitor will run: it alarms where **any** band
+    alarms with that band's margin and levels chosen without ``r``
+    (:func:`~sklearn_gpcd.detection.nested_alarms`), and the onsets of that
+    union are its nested false alarms. Counting each band's onsets apart
+    would miss that a second band adds alarms where the first is quiet, and
+    count twice an excursion both see.
+
+    Parameters
+    ----------
+    detector : MultiBandDetector
+        Unfitted; its template has ``threshold="per_joint"``,
+        ``false_alarm_rate=0`` and a regressor wrapped in
+        :class:`sklearn.frozen.FrozenEstimator` (as for
+        :func:`~sklearn_gpcd.detection.calibrate_across_recordings`).
+    blocks, times, rule
+        As for :func:`~sklearn_gpcd.detection.calibrate_across_recordings`.
+
+    Returns
+    -------
+    result : Bunch
+        ``detector`` (the fitted MultiBandDetector), ``bands`` (each band's
+        :func:`~sklearn_gpcd.detection.calibrate_across_recordings` result),
+        ``folds`` (onsets of the union per left-out recording, empty with 2
+        recordings), ``n_false_alarms``, ``hours`` and
+        ``false_alarms_per_hour`` (None with fewer than 3 recordings).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.frozen import FrozenEstimator
+    >>> from sklearn.linear_model import LinearRegression
+    >>> from sklearn_gpcd.detection import CollisionDetector, stack_currents
+    >>> rng = np.random.default_rng(0)
+    >>> blocks, times = {}, {}
+    >>> for name in "abcd":
+    ...     qd = rng.normal(size=(600, 1))
+    ...     blocks[name] = stack_currents(qd, 2 * qd[:, 0] + 0.1 * rng.normal(size=600))
+    ...     times[name] = np.arange(600) * 0.01
+    >>> model = FrozenEstimator(LinearRegression().fit(blocks["a"][:, :1], blocks["a"][:, 1]))
+    >>> template = CollisionDetector(model, threshold="per_joint", false_alarm_rate=0.0,
+    ...                              sample_time=0.01, filter_cutoff=2.0, min_duration=5)
+    >>> result = calibrate_bands_across_recordings(MultiBandDetector(template), blocks, times)
+    >>> [d.filter_cutoff for d in result.detector.detectors_], sorted(result.folds)
+    ([2.0, 10.0], ['a', 'b', 'c', 'd'])
+    >>> result.n_false_alarms >= max(band.n_false_alarms for band in result.bands)
+    True
+    """
+    results = [calibrate_across_recordings(template, blocks, times, rule)
+               for template in detector._band_templates()]
+    keys = list(blocks)
+    folds = {}
+    if len(keys) >= 3:
+        per_band = [nested_alarms(result.series, rule) for result in results]
+        folds = _folds({k: np.logical_or.reduce([alarms[k] for alarms in per_band])
+                        for k in keys}, times)
+    n_false = sum(len(fold["onsets"]) for fold in folds.values())
+    hours = results[0].hours
+    fitted = clone(detector)._adopt([result.detector for result in results])
+    return Bunch(detector=fitted, bands=results, folds=folds, n_false_alarms=n_false,
+                 hours=hours,
+                 false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None))
 
 
 class _TeePredictor:
