@@ -22,7 +22,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["quasi_static", "check_sigma_v"]
+__all__ = ["quasi_static", "check_sigma_v", "check_velocity"]
 
 
 def quasi_static(velocity, sigma_v):
@@ -86,18 +86,46 @@ def check_sigma_v(sigma_v, owner="sigma_v", allow_none=False):
     ...
     ValueError: QuasiStaticGate: sigma_v must be a finite velocity threshold > 0, ...
     """
-    if sigma_v is None and allow_none:
+    return check_velocity(sigma_v, "sigma_v", "velocity threshold", owner, allow_none)
+
+
+def check_velocity(value, name, what, owner, allow_none=False):
+    """Validate a velocity parameter (e.g. ``sigma_v``, ``coulomb_width``): a
+    finite real number > 0, bools rejected.
+
+    Parameters
+    ----------
+    value : object
+        The value to check.
+    name, what : str
+        The parameter's name and what it is, for the error message.
+    owner : str
+        Prefix of the error message, naming the parameter's owner.
+    allow_none : bool, default=False
+        Accept None as well.
+
+    Returns
+    -------
+    value : float or None
+
+    Examples
+    --------
+    >>> check_velocity(0.01, "coulomb_width", "velocity scale", "RigidBodyRegressor")
+    0.01
+    >>> check_velocity(-1, "coulomb_width", "velocity scale", "RigidBodyRegressor")
+    Traceback (most recent call last):
+    ...
+    ValueError: RigidBodyRegressor: coulomb_width must be a finite velocity scale > 0, got -1
+    """
+    if value is None and allow_none:
         return None
     valid = (
-        isinstance(sigma_v, numbers.Real)
-        and not isinstance(sigma_v, bool)
-        and np.isfinite(sigma_v)
-        and sigma_v > 0
+        isinstance(value, numbers.Real)
+        and not isinstance(value, bool)
+        and np.isfinite(value)
+        and value > 0
     )
     if not valid:
         allowed = " (or None)" if allow_none else ""
-        raise ValueError(
-            f"{owner}: sigma_v must be a finite velocity threshold > 0{allowed}, "
-            f"got {sigma_v!r}"
-        )
-    return float(sigma_v)
+        raise ValueError(f"{owner}: {name} must be a finite {what} > 0{allowed}, got {value!r}")
+    return float(value)

@@ -379,8 +379,7 @@ def _cmd_train(args):
           f"sigma_v {info['sigma_v'] if info['sigma_v'] is not None else '-'}, "
           + (f"Coulomb tanh(qd / {info['coulomb_width']:g}), "
              if info.get("coulomb_width") is not None else "")
-          + f"seed "
-          f"{info['seed']}, controller signals {', '.join(info['signals']) or 'none'}")
+          + f"seed {info['seed']}, controller signals {', '.join(info['signals']) or 'none'}")
     lml = np.atleast_1d(model.log_marginal_likelihood_value_)
     print("  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml))
     print(f"  inputs and fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "

@@ -4,6 +4,7 @@ import pickle
 
 import numpy as np
 import pytest
+from sklearn.base import clone
 from sklearn.frozen import FrozenEstimator
 from sklearn.linear_model import Ridge
 from sklearn.utils.estimator_checks import parametrize_with_checks
@@ -220,7 +221,7 @@ def test_calibrate_bands_counts_the_nested_alarms_of_the_union():
                                  sample_time=0.01, filter_cutoff=2.0, min_duration=5)
     result = calibrate_bands_across_recordings(MultiBandDetector(template), blocks, times)
     alone = [calibrate_across_recordings(template, blocks, times),
-             calibrate_across_recordings(clone_with(template, FAST), blocks, times)]
+             calibrate_across_recordings(clone(template).set_params(**FAST), blocks, times)]
     for band, single, fitted in zip(result.bands, alone, result.detector.detectors_):
         np.testing.assert_array_equal(fitted.thresholds_, single.detector.thresholds_)
         assert band.n_false_alarms == single.n_false_alarms
@@ -238,9 +239,3 @@ def test_calibrate_bands_counts_the_nested_alarms_of_the_union():
     np.testing.assert_array_equal(
         result.detector.predict_joints(Z),
         np.logical_or.reduce([d.predict_joints(Z) for d in result.detector.detectors_]))
-
-
-def clone_with(template, params):
-    from sklearn.base import clone
-
-    return clone(template).set_params(**params)

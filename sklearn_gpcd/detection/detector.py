@@ -769,18 +769,17 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         X = validate_data(self, X, dtype=np.float64, reset=False)
         starts = segment_starts(X.shape[0], groups)
         predicted, std, residual = self._residual(X, self._needs_std())
+        return Bunch(predicted=predicted, std=std, residual=residual,
+                     **self._stages(X, residual, std, starts))
+
+    def _stages(self, X, residual, std, starts):
+        """The stages after the residual: ``signal``, ``regime``, ``reference``,
+        ``ratio`` and ``alarms`` of validated rows ``X`` (see
+        :meth:`monitoring_signal`)."""
         signal, regimes, reference = self._signal(residual, std, starts, self._velocities(X))
         ratio = self._ratio(signal, regimes, starts)
-        return Bunch(
-            predicted=predicted,
-            std=std,
-            residual=residual,
-            signal=signal,
-            regime=regimes,
-            reference=reference,
-            ratio=ratio,
-            alarms=ratio > -self.offset_,
-        )
+        return {"signal": signal, "regime": regimes, "reference": reference, "ratio": ratio,
+                "alarms": ratio > -self.offset_}
 
     def _residual(self, X, return_std):
         """Predicted currents, std (or None) and residual ``s`` for validated X."""

@@ -188,13 +188,8 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         starts = segment_starts(X.shape[0], groups)
         need_std = any(d._needs_std() for d in self.detectors_)
         predicted, std, residual = first._residual(X, need_std)
-        bands = []
-        for det in self.detectors_:
-            signal, regimes, reference = det._signal(residual, std, starts, det._velocities(X))
-            ratio = det._ratio(signal, regimes, starts)
-            level = -float(det.offset_)
-            bands.append(Bunch(signal=signal, regime=regimes, reference=reference,
-                               ratio=ratio, alarms=ratio > level, level=level))
+        bands = [Bunch(level=-float(det.offset_), **det._stages(X, residual, std, starts))
+                 for det in self.detectors_]
         alarms = np.logical_or.reduce([band.alarms for band in bands])
         return Bunch(predicted=predicted, std=std, residual=residual, bands=bands,
                      alarms=alarms)

@@ -2,14 +2,13 @@
 
 import hashlib
 from collections import OrderedDict
-from numbers import Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.utils import Bunch, check_random_state
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._gate import check_sigma_v
+from .._gate import check_sigma_v, check_velocity
 from ..layout import block_columns
 from .._persistence import VersionedStateMixin
 from ..robots.loading import resolve_robot
@@ -225,13 +224,8 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
             if not 0 <= self.joint < n:
                 raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
         check_sigma_v(self.sigma_v, type(self).__name__, allow_none=True)
-        width = self.coulomb_width
-        if width is not None and (isinstance(width, bool) or not isinstance(width, Real)
-                                  or not (np.isfinite(width) and width > 0)):
-            raise ValueError(
-                f"{type(self).__name__}: coulomb_width must be a finite velocity scale > 0 "
-                f"[rad/s] or None (the sign), got {width!r}"
-            )
+        check_velocity(self.coulomb_width, "coulomb_width", "velocity scale [rad/s]",
+                       type(self).__name__, allow_none=True)
         if self.rank_tol is not None and not (np.isfinite(self.rank_tol) and self.rank_tol > 0):
             raise ValueError(f"rank_tol must be a positive number or None, got {self.rank_tol!r}")
         if self.currents and robot.torque_constants is None:

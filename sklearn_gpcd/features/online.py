@@ -333,15 +333,13 @@ default="target-minus-actual"
             if self.augmented and all(getattr(r, s) is not None for r in recordings)
         ]
         if requested != "auto":
-            for name in requested:
-                lacking = next((i for i, r in enumerate(recordings)
-                                if getattr(r, name) is None), None)
-                if lacking is not None:
-                    raise ValueError(
-                        f"signals asks for {name}, but training recording "
-                        f"{_label(recordings[lacking], lacking)} does not log it"
-                    )
-            present = [s for s in _AUGMENTED_SIGNALS if s in requested]
+            if (name := next((s for s in requested if s not in present), None)):
+                lacking = next(i for i, r in enumerate(recordings) if getattr(r, name) is None)
+                raise ValueError(
+                    f"signals asks for {name}, but training recording "
+                    f"{_label(recordings[lacking], lacking)} does not log it"
+                )
+            present = [s for s in present if s in requested]
         self.signals_ = tuple(present)
         self.missing_signals_ = tuple(
             s for s in _AUGMENTED_SIGNALS if self.augmented and s not in present
