@@ -382,6 +382,8 @@ def _cmd_train(args):
           + f"seed {info['seed']}, controller signals {', '.join(info['signals']) or 'none'}")
     lml = np.atleast_1d(model.log_marginal_likelihood_value_)
     print("  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml))
+    print(f"  largest |qdd| of the training rows {info['acceleration_limit']:.3g} rad/s^2 "
+          "(the braking limit of gpcd calibrate --braking)")
     print(f"  inputs and fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "
           f"wrote {args.output} (the model, its causal input features and how it was "
           "trained)")

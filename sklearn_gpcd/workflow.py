@@ -225,7 +225,8 @@ class TrainedModel:
         ``model``, ``inputs``, ``n_support``, ``optimizer`` (asked and
         used), ``batch_size``, ``seed``, ``sigma_v``, ``coulomb_width``,
         ``signals``, ``robot``,
-        ``recordings``, ``n_rows``, ``n_rows_used``, ``step``.
+        ``recordings``, ``n_rows``, ``n_rows_used``, ``step``,
+        ``acceleration_limit`` (:func:`acceleration_limit`).
 
     Examples
     --------
@@ -259,6 +260,43 @@ def _build(model, robot, n_joints, params, coulomb_width=None):
            for j in range(n_joints)]
     return {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[model](
         phi, n_joints, **params)
+
+
+def acceleration_limit(data):
+    """The largest ``|qdd|`` of the rows a model is fitted on [rad/s^2].
+
+    Read from the training inputs ``data.X`` (with the default causal
+    inputs, the accelerations the detector sees).
+
+    Beyond it the model extrapolates: hard stops ring the current for about
+    half a second and no training row shows how. ``gpcd calibrate
+    --braking`` gives those samples a regime of their own
+    (``CollisionDetector(brake_limit=...)``).
+
+    Parameters
+    ----------
+    data : TrainingSet
+        The inputs of the training recordings (:func:`training_set`).
+
+    Returns
+    -------
+    limit : float
+        In rad/s^2.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(100) * 0.01   # qdd = -sin(t), |qdd| <= 0.84 in the first second
+    >>> data = training_set([Recording(time=t, q=np.sin(t)[:, None], qd=np.cos(t)[:, None],
+    ...                                current=np.sin(t)[:, None])])
+    >>> round(acceleration_limit(data), 2)   # causal: low-passed, a little lower
+    0.82
+    """
+    from .layout import block_columns
+
+    n_joints = data.y.shape[1]
+    return float(np.abs(data.X[:, block_columns("qdd", n_joints)]).max())
 
 
 def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_support="auto",
@@ -354,6 +392,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "signals": list(data.features.signals_),
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
+        "acceleration_limit": acceleration_limit(data),
     }
     return TrainedModel(regressor=regressor, features=data.features, training=training)
 

@@ -414,3 +414,18 @@ def test_rtde_csv_keeps_the_robot_name(tmp_path):
     assert path.read_text().splitlines()[0] == "# robot: ur5e"
     back = load_recording(path)
     assert back.metadata["robot"] == "ur5e" and back.equals(rec)
+
+
+def test_train_records_the_largest_acceleration_for_the_braking_regime(sims, tmp_path,
+                                                                       capsys):
+    from sklearn_gpcd.layout import block_columns
+    from sklearn_gpcd.workflow import load_model
+
+    out = tmp_path / "sp_c.joblib"
+    assert main(["train", str(sims["rtde"]), "--model", "sp_c", "--n-support", "50", "-q",
+                 "-o", str(out)]) == 0
+    trained = load_model(out)
+    X = trained.features.transform(load_recording(sims["rtde"]))
+    limit = np.abs(X[:, block_columns("qdd", 6)]).max()
+    assert trained.training["acceleration_limit"] == pytest.approx(limit)
+    assert f"largest |qdd| of the training rows {limit:.3g} rad/s^2" in capsys.readouterr().out

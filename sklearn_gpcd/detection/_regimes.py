@@ -22,6 +22,16 @@ arm:
 - ``rest``: every joint below :math:`\\sigma_v` for at least ``settle``
   samples, or since the stream started (an arm that is still when
   monitoring begins is at rest at once).
+- ``braking`` (only with a braking limit): from a sample where some joint's
+  acceleration exceeds the limit, :math:`|\\ddot q_\\ell| > \\ddot q_{max}`,
+  until ``hold`` samples after the last such sample, whatever the other
+  rules say. A hard stop rings the current by several ampere for about
+  half a second, for the controller's own expected current too; with the
+  limit set to the largest acceleration of the model's training data
+  (``training["acceleration_limit"]`` of
+  :func:`~sklearn_gpcd.workflow.train_model`), these are the samples the
+  model never saw, and they get their own thresholds
+  instead of inflating those of motion.
 
 At rest the monitoring signal is re-referenced: at rest entry the
 reference :math:`b_\\ell` is set to the signal :math:`m_\\ell` of that
@@ -45,9 +55,22 @@ import numpy as np
 
 from .._gate import quasi_static
 
-#: Regime names, indexed by the codes of :func:`regime_pass`.
-REGIME_NAMES = ("moving", "settling", "rest")
-MOVING, SETTLING, REST = 0, 1, 2
+#: Regime names, indexed by the codes of :func:`regime_pass` ("braking" only
+#: with a braking limit).
+REGIME_NAMES = ("moving", "settling", "rest", "braking")
+MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
+
+
+def regime_names(braking):
+    """Names of the regime codes in use: the first three, and "braking" when
+    a braking limit is set.
+
+    Examples
+    --------
+    >>> regime_names(False)
+    ('moving', 'settling', 'rest')
+    """
+    return REGIME_NAMES if braking else REGIME_NAMES[:BRAKING]
 
 
 class RegimeState:
@@ -64,6 +87,13 @@ class RegimeState:
         reference fixed); None disables the re-reference.
     n_joints : int
         Number of joints.
+    brake_limit : float or None, default=None
+        Acceleration [rad/s^2] above which the arm is ``braking`` (None:
+        no braking regime). With a limit, :meth:`step` reads the
+        accelerations after the velocities.
+    brake_hold : int, default=0
+        Samples the braking regime lasts after the last sample above the
+        limit.
 
     Examples
     --------
@@ -77,23 +107,50 @@ class RegimeState:
     [(0, 1.0), (1, 2.0), (1, 2.0), (2, 0.0), (2, 0.5)]
     """
 
-    def __init__(self, sigma_v, settle, beta, n_joints):
+    def __init__(self, sigma_v, settle, beta, n_joints, brake_limit=None, brake_hold=0):
         self.sigma_v = float(sigma_v)
         self.settle = int(settle)
         self.beta = beta
+        self.n_joints = int(n_joints)
+        self.brake_limit = None if brake_limit is None else float(brake_limit)
+        self.brake_hold = int(brake_hold)
         self.reference = np.zeros(n_joints)
         self._step = np.zeros(n_joints)
         self.reset()
+
+    def __setstate__(self, state):
+        """States saved before the braking regime resume without it."""
+        state.setdefault("n_joints", len(state["reference"]))
+        state.setdefault("brake_limit", None)
+        state.setdefault("brake_hold", 0)
+        state.setdefault("_braking_for", 0)
+        self.__dict__.update(state)
 
     def reset(self):
         """A new stream: no motion seen yet, no reference."""
         self._still_for = 0
         self._moved = False
         self._referenced = False
+        self._braking_for = 0
         self.reference[:] = 0.0
 
+    def braking(self, qdd):
+        """Advance the braking counter with one acceleration row; True while braking.
+
+        From a sample with some ``|qdd_l| > brake_limit`` the arm brakes for
+        that sample and the ``brake_hold`` after it.
+        """
+        limit = self.brake_limit
+        if any([abs(a) > limit for a in qdd.tolist()]):
+            self._braking_for = self.brake_hold + 1
+        if self._braking_for:
+            self._braking_for -= 1
+            return True
+        return False
+
     def regime(self, qd):
-        """Advance the still-counter with one velocity row; the regime code."""
+        """Advance the still-counter with one velocity row; the regime code
+        among moving, settling and rest."""
         sigma_v = self.sigma_v  # per joint on floats: no array call on a few values
         if all([quasi_static(v, sigma_v) for v in qd.tolist()]):
             self._still_for += 1
@@ -104,49 +161,61 @@ class RegimeState:
         self._moved = True
         return MOVING
 
-    def step(self, qd, signal):
+    def step(self, motion, signal):
         """Regime of one sample; ``signal`` is re-referenced in place at rest.
+
+        The braking regime overrides the others for the thresholds only: the
+        rest reference follows the motion regimes as without it.
 
         Parameters
         ----------
-        qd : ndarray of shape (n_joints,)
-            Joint velocities of the sample.
+        motion : ndarray of shape (n_joints,) or (2 * n_joints,)
+            Joint velocities of the sample, followed by the joint
+            accelerations when ``brake_limit`` is set.
         signal : ndarray of shape (n_joints,)
             Monitoring signal of the sample, modified in place.
 
         Returns
         -------
         regime : int
-            ``MOVING`` (0), ``SETTLING`` (1) or ``REST`` (2).
+            ``MOVING`` (0), ``SETTLING`` (1), ``REST`` (2) or ``BRAKING`` (3).
         """
-        regime = self.regime(qd)
+        n = self.n_joints
+        regime = self.regime(motion[:n])
+        self._reference(regime, signal)
+        if self.brake_limit is not None and self.braking(motion[n:]):
+            return BRAKING
+        return regime
+
+    def _reference(self, regime, signal):
+        """Re-reference ``signal`` in place at rest (Eq. above), track ``b``."""
         if self.beta is None:
-            return regime
+            return
         if regime != REST:
             self._referenced = False
             self.reference[:] = 0.0
-            return regime
+            return
         if not self._referenced:
             self.reference[:] = signal
             self._referenced = True
         np.subtract(signal, self.reference, out=signal)  # m~ = m - b
         np.multiply(signal, self.beta, out=self._step)
         self.reference += self._step  # b += beta m~
-        return regime
 
 
-def regime_pass(signal, qd, starts, sigma_v, settle, beta):
+def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
+                brake_hold=0):
     """:class:`RegimeState` over a batch, restarting at every segment start.
 
     Parameters
     ----------
     signal : ndarray of shape (n_samples, n_joints)
         Monitoring signal (filtered residual).
-    qd : ndarray of shape (n_samples, n_joints)
-        Joint velocities.
+    motion : ndarray of shape (n_samples, n_joints) or (n_samples, 2 * n_joints)
+        Joint velocities, followed by the accelerations with ``brake_limit``.
     starts : ndarray of int
         Segment starts (new recordings).
-    sigma_v, settle, beta
+    sigma_v, settle, beta, brake_limit, brake_hold
         See :class:`RegimeState`.
 
     Returns
@@ -164,8 +233,15 @@ def regime_pass(signal, qd, starts, sigma_v, settle, beta):
     >>> out, reg, ref = regime_pass(m, np.zeros((3, 1)), np.array([0]), 0.01, 5, 0.0)
     >>> out[:, 0].round(6).tolist(), reg.tolist()
     ([0.0, 0.0, 0.2], [2, 2, 2])
+
+    A hard stop (``|qdd| > 5``) and the 2 samples after it are braking:
+
+    >>> motion = np.array([[0.5, 1.0], [0.5, 9.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    >>> regime_pass(np.zeros((5, 1)), motion, np.array([0]), 0.01, 5, None,
+    ...             brake_limit=5.0, brake_hold=2)[1].tolist()
+    [0, 3, 3, 3, 1]
     """
-    state = RegimeState(sigma_v, settle, beta, signal.shape[1])
+    state = RegimeState(sigma_v, settle, beta, signal.shape[1], brake_limit, brake_hold)
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     reference = np.zeros_like(out)
@@ -174,6 +250,6 @@ def regime_pass(signal, qd, starts, sigma_v, settle, beta):
     for k in range(signal.shape[0]):
         if is_start[k]:
             state.reset()
-        regimes[k] = state.step(qd[k], out[k])
+        regimes[k] = state.step(motion[k], out[k])
         reference[k] = signal[k] - out[k]
     return out, regimes, reference

@@ -350,10 +350,10 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     # regressor predicts each calibration row once, for every candidate and for
     # the operating point
     base = clone(detector).set_params(margin=1.0)
-    residual, std, starts, qd = base._fit_residuals(Z, None, groups, time,
+    residual, std, starts, motion = base._fit_residuals(Z, None, groups, time,
                                                     base._needs_std(fitting=True))
-    base._calibrate(residual, std, starts, qd, recording_index(groups))
-    residuals = _recording_residuals(base, keys, groups, residual, std, qd)
+    base._calibrate(residual, std, starts, motion, recording_index(groups))
+    residuals = _recording_residuals(base, keys, groups, residual, std, motion)
     runs = []
     for params in candidates:
         series = _candidate_series(base, params, residuals)
@@ -382,7 +382,7 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     # the operating point: what fit would set, from the residuals already predicted
     fitted = base.set_params(**candidates[best], margin=shaped)
     fitted._validate_params()
-    fitted._calibrate(residual, std, starts, qd, recording_index(groups))
+    fitted._calibrate(residual, std, starts, motion, recording_index(groups))
     hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
     n_false = sum(len(f["onsets"]) for f in folds.values())
     return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
@@ -407,13 +407,13 @@ def _candidates(param_grid):
     return candidates
 
 
-def _recording_residuals(detector, keys, groups, residual, std, qd):
-    """``(residual, std, velocities)`` of each recording, cut from the stacked
+def _recording_residuals(detector, keys, groups, residual, std, motion):
+    """``(residual, std, motion)`` of each recording, cut from the stacked
     rows (recording ``keys[g]`` in the rows where ``groups == g``); ``std``
     only where the detector's monitoring signal reads it."""
     std = std if detector._needs_std() else None
     return {key: (residual[rows], None if std is None else std[rows],
-                  None if qd is None else qd[rows])
+                  None if motion is None else motion[rows])
             for key, rows in ((k, groups == g) for g, k in enumerate(keys))}
 
 
@@ -424,8 +424,8 @@ def _candidate_series(base, params, residuals):
     det._validate_params()
     det._set_signal_stages()
     out = {}
-    for key, (residual, std, qd) in residuals.items():
-        signal, regime, _ = det._signal(residual, std, segment_starts(len(residual)), qd)
+    for key, (residual, std, motion) in residuals.items():
+        signal, regime, _ = det._signal(residual, std, segment_starts(len(residual)), motion)
         out[key] = _excursion(det, signal, regime)
     return out
 

@@ -13,7 +13,7 @@ from sklearn.utils.validation import _num_samples, check_is_fitted, validate_dat
 from .._gate import check_sigma_v
 from ..layout import block_columns
 from .._persistence import VersionedStateMixin
-from ._regimes import REGIME_NAMES, regime_pass
+from ._regimes import regime_names, regime_pass
 from ._signal import (
     debounce_segments,
     filter_segments,
@@ -233,6 +233,19 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         still joint depends on its history (stiction); the re-reference
         removes that offset, which no pose feature predicts. Our extension
         of the paper (Eq. 13-17); see the user guide.
+    brake_limit : float or None, default=None
+        With ``regimes=True``: a fourth regime, ``braking``, with its own
+        thresholds, from a sample where some joint's acceleration exceeds
+        ``brake_limit`` [rad/s^2] until ``brake_hold`` seconds after the
+        last such sample. Hard stops ring the current for about half a
+        second; set it to the largest acceleration the model was trained on
+        (``training["acceleration_limit"]`` of
+        :func:`~sklearn_gpcd.workflow.train_model`) so that those samples no
+        longer set the thresholds of motion. Reads the ``qdd`` block of the
+        paper's layout (:mod:`sklearn_gpcd.layout`). Our extension.
+    brake_hold : float, default=0.5
+        Seconds the braking regime lasts after the last sample above
+        ``brake_limit``.
     velocity_columns : list of int or None, default=None
         Columns of the regressor inputs holding the joint velocities, for
         ``regimes``. None takes the ``qd`` block of the paper's layout
@@ -258,11 +271,15 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         ``normalize="std"``).
     regime_names_ : tuple of str
         Rows of ``scale_`` / ``thresholds_``: ``("moving", "settling",
-        "rest")`` with ``regimes=True``, else ``("all",)``.
+        "rest")`` with ``regimes=True`` (and ``"braking"`` with
+        ``brake_limit``), else ``("all",)``.
     sample_time_ : float
         Sampling period used (``sample_time``, or the data's with "auto").
     velocity_columns_ : list of int or None
         Velocity columns of the regressor inputs used by the regimes.
+    acceleration_columns_ : list of int or None
+        Acceleration columns of the regressor inputs used by the braking
+        regime (None without ``brake_limit``).
     filter_coefficients_ : tuple of ndarray or None
         ``(b, a)`` of the low-pass filter.
     n_features_in_ : int
@@ -321,6 +338,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         settle_time=0.5,
         rest_reference=None,
         velocity_columns=None,
+        brake_limit=None,
+        brake_hold=0.5,
     ):
         self.regressor = regressor
         self.n_joints = n_joints
@@ -339,6 +358,16 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         self.settle_time = settle_time
         self.rest_reference = rest_reference
         self.velocity_columns = velocity_columns
+        self.brake_limit = brake_limit
+        self.brake_hold = brake_hold
+
+    def __setstate__(self, state):
+        """Detectors saved before the braking regime load without it."""
+        state.setdefault("brake_limit", None)
+        state.setdefault("brake_hold", 0.5)
+        if "velocity_columns_" in state:
+            state.setdefault("acceleration_columns_", None)
+        super().__setstate__(state)
 
     # ------------------------------------------------------------------ fit
     def fit(self, X, y=None, *, labels=None, groups=None, time=None):
@@ -365,10 +394,10 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         -------
         self : CollisionDetector
         """
-        residual, std, starts, qd = self._fit_residuals(
+        residual, std, starts, motion = self._fit_residuals(
             X, labels, groups, time, self._needs_std(fitting=True)
         )
-        self._calibrate(residual, std, starts, qd, recording_index(groups, labels))
+        self._calibrate(residual, std, starts, motion, recording_index(groups, labels))
         return self
 
     def _fit_residuals(self, X, labels, groups, time, return_std):
@@ -422,6 +451,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                 f"at least {n + 1} columns"
             )
         self.velocity_columns_ = self._velocity_columns(X.shape[1] - n)
+        self.acceleration_columns_ = self._acceleration_columns(X.shape[1] - n)
         keep = None
         if labels is not None:
             labels = np.asarray(labels)
@@ -437,7 +467,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         self.regressor_ = self._make_regressor(X.shape[1] - n)
         self.regressor_.fit(inputs, current[:, 0] if n == 1 else current)
         mean, std = self._predict_currents(inputs, return_std)
-        return current - mean, std, starts, self._velocities(X)
+        return current - mean, std, starts, self._motion(X)
 
     def _velocity_columns(self, n_inputs):
         """Velocity columns of the regressor inputs (None when regimes are off)."""
@@ -451,19 +481,36 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                     f"{n_inputs} (the regressor inputs), got {self.velocity_columns!r}"
                 )
             return columns
+        return self._layout_block("qd", n_inputs, "regimes=True needs the joint velocities",
+                                  "; pass velocity_columns")
+
+    def _acceleration_columns(self, n_inputs):
+        """Acceleration columns of the regressor inputs (None without ``brake_limit``)."""
+        if self.brake_limit is None:
+            return None
+        return self._layout_block("qdd", n_inputs, "brake_limit needs the joint accelerations",
+                                  ", the qdd block after q and qd")
+
+    def _layout_block(self, block, n_inputs, need, hint):
+        """Columns of ``block`` in the paper's layout of the regressor inputs, or an
+        error saying what ``need`` s them."""
         if n_inputs in (3 * self.n_joints, 6 * self.n_joints):
-            return block_columns("qd", self.n_joints)
+            return block_columns(block, self.n_joints)
         raise ValueError(
-            f"regimes=True needs the joint velocities: the {n_inputs} regressor inputs "
-            f"are not the paper's layout for {self.n_joints} joints (3 or 6 columns per "
-            "joint); pass velocity_columns"
+            f"{need}: the {n_inputs} regressor inputs are not the paper's layout for "
+            f"{self.n_joints} joints (3 or 6 columns per joint){hint}"
         )
 
-    def _velocities(self, X):
-        """Joint velocities of validated rows, or None without regimes."""
+    def _motion(self, X):
+        """What the regimes read of validated rows: the joint velocities, then
+        the accelerations with ``brake_limit``; None without regimes."""
         if self.velocity_columns_ is None:
             return None
-        return X[:, self.velocity_columns_]
+        return X[:, self._motion_columns()]
+
+    def _motion_columns(self):
+        """Velocity columns, then acceleration columns (with ``brake_limit``)."""
+        return list(self.velocity_columns_) + list(self.acceleration_columns_ or [])
 
     def fit_predict(self, X, y=None, *, labels=None, groups=None):
         """Fit, then label the same rows (+1 normal, -1 collision).
@@ -510,6 +557,10 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "rest_reference": self.rest_reference is None
             or (self.regimes and isinstance(self.rest_reference, Real)
                 and self.rest_reference > 0.0),
+            "brake_limit": self.brake_limit is None
+            or (self.regimes and isinstance(self.brake_limit, Real)
+                and 0.0 < self.brake_limit < np.inf),
+            "brake_hold": isinstance(self.brake_hold, Real) and 0.0 <= self.brake_hold < np.inf,
         }
         allowed = {
             "n_joints": "an int >= 1",
@@ -529,6 +580,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "settle_time": "a float >= 0 (seconds)",
             "rest_reference": "None, or a time constant > 0 in seconds (inf: fixed), "
             "with regimes=True",
+            "brake_limit": "None, or a finite acceleration > 0 (rad/s^2), with regimes=True",
+            "brake_hold": "a finite float >= 0 (seconds)",
         }
         for name, ok in checks.items():
             if not ok:
@@ -599,7 +652,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         return np.reshape(np.asarray(mean, dtype=float), (n_rows, self.n_joints)), std
 
     # ---------------------------------------------------------- calibration
-    def _signal(self, residual, std, starts, qd):
+    def _signal(self, residual, std, starts, motion):
         """Monitoring signal m, its regimes and rest reference.
 
         Normalised, low-pass filtered residual, re-referenced at rest
@@ -610,7 +663,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             u = filter_segments(u, *self.filter_coefficients_, starts)
         if not self.regimes:
             return u, np.zeros(u.shape[0], dtype=np.intp), None
-        return regime_pass(u, qd, starts, **self._regime_settings())
+        return regime_pass(u, motion, starts, **self._regime_settings())
 
     def _regime_settings(self):
         """Keyword arguments of :func:`regime_pass` (also read by StreamingMonitor)."""
@@ -621,6 +674,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             "sigma_v": 1e-2 if self.sigma_v is None else float(self.sigma_v),
             "settle": int(round(self.settle_time / self.sample_time_)),
             "beta": beta,
+            "brake_limit": self.brake_limit,
+            "brake_hold": int(round(self.brake_hold / self.sample_time_)),
         }
 
     def _ratio(self, signal, regimes, starts):
@@ -636,16 +691,17 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             self.filter_coefficients_ = lowpass_coefficients(
                 self.filter_cutoff, self.sample_time_, self.filter_order
             )
-        self.regime_names_ = REGIME_NAMES if self.regimes else ("all",)
+        self.regime_names_ = (regime_names(self.brake_limit is not None) if self.regimes
+                              else ("all",))
 
-    def _calibrate(self, residual, std, starts, qd, recordings=None):
+    def _calibrate(self, residual, std, starts, motion, recordings=None):
         """Set filter_coefficients_, scale_, margin_, offset_ and thresholds_.
 
         ``recordings``: recording index of each training residual row (for
         ``margin="loro"``), or None when no ``groups`` were given.
         """
         self._set_signal_stages()
-        signal, regimes, _ = self._signal(residual, std, starts, qd)
+        signal, regimes, _ = self._signal(residual, std, starts, motion)
         margin = 1.0
         if self.threshold == "std":
             self.scale_ = np.ones(self.n_joints) if self.normalize == "std" else rms_scale(std)
@@ -697,9 +753,10 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         """
         if not self.regimes:
             return per_regime(slice(None))
-        table = np.zeros((len(REGIME_NAMES), self.n_joints))
-        present = np.zeros(len(REGIME_NAMES), dtype=bool)
-        for code in range(len(REGIME_NAMES)):
+        n_rows = len(self.regime_names_)
+        table = np.zeros((n_rows, self.n_joints))
+        present = np.zeros(n_rows, dtype=bool)
+        for code in range(n_rows):
             rows = regimes == code
             if rows.any():
                 table[code], present[code] = per_regime(rows), True
@@ -776,7 +833,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         """The stages after the residual: ``signal``, ``regime``, ``reference``,
         ``ratio`` and ``alarms`` of validated rows ``X`` (see
         :meth:`monitoring_signal`)."""
-        signal, regimes, reference = self._signal(residual, std, starts, self._velocities(X))
+        signal, regimes, reference = self._signal(residual, std, starts, self._motion(X))
         ratio = self._ratio(signal, regimes, starts)
         return {"signal": signal, "regime": regimes, "reference": reference, "ratio": ratio,
                 "alarms": ratio > -self.offset_}

@@ -378,10 +378,12 @@ def _evaluate_fold(detector, heavy, lights, X, labels, groups, train, test, max_
                                                           len(train))
         variant.regressor_ = base.regressor_
         variant.velocity_columns_ = variant._velocity_columns(X.shape[1] - variant.n_joints)
-        variant._calibrate(residual, std, train_starts, variant._velocities(X_train),
+        variant.acceleration_columns_ = variant._acceleration_columns(
+            X.shape[1] - variant.n_joints)
+        variant._calibrate(residual, std, train_starts, variant._motion(X_train),
                            train_recordings)
         signal, regimes, _ = variant._signal(
-            test_residual, test_std, test_starts, variant._velocities(X_test)
+            test_residual, test_std, test_starts, variant._motion(X_test)
         )
         alarms = variant._ratio(signal, regimes, test_starts).max(axis=1) > -variant.offset_
         kwargs = dict(max_delay=max_delay, groups=groups[test])

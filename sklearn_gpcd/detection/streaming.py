@@ -292,8 +292,8 @@ class StreamingMonitor(VersionedStateMixin):
             self._regime_state = RegimeState(
                 n_joints=n, **detector._regime_settings()
             )
-            self._velocity_columns = np.asarray(detector.velocity_columns_, dtype=np.intp)
-            self._qd = np.empty(n)
+            self._motion_columns = np.asarray(detector._motion_columns(), dtype=np.intp)
+            self._motion = np.empty(self._motion_columns.size)
         self._online = None
         if features is not None:
             self._online = features.online()
@@ -361,6 +361,9 @@ class StreamingMonitor(VersionedStateMixin):
                 "state has another layout; rebuild it with StreamingMonitor(detector) from "
                 "the saved detector (the filter and debounce restart, as after reset())"
             )
+        if "_velocity_columns" in state:  # saved before the braking regime
+            state["_motion_columns"] = state.pop("_velocity_columns")
+            state["_motion"] = state.pop("_qd")
         super().__setstate__(state)
         if self.status is not None:
             self.status = MonitorStatus(self.status)
@@ -468,8 +471,8 @@ class StreamingMonitor(VersionedStateMixin):
         np.copyto(self._z, self._z_next)
         self._fresh = False
         if self._regime_state is not None:
-            np.take(self._inputs, self._velocity_columns, out=self._qd, mode="clip")
-            self.regime = self._regime_state.step(self._qd, self.signal)
+            np.take(self._inputs, self._motion_columns, out=self._motion, mode="clip")
+            self.regime = self._regime_state.step(self._motion, self.signal)
         np.abs(self.signal, out=self._window_rows[self._position])
         self._position = (self._position + 1) % len(self._window_rows)
         np.minimum.reduce(self._window, axis=0, out=self.ratio)
@@ -699,8 +702,9 @@ class StreamingMonitor(VersionedStateMixin):
         result : Bunch
             ``status`` (ndarray of str), ``predicted``, ``residual``,
             ``signal``, ``ratio`` (float, (n_samples, n_joints)), ``alarms``
-            (bool, (n_samples, n_joints)) and ``prediction`` (+1 / -1 as
-            ``predict``, 0 for sensor faults).
+            (bool, (n_samples, n_joints)), ``regime`` (int, (n_samples,):
+            index into the detector's ``regime_names_``) and ``prediction``
+            (+1 / -1 as ``predict``, 0 for sensor faults).
         """
         X = np.asarray(X, dtype=float)
         n = X.shape[0]
@@ -711,6 +715,7 @@ class StreamingMonitor(VersionedStateMixin):
                 for name in ("predicted", "residual", "signal", "ratio")
             },
             alarms=np.zeros((n, self.n_joints), dtype=bool),
+            regime=np.zeros(n, dtype=np.intp),
         )
         groups = None if groups is None else np.asarray(groups)
         if time is not None:
@@ -722,7 +727,7 @@ class StreamingMonitor(VersionedStateMixin):
                 self.reset()
             stamp = None if time is None else time[t]
             out.status[t] = self.update(X[t], time=stamp).value
-            for name in ("predicted", "residual", "signal", "ratio", "alarms"):
+            for name in ("predicted", "residual", "signal", "ratio", "alarms", "regime"):
                 out[name][t] = getattr(self, name)
         out.status = out.status.astype(str)
         out.prediction = np.select(
