@@ -9,7 +9,10 @@
     leave-one-recording-out margin of ``benchmarks/real_ur10e.py``), and
     saves it with the model's :class:`~sklearn_gpcd.features.CausalFeatures`
     (fitted by ``gpcd train`` on the training recordings, so the detector
-    feeds the model the inputs it was trained on).
+    feeds the model the inputs it was trained on). Each ``--band
+    CUTOFF,ORDER,DEBOUNCE`` adds a band: the file then holds a
+    :class:`~sklearn_gpcd.detection.MultiBandDetector` calibrated by
+    :func:`~sklearn_gpcd.detection.calibrate_bands_across_recordings`.
 ``gpcd monitor DETECTOR RECORDINGS... | --replay FILE | --rtde HOST``
     Feeds raw samples through :meth:`StreamingMonitor.update_raw
     <sklearn_gpcd.detection.StreamingMonitor.update_raw>` (the causal path
@@ -17,9 +20,12 @@
     processed as fast as possible, ``--replay`` paces one recording to its
     time stamps (``--speed``), ``--rtde`` receives a live UR controller's
     stream (RTDE protocol 2, :mod:`sklearn_gpcd.io._rtde_live`). All three
-    go through the same per-sample loop (:class:`_Session`).
+    go through the same per-sample loop (:class:`_Session`), a
+    :class:`~sklearn_gpcd.detection.MultiBandMonitor` for a multi-band file
+    (an event: samples where any band alarms; the report names the bands).
 """
 
+import argparse
 import json
 import math
 import shlex
@@ -52,6 +58,50 @@ def _non_negative_float(value):
     if not (number >= 0 and math.isfinite(number)):
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value!r}")
     return number
+
+
+def _band_arg(value):
+    """``CUTOFF,ORDER,DEBOUNCE`` as CollisionDetector overrides (``--band``)."""
+    usage = ("expected CUTOFF,ORDER,DEBOUNCE like 10,1,2 (low-pass cut-off > 0 Hz, filter "
+             f"order 1 or 2, debounce >= 1 samples), got {value!r}")
+    parts = value.split(",")
+    try:
+        cutoff, order, debounce = float(parts[0]), int(parts[1]), int(parts[2])
+    except (ValueError, IndexError):
+        raise argparse.ArgumentTypeError(usage) from None
+    if len(parts) != 3 or not (0 < cutoff < math.inf and order in (1, 2) and debounce >= 1):
+        raise argparse.ArgumentTypeError(usage)
+    return {"filter_cutoff": cutoff, "filter_order": order, "min_duration": debounce}
+
+
+def _braking_arg(value):
+    """``--braking [LIMIT]``: "model", or a finite acceleration > 0 [rad/s^2]."""
+    if value == "model":
+        return value
+    try:
+        limit = float(value)
+    except ValueError:
+        limit = float("nan")
+    if not (0.0 < limit < float("inf")):
+        raise argparse.ArgumentTypeError(
+            f"expected an acceleration > 0 in rad/s^2 (or nothing: the model's own "
+            f"limit), got {value!r}")
+    return limit
+
+
+def _brake_limit(args, training):
+    """``CollisionDetector(brake_limit=...)`` from ``--braking`` and the model file."""
+    if args.braking is None:
+        return None
+    if args.no_regimes:
+        raise ValueError("--braking is a regime: drop --no-regimes")
+    if args.braking != "model":
+        return args.braking
+    if (limit := training.get("acceleration_limit")) is None:
+        raise ValueError(f"{args.model} does not record the largest acceleration it was "
+                         "trained on (written by an earlier gpcd train): give --braking "
+                         "LIMIT in rad/s^2, or train the model again")
+    return float(limit)
 
 
 def _existing_file(value):
@@ -104,6 +154,10 @@ def add_commands(sub):
                                "(default: the robot named in the recordings' metadata)")
     cal.add_argument("--rest-reference", type=_non_negative_float, default=None,
                      help="time constant [s] of the rest re-reference (0: none; default 5)")
+    cal.add_argument("--settle-time", type=_non_negative_float, default=None,
+                     metavar="SECONDS",
+                     help="seconds the arm must be still after a motion before it is at "
+                     "rest (default 0.5)")
     cal.add_argument("--select", action="store_true",
                      help="choose the settle time (0.5, 1, 2, 3 s) and the rest reference "
                      "(none, 2, 5 s) across the recordings too: of the pairs with the fewest "
@@ -113,6 +167,19 @@ def add_commands(sub):
                      "chosen without it")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
+    cal.add_argument("--band", type=_band_arg, action="append", default=None,
+                     metavar="CUTOFF,ORDER,DEBOUNCE",
+                     help="add a band: the same detector with its own causal low-pass "
+                     "(cut-off [Hz], order 1 or 2) and debounce [samples], calibrated by the "
+                     "same rule on the same model; a sample is a collision when any band "
+                     "alarms (repeatable; e.g. --band 10,1,2 for short taps the 2 Hz main "
+                     "band smooths away). The false-alarm figure counts the union")
+    cal.add_argument("--braking", nargs="?", const="model", default=None, metavar="LIMIT",
+                     type=_braking_arg,
+                     help="a fourth regime with its own thresholds, braking: the 0.5 s after "
+                     "a sample where some joint's |qdd| exceeds LIMIT [rad/s^2] (hard stops "
+                     "ring the current); without LIMIT, the largest |qdd| the model was "
+                     "trained on (recorded by gpcd train)")
     cal.add_argument("--split", type=cli._positive_float, default=None, metavar="SECONDS",
                      help="cut every recording into pieces of at least SECONDS, each left "
                      "out in turn like a recording of its own (for one long collision-free "
@@ -128,7 +195,8 @@ def add_commands(sub):
         help="detect collisions in recordings, a real-time replay or a live UR (RTDE)",
         description="Run a detector from 'gpcd calibrate' sample by sample through the "
         "causal streaming path and report alarm events: start, end, joints (1-based), peak "
-        "|m| and the delay from the first threshold crossing to the alarm.",
+        "|m| and the delay from the first threshold crossing to the alarm; with several "
+        "bands (gpcd calibrate --band), an alarm of any band, and which bands alarmed.",
     )
     mon.add_argument("detector", type=_existing_file,
                      help="detector file written by gpcd calibrate")
@@ -193,11 +261,16 @@ def _check_model_inputs(model, features, path):
 
 def _cmd_calibrate(args):
     """``gpcd calibrate``: LORO thresholds on collision-free recordings, saved detector."""
-    import numpy as np
     from sklearn.frozen import FrozenEstimator
 
     from .cli import _Progress, _read_recordings
-    from .detection import CollisionDetector, calibrate_across_recordings, stack_currents
+    from .detection import (
+        CollisionDetector,
+        MultiBandDetector,
+        calibrate_across_recordings,
+        calibrate_bands_across_recordings,
+        stack_currents,
+    )
     from .features import CausalFeatures
     from .io.load import recording_paths
     from .persistence import save
@@ -212,10 +285,15 @@ def _cmd_calibrate(args):
         raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
                          f"give at least 2 collision-free recordings, got {len(paths)} "
                          "(or cut a long one into pieces with --split SECONDS)")
-    if args.select and (args.no_regimes or args.rest_reference is not None):
+    if args.select and (args.no_regimes or args.rest_reference is not None
+                        or args.settle_time is not None):
         raise ValueError("--select chooses the settle time and the rest reference of the "
                          "regimes: drop " + ("--no-regimes" if args.no_regimes
-                                             else "--rest-reference"))
+                                             else "--rest-reference" if args.settle_time
+                                             is None else "--settle-time"))
+    if args.select and args.band:
+        raise ValueError("--select chooses the settings of one band; with --band the bands "
+                         "are calibrated at fixed settings: drop --select or --band")
     trained = load_model(args.model)
     model, features = trained.regressor, trained.features
     recordings = _read_recordings(args.recordings, args, "calibration recordings")
@@ -241,20 +319,31 @@ def _cmd_calibrate(args):
     tau = 5.0 if args.rest_reference is None else args.rest_reference
     tau = tau if (regimes and tau > 0) else None
     template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
-                                 regimes=regimes, rest_reference=tau, **DETECTOR_RULE)
-    result = calibrate_across_recordings(template, blocks, times,
-                                         param_grid=SELECT_GRID if args.select else None)
-    det = result.detector
-    thresholds = np.atleast_2d(det.thresholds_)
+                                 regimes=regimes, rest_reference=tau,
+                                 brake_limit=_brake_limit(args, trained.training),
+                                 **DETECTOR_RULE)
+    if args.settle_time is not None:
+        template.set_params(settle_time=args.settle_time)
+    if args.band:
+        result = calibrate_bands_across_recordings(
+            MultiBandDetector(template, bands=[{}, *args.band]), blocks, times)
+        bands = result.bands
+    else:
+        result = calibrate_across_recordings(template, blocks, times,
+                                             param_grid=SELECT_GRID if args.select else None)
+        bands = [result]
+    kt = None if robot is None else getattr(robot, "torque_constants", None)
+    entries = [_band_entry(band, kt) for band in bands]
+    det = bands[0].detector  # the main band
     summary = {
         "recordings": keys, "split_s": args.split, "n_files": n_files,
-        "hours": result.hours, "margin": float(result.margin.max()),
-        "margin_rule": "global", "regimes": list(result.regime_names),
+        "hours": result.hours, "margin": entries[0]["margin"],
+        "margin_rule": "global", "regimes": list(bands[0].regime_names),
         "settle_time_s": det.settle_time, "rest_reference_s": det.rest_reference,
-        "selected": bool(args.select),
+        "brake_limit": det.brake_limit, "selected": bool(args.select),
         "candidates": [dict(c, params=_json_params(c["params"])) for c in result.candidates]
         if args.select else [],
-        "thresholds_A": thresholds.tolist(),
+        "thresholds_A": entries[0]["thresholds_A"],
         "n_false_alarms_nested": result.n_false_alarms,
         "false_alarms_per_hour": result.false_alarms_per_hour,
         "nested_onsets_s": {k: f["onsets"] for k, f in result.folds.items()},
@@ -262,14 +351,43 @@ def _cmd_calibrate(args):
         "signals": list(features.signals_), "sample_time_s": float(det.sample_time_),
         "robot": None if robot is None else robot.name,
     }
-    kt = None if robot is None else getattr(robot, "torque_constants", None)
     if kt is not None:
-        summary["thresholds_Nm"] = (thresholds * np.asarray(kt)).tolist()
-    save({"kind": DETECTOR_KIND, "detector": det, "features": features,
+        summary["thresholds_Nm"] = entries[0]["thresholds_Nm"]
+    if args.band:
+        summary["bands"] = entries
+    save({"kind": DETECTOR_KIND, "detector": result.detector, "features": features,
           "calibration": summary}, args.output)
     _print_calibration(summary, len(recordings))
     print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}")
     return 0
+
+
+def _band_settings(detector):
+    """What sets a band apart: its low-pass filter and debounce."""
+    return {"filter_cutoff_hz": detector.filter_cutoff, "filter_order": detector.filter_order,
+            "debounce_samples": detector.min_duration}
+
+
+def _band_label(settings):
+    """``"10 Hz, order 1, debounce 2"`` from :func:`_band_settings`."""
+    cutoff = settings["filter_cutoff_hz"]
+    low_pass = "no low-pass" if cutoff is None else (f"{cutoff:g} Hz, order "
+                                                     f"{settings['filter_order']}")
+    return f"{low_pass}, debounce {settings['debounce_samples']}"
+
+
+def _band_entry(result, torque_constants):
+    """One band's calibration (a calibrate_across_recordings result) for the summary."""
+    import numpy as np
+
+    thresholds = np.atleast_2d(result.detector.thresholds_)
+    entry = {**_band_settings(result.detector), "margin": float(result.margin.max()),
+             "thresholds_A": thresholds.tolist(),
+             "n_false_alarms_nested": result.n_false_alarms,
+             "false_alarms_per_hour": result.false_alarms_per_hour}
+    if torque_constants is not None:
+        entry["thresholds_Nm"] = (thresholds * np.asarray(torque_constants)).tolist()
+    return entry
 
 
 def split_recordings(keys, recordings, seconds):
@@ -339,7 +457,6 @@ def _seconds(value):
 
 
 def _print_calibration(summary, n_recordings):
-    n = len(summary["thresholds_A"][0])
     if summary.get("split_s") is not None:
         print(f"cut {summary['n_files']} recording(s) into {n_recordings} pieces of at least "
               f"{summary['split_s']:g} s (--split), each left out in turn like a recording; "
@@ -349,7 +466,9 @@ def _print_calibration(summary, n_recordings):
           f"controller signals used: {', '.join(summary['signals']) or 'none'}; settle "
           f"time {_seconds(summary['settle_time_s'])}, rest reference "
           f"{_seconds(summary['rest_reference_s'])}"
-          + (" (chosen across the recordings)" if summary.get("selected") else ""))
+          + (" (chosen across the recordings)" if summary.get("selected") else "")
+          + ("" if summary.get("brake_limit") is None else
+             f"; braking above {summary['brake_limit']:.3g} rad/s^2"))
     if summary.get("candidates"):
         print("  candidates, best first (alarms: nested onsets at that fixed candidate, "
               "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
@@ -362,26 +481,52 @@ def _print_calibration(summary, n_recordings):
         print(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
               f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "
               f"seed {info['seed']}")
-    print(f"  margin (leave-one-recording-out, one for all joints and regimes): "
-          f"{summary['margin']:.3f}")
+    if "bands" not in summary:
+        _print_margin(summary, "  ")
+        _print_false_alarms(summary)
+        _print_thresholds(summary, summary, "  ")
+        return
+    for b, band in enumerate(summary["bands"], start=1):
+        print(f"  band {b} ({_band_label(band)})" + (", the main one:" if b == 1 else ":"))
+        _print_margin(band, "    ")
+        if band["false_alarms_per_hour"] is not None:
+            print(f"    nested false alarms of this band alone: "
+                  f"{band['n_false_alarms_nested']} alarm onset(s) = "
+                  f"{band['false_alarms_per_hour']:.2f} per hour")
+        _print_thresholds(band, summary, "    ")
+    _print_false_alarms(summary, " (any band)")
+
+
+def _print_margin(entry, pad):
+    print(f"{pad}margin (leave-one-recording-out, one for all joints and regimes): "
+          f"{entry['margin']:.3f}")
+
+
+def _print_false_alarms(summary, which=""):
     if summary["false_alarms_per_hour"] is None:
-        print("  expected false alarms per hour: n/a (the nested figure needs >= 3 "
+        print(f"  expected false alarms{which} per hour: n/a (the nested figure needs >= 3 "
               "recordings)")
-    else:
-        print(f"  expected false alarms: {summary['n_false_alarms_nested']} alarm onset(s) "
-              f"on left-out recordings in {summary['hours'] * 60:.1f} min = "
-              f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
-              "out: each recording scored with margin"
-              + (", levels and settings" if summary.get("selected") else " and levels")
-              + " chosen without it)")
-    units = [("A", summary["thresholds_A"])]
-    if "thresholds_Nm" in summary:
-        units.append((f"Nm, torque constants of {summary['robot']}", summary["thresholds_Nm"]))
+        return
+    print(f"  expected false alarms{which}: {summary['n_false_alarms_nested']} alarm "
+          f"onset(s) on left-out recordings in {summary['hours'] * 60:.1f} min = "
+          f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
+          "out: each recording scored with margin"
+          + (", levels and settings" if summary.get("selected") else " and levels")
+          + " chosen without it)")
+
+
+def _print_thresholds(entry, summary, pad):
+    """The thresholds table(s) of ``entry`` (A, and Nm when known), one row per regime."""
+    n = len(entry["thresholds_A"][0])
+    units = [("A", entry["thresholds_A"])]
+    if "thresholds_Nm" in entry:
+        units.append((f"Nm, torque constants of {summary['robot']}", entry["thresholds_Nm"]))
     for unit, table in units:
-        print(f"  thresholds [{unit}]:")
-        print("    " + f"{'regime':<10}" + "".join(f"{f'joint {j + 1}':>10}" for j in range(n)))
+        print(f"{pad}thresholds [{unit}]:")
+        print(f"{pad}  " + f"{'regime':<10}" + "".join(f"{f'joint {j + 1}':>10}"
+                                                        for j in range(n)))
         for name, row in zip(summary["regimes"], table):
-            print("    " + f"{name:<10}" + "".join(f"{v:>10.3f}" for v in row))
+            print(f"{pad}  " + f"{name:<10}" + "".join(f"{v:>10.3f}" for v in row))
 
 
 # ---------------------------------------------------------------- monitor
@@ -395,8 +540,11 @@ def load_detector(path):
 
     Returns
     -------
-    detector : CollisionDetector
-        Fitted, thresholds chosen across recordings.
+    detector : CollisionDetector or MultiBandDetector
+        Fitted, thresholds chosen across recordings; a
+        :class:`~sklearn_gpcd.detection.MultiBandDetector` when the file was
+        calibrated with ``--band`` (then ``calibration["bands"]`` holds each
+        band's settings, margin and thresholds).
     features : CausalFeatures
         Fitted on the calibration recordings (for
         :meth:`StreamingMonitor.update_raw
@@ -432,21 +580,29 @@ def load_detector(path):
 class _Session:
     """The per-sample loop every ``gpcd monitor`` source goes through.
 
-    :meth:`tick` feeds one raw sample to :meth:`StreamingMonitor.update_raw`,
-    then tracks threshold crossings and alarm events; :meth:`start` begins a
-    new recording (monitor reset).
+    :meth:`tick` feeds one raw sample to :meth:`StreamingMonitor.update_raw`
+    (:meth:`MultiBandMonitor.update_raw` for a multi-band detector), then
+    tracks threshold crossings and alarm events; :meth:`start` begins a new
+    recording (monitor reset). With several bands an event is a run of
+    samples where any band alarms, and it records which bands did
+    (``"bands"``, 1-based).
     """
 
     def __init__(self, detector, features, hook=None, keep_series=False, echo=False):
         import numpy as np
 
-        from .detection import StreamingMonitor
+        from .detection import MultiBandDetector, MultiBandMonitor, StreamingMonitor
 
         self.np = np
-        self.monitor = StreamingMonitor(detector, features=features)
+        self.multiband = isinstance(detector, MultiBandDetector)
+        kind = MultiBandMonitor if self.multiband else StreamingMonitor
+        self.monitor = kind(detector, features=features)
+        #: one StreamingMonitor per band (the monitor itself with one band)
+        self.bands = self.monitor.monitors if self.multiband else [self.monitor]
+        self.band_labels = [_band_label(_band_settings(b.detector)) for b in self.bands]
         self.signals = tuple(features.signals_)
-        self.thresholds = np.atleast_2d(detector.thresholds_)
-        self.regime_names = tuple(detector.regime_names_)
+        self.thresholds = [np.atleast_2d(b.detector.thresholds_) for b in self.bands]
+        self.regime_names = tuple(self.bands[0].detector.regime_names_)
         self.hook, self.keep_series, self.echo = hook, keep_series, echo
         self.events, self.recordings = [], []
         self.latency, self.stamps, self.decided = [], [], []
@@ -476,47 +632,64 @@ class _Session:
             self.n_faults += 1
             return status
         rel = t - self.t0
-        above = np.abs(mon.signal) > self.thresholds[mon.regime]
-        if above.any():
+        if any((np.abs(band.signal) > thresholds[band.regime]).any()
+               for band, thresholds in zip(self.bands, self.thresholds)):
             if self.cross_start is None:
                 self.cross_start = rel
         elif self.open is None:
             self.cross_start = None
         if mon.alarms.any():
-            peak = float(np.abs(mon.signal[mon.alarms]).max())
-            if self.open is None:
-                self.open = {"recording": self.name, "start_s": rel, "end_s": rel,
-                             "joints": set(), "peak_A": peak,
-                             "delay_s": rel - (rel if self.cross_start is None
-                                               else self.cross_start)}
-                self._onset(self.open, mon.alarms)
-            self.open["end_s"] = rel
-            self.open["joints"].update(int(j) + 1 for j in np.flatnonzero(mon.alarms))
-            self.open["peak_A"] = max(self.open["peak_A"], peak)
+            self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
         elif self.open is not None:
             self._close()
         if self.keep_series:
             s = self.series
             s["t"].append(rel)
-            s["signal"].append(mon.signal.copy())
-            s["regime"].append(mon.regime)
+            s["signal"].append([band.signal.copy() for band in self.bands])
+            s["regime"].append([band.regime for band in self.bands])
             s["alarms"].append(mon.alarms.copy())
         return status
 
-    def _onset(self, event, alarms):
+    def _alarm(self, rel, firing):
+        """A tick where the bands ``firing`` (indices) alarm: open or extend the event."""
+        np = self.np
+        alarms = self.monitor.alarms
+        peak = max(float(np.abs(self.bands[b].signal[self.bands[b].alarms]).max())
+                   for b in firing)
+        if self.open is None:
+            self.open = {"recording": self.name, "start_s": rel, "end_s": rel,
+                         "joints": set(), "peak_A": peak,
+                         "delay_s": rel - (rel if self.cross_start is None
+                                           else self.cross_start)}
+            if self.multiband:
+                self.open["bands"] = set()
+            self._onset(self.open, alarms, firing)
+        self.open["end_s"] = rel
+        self.open["joints"].update(int(j) + 1 for j in np.flatnonzero(alarms))
+        self.open["peak_A"] = max(self.open["peak_A"], peak)
+        if self.multiband:
+            self.open["bands"].update(b + 1 for b in firing)
+
+    def _onset(self, event, alarms, firing):
         joints = ",".join(str(int(j) + 1) for j in self.np.flatnonzero(alarms))
         if self.echo:
-            print(f"ALARM {self.name} t={event['start_s']:.3f} s joints {joints}", flush=True)
+            which = "".join(f", band {b + 1} ({self.band_labels[b]})" for b in firing)
+            print(f"ALARM {self.name} t={event['start_s']:.3f} s joints {joints}"
+                  + (which if self.multiband else ""), flush=True)
         if self.hook:
             import os
 
             env = {**os.environ, "GPCD_ALARM_TIME": f"{event['start_s']:.6f}",
                    "GPCD_ALARM_JOINTS": joints}
+            if self.multiband:
+                env["GPCD_ALARM_BANDS"] = ",".join(str(b + 1) for b in firing)
             subprocess.Popen(shlex.split(self.hook), env=env)  # not waited for
 
     def _close(self):
         event = self.open
         event["joints"] = sorted(event["joints"])
+        if self.multiband:
+            event["bands"] = sorted(event["bands"])
         self.events.append(event)
         self.open, self.cross_start = None, None
 
@@ -599,9 +772,11 @@ def _cmd_monitor(args):
     if args.rtde is not None:
         from .io import RTDEClient
 
-        if detector.n_joints != 6:
-            raise ValueError(f"RTDE streams 6 joints; the detector has {detector.n_joints}")
-        frequency = args.frequency or round(1.0 / float(detector.sample_time_), 6)
+        if session.monitor.n_joints != 6:
+            raise ValueError(f"RTDE streams 6 joints; the detector has "
+                             f"{session.monitor.n_joints}")
+        sample_time = session.bands[0].detector.sample_time_
+        frequency = args.frequency or round(1.0 / float(sample_time), 6)
         client = RTDEClient(args.rtde, args.port, frequency)
         try:
             client.connect()
@@ -624,9 +799,9 @@ def _cmd_monitor(args):
                                       progress=not (args.quiet or live))
         keys = _recording_keys(recordings)
         for key, rec in zip(keys, recordings):
-            if rec.n_joints != detector.n_joints:
+            if rec.n_joints != session.monitor.n_joints:
                 raise ValueError(f"{rec.name}: {rec.n_joints} joints but the detector has "
-                                 f"{detector.n_joints}")
+                                 f"{session.monitor.n_joints}")
             session.start(key)
             if args.replay is not None:
                 for received, t, fields in _paced(_recording_fields(rec), args.speed,
@@ -650,6 +825,8 @@ def _cmd_monitor(args):
         report = {"detector": str(args.detector), "calibration": calibration,
                   "recordings": session.recordings, "events": session.events,
                   "live": stats, "figures": [str(p) for p in plots if p is not None]}
+        if session.multiband:
+            report["bands"] = session.band_labels
         Path(args.json).write_text(json.dumps(report, indent=2))
         print(f"wrote {args.json}")
     for path in plots:
@@ -664,19 +841,37 @@ def _print_events(session):
     n_faults = sum(r["n_sensor_faults"] for r in session.recordings)
     print(f"{len(session.events)} alarm event(s) in {len(session.recordings)} recording(s), "
           f"{n_samples} samples ({n_faults} sensor faults)")
+    if session.multiband:
+        for b, label in enumerate(session.band_labels, start=1):
+            n_events = sum(b in e["bands"] for e in session.events)
+            print(f"  band {b} ({label}) alarmed in {n_events} event(s)")
     if not session.events:
         return
     width = max(9, *(len(e["recording"]) for e in session.events))
-    print(f"{'recording':<{width}}  {'start [s]':>9}  {'end [s]':>9}  {'joints':<12}  "
-          f"{'peak |m| [A]':>12}  {'delay [s]':>9}")
+    columns = [("recording", f"<{width}", lambda e: e["recording"]),
+               ("start [s]", ">9", lambda e: f"{e['start_s']:.3f}"),
+               ("end [s]", ">9", lambda e: f"{e['end_s']:.3f}"),
+               ("joints", "<12", lambda e: ",".join(map(str, e["joints"]))),
+               ("peak |m| [A]", ">12", lambda e: f"{e['peak_A']:.3f}"),
+               ("delay [s]", ">9", lambda e: f"{e['delay_s']:.3f}")]
+    if session.multiband:
+        columns.insert(4, ("bands", "<6", lambda e: ",".join(map(str, e["bands"]))))
+    print("  ".join(f"{name:{spec}}" for name, spec, _ in columns))
     for e in session.events:
-        print(f"{e['recording']:<{width}}  {e['start_s']:>9.3f}  {e['end_s']:>9.3f}  "
-              f"{','.join(map(str, e['joints'])):<12}  {e['peak_A']:>12.3f}  "
-              f"{e['delay_s']:>9.3f}")
+        print("  ".join(f"{value(e):{spec}}" for _, spec, value in columns))
+
+
+#: Line colours of the bands in a multi-band figure (C3, red, shades the events).
+_BAND_COLORS = ("C0", "C2", "C4", "C1", "C5", "C6", "C8", "C9")
 
 
 def _plot(session, folder, key):
-    """Monitoring signal, per-regime thresholds and alarms of one recording."""
+    """One figure per recording, one axis per joint, alarm events shaded, alarms marked.
+
+    One band: the monitoring signal and its per-regime thresholds [A]. Several
+    bands: each band's ``|m|`` over its threshold (per regime), so that every
+    band crosses at 1.
+    """
     try:
         import matplotlib
 
@@ -691,31 +886,49 @@ def _plot(session, folder, key):
     t = np.asarray(s["t"])
     signal, regime = np.asarray(s["signal"]), np.asarray(s["regime"], dtype=int)
     alarms = np.asarray(s["alarms"], dtype=bool)
-    n = signal.shape[1] if signal.ndim == 2 else 0
+    n = signal.shape[2] if signal.ndim == 3 else 0
     fig, axes = plt.subplots(max(n, 1), 1, figsize=(9, 1.6 * max(n, 1) + 0.8), sharex=True,
                              squeeze=False)
     events = [e for e in session.events if e["recording"] == key]
+    draw = _draw_ratios if session.multiband else _draw_signal
     for j in range(n):
         ax = axes[j, 0]
         for k, e in enumerate(events):
             ax.axvspan(e["start_s"], e["end_s"], color="C3", alpha=0.15,
                        label="alarm event" if k == 0 else None)
-        ax.plot(t, signal[:, j], lw=0.7, color="C0", label="monitoring signal m")
-        band = session.thresholds[regime, j]
-        ax.plot(t, band, lw=0.7, color="C1",
-                label="threshold (" + "/".join(session.regime_names) + ")")
-        ax.plot(t, -band, lw=0.7, color="C1")
+        ax.set_ylabel(draw(ax, session, t, signal[:, :, j], regime, j), fontsize=8)
         if alarms[:, j].any():
             ax.plot(t[alarms[:, j]], np.zeros(alarms[:, j].sum()), "|", color="k", ms=8,
                     label="alarm")
-        ax.set_ylabel(f"joint {j + 1} [A]", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.legend(fontsize=6, loc="upper right")
     axes[-1, 0].set_xlabel("t [s]")
-    fig.suptitle(f"{key}: causal monitoring signal, per-regime thresholds, alarms",
+    fig.suptitle(f"{key}: " + ("each band's |m| over its threshold (per regime), alarms"
+                               if session.multiband else
+                               "causal monitoring signal, per-regime thresholds, alarms"),
                  fontsize=9)
     fig.tight_layout()
     path = folder / f"{Path(key).stem}.png"
     fig.savefig(path, dpi=80)
     plt.close(fig)
     return path
+
+
+def _draw_signal(ax, session, t, signal, regime, j):
+    """One band: joint ``j``'s signal and its thresholds ``+-`` (per regime); the y label."""
+    ax.plot(t, signal[:, 0], lw=0.7, color="C0", label="monitoring signal m")
+    band = session.thresholds[0][regime[:, 0], j]
+    ax.plot(t, band, lw=0.7, color="C1",
+            label="threshold (" + "/".join(session.regime_names) + ")")
+    ax.plot(t, -band, lw=0.7, color="C1")
+    return f"joint {j + 1} [A]"
+
+
+def _draw_ratios(ax, session, t, signal, regime, j):
+    """Several bands: joint ``j``'s ``|m| / threshold`` per band, and 1; the y label."""
+    for b, label in enumerate(session.band_labels):
+        ratio = session.np.abs(signal[:, b]) / session.thresholds[b][regime[:, b], j]
+        ax.plot(t, ratio, lw=0.7, color=_BAND_COLORS[b % len(_BAND_COLORS)],
+                label=f"band {b + 1} ({label})")
+    ax.axhline(1.0, lw=0.7, ls="--", color="k", label="threshold")
+    return f"joint {j + 1}\n|m| / threshold"

@@ -1,0 +1,226 @@
+"""``gpcd calibrate --band`` and ``gpcd monitor`` on a multi-band detector file."""
+
+import json
+
+import numpy as np
+import pytest
+from sklearn.frozen import FrozenEstimator
+
+from sklearn_gpcd.cli import main
+from sklearn_gpcd.cli_monitor import DETECTOR_RULE, load_detector
+from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.detection import (
+    CollisionDetector,
+    MultiBandDetector,
+    MultiBandMonitor,
+    calibrate_across_recordings,
+    calibrate_bands_across_recordings,
+    stack_currents,
+)
+from sklearn_gpcd.dynamics import ControllerCurrent
+from sklearn_gpcd.features import CausalFeatures, contiguous_segments
+from sklearn_gpcd.io import load_recording, write_rtde_csv
+from sklearn_gpcd.workflow import TrainedModel, load_model, save_model
+
+FAST = {"filter_cutoff": 10.0, "filter_order": 1, "min_duration": 2}
+MID = {"filter_cutoff": 5.0, "filter_order": 2, "min_duration": 3}
+TAP_S = 1.0  # a 16 ms tap of 0.5 A on joint 2: too short for the 2 Hz main band
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory):
+    """Three collision-free 125 Hz UR10e runs, a run with a tap and a push, the
+    controller's current as the model (no training: the test is about the CLI) and a
+    two-band detector calibrated by the CLI."""
+    folder = tmp_path_factory.mktemp("bands")
+    free = [write_rtde_csv(make_d1("ur10e", n_targets=2, random_state=seed),
+                           folder / f"free{seed}.csv", robot_comment=True)
+            for seed in range(3)]
+    recs = [load_recording(p) for p in free]
+    features = CausalFeatures().fit(recs)
+    model = ControllerCurrent(6).fit(features.transform(recs[0]), recs[0].current)
+    model_file = save_model(TrainedModel(model, features, {}), folder / "model.skops")
+    rec = make_d1("ur10e", n_targets=2, random_state=7)
+    t = rec.time - rec.time[0]
+    current = rec.current.copy()
+    tap = np.searchsorted(t, TAP_S)
+    current[tap:tap + 2, 1] += 0.5
+    current[(t >= 3.5) & (t < 3.9), 0] -= 1.0
+    taps = write_rtde_csv(rec.replace(current=current), folder / "tap.csv",
+                          robot_comment=True)
+    detector = folder / "bands.skops"
+    assert main(["calibrate", str(model_file), *map(str, free), "--band", "10,1,2", "-q",
+                 "-o", str(detector)]) == 0
+    return {"folder": folder, "free": free, "model": model_file, "taps": taps,
+            "detector": detector}
+
+
+def test_calibrate_bands_equals_the_package_function(work, capsys):
+    out = work["folder"] / "three.joblib"
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--band",
+                 "10,1,2", "--band", "5, 2, 3", "-q", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    detector, features, calibration = load_detector(out)
+    assert isinstance(detector, MultiBandDetector)
+    # the same calibration by hand, on the model's causal inputs
+    recs = [load_recording(p) for p in work["free"]]
+    trained = load_model(work["model"])
+    blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
+              for p, r in zip(work["free"], recs)}
+    times = {p.name: r.time for p, r in zip(work["free"], recs)}
+    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
+                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    expected = calibrate_bands_across_recordings(
+        MultiBandDetector(template, bands=[{}, FAST, MID]), blocks, times)
+    assert [d.get_params()["filter_cutoff"] for d in detector.detectors_] == [2.0, 10.0, 5.0]
+    for fitted, band, saved in zip(detector.detectors_, expected.bands, calibration["bands"]):
+        np.testing.assert_allclose(fitted.thresholds_, band.detector.thresholds_)
+        np.testing.assert_allclose(saved["thresholds_A"], band.detector.thresholds_)
+        assert saved["margin"] == pytest.approx(band.margin.max())
+        assert saved["n_false_alarms_nested"] == band.n_false_alarms
+        assert f"{band.margin.max():.3f}" in text
+    assert calibration["n_false_alarms_nested"] == expected.n_false_alarms
+    assert calibration["nested_onsets_s"] == {k: f["onsets"] for k, f in expected.folds.items()}
+    assert calibration["false_alarms_per_hour"] == pytest.approx(
+        expected.false_alarms_per_hour)
+    for label in ("band 1 (2 Hz, order 1, debounce 5), the main one:",
+                  "band 2 (10 Hz, order 1, debounce 2):", "band 3 (5 Hz, order 2, debounce 3):",
+                  "expected false alarms (any band):"):
+        assert label in text
+    assert text.count("thresholds [A]:") == 3 and text.count("thresholds [Nm") == 3
+
+
+def test_a_multi_band_file_loads_and_says_so(work):
+    detector, features, calibration = load_detector(work["detector"])  # skops: trusted
+    assert isinstance(detector, MultiBandDetector) and len(detector.detectors_) == 2
+    assert [(b["filter_cutoff_hz"], b["filter_order"], b["debounce_samples"])
+            for b in calibration["bands"]] == [(2.0, 1, 5), (10.0, 1, 2)]
+    single = work["folder"] / "single.skops"
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "-q",
+                 "-o", str(single)]) == 0
+    detector, _, calibration = load_detector(single)
+    assert isinstance(detector, CollisionDetector) and "bands" not in calibration
+
+
+def test_monitor_names_the_band_that_caught_a_tap(work, capsys):
+    report, plots = work["folder"] / "events.json", work["folder"] / "plots"
+    assert main(["monitor", str(work["detector"]), str(work["taps"]), "-q",
+                 "--json", str(report), "--plot", str(plots)]) == 0
+    text = capsys.readouterr().out
+    saved = json.loads(report.read_text())
+    events = saved["events"]
+    tap = [e for e in events if TAP_S <= e["start_s"] < TAP_S + 0.1]
+    push = [e for e in events if 3.5 <= e["start_s"] < 3.9]
+    # the tap: only the fast band; the push: the main band too
+    assert len(tap) == 1 and tap[0]["bands"] == [2] and tap[0]["joints"] == [2]
+    assert push and 1 in {b for e in push for b in e["bands"]}
+    assert "band 2 (10 Hz, order 1, debounce 2) alarmed in" in text
+    assert "bands" in text.splitlines()[3]  # the event table's header
+    assert saved["bands"] == ["2 Hz, order 1, debounce 5", "10 Hz, order 1, debounce 2"]
+    assert (plots / "tap.png").stat().st_size > 0
+    # the same union alarms as MultiBandMonitor.replay_recording
+    onsets, result, t = _replayed_onsets(work)
+    assert [e["start_s"] for e in events] == pytest.approx(onsets)
+    assert not result.bands[0].alarms[np.abs(t - TAP_S) < 0.1].any()
+
+
+def _replayed_onsets(work):
+    """Onsets [s] of the union alarms of MultiBandMonitor.replay_recording on the taps."""
+    detector, features, _ = load_detector(work["detector"])
+    rec = load_recording(work["taps"])
+    result = MultiBandMonitor(detector, features=features).replay_recording(rec)
+    t = rec.time - rec.time[0]
+    return [t[a] for a, _ in contiguous_segments(result.alarms.any(axis=1))], result, t
+
+
+def test_monitor_replay_of_a_multi_band_file(work, capsys, monkeypatch):
+    import sklearn_gpcd.cli_monitor as cli_monitor
+
+    hooks = []  # the environment of each --hook call, instead of running it
+    monkeypatch.setattr(cli_monitor.subprocess, "Popen",
+                        lambda command, env: hooks.append((command, env)))
+    replay = work["folder"] / "replay.json"
+    assert main(["monitor", str(work["detector"]), "--replay", str(work["taps"]),
+                 "--speed", "0", "--json", str(replay), "--hook", "alarm.sh"]) == 0
+    text = capsys.readouterr().out
+    assert "latency receive -> decision" in text
+    assert f"ALARM tap.csv t={TAP_S + 0.008:.3f} s joints 2, band 2 (10 Hz, order 1, " \
+           "debounce 2)" in text
+    events = json.loads(replay.read_text())["events"]
+    assert [e["start_s"] for e in events] == pytest.approx(_replayed_onsets(work)[0])
+    assert [env["GPCD_ALARM_TIME"] for _, env in hooks] == [
+        f"{e['start_s']:.6f}" for e in events]
+    assert hooks[0][0] == ["alarm.sh"] and hooks[0][1]["GPCD_ALARM_BANDS"] == "2"
+
+
+@pytest.mark.parametrize("text", ["10,1", "10,3,2", "x,1,2", "10,1,0", "-5,1,2", "10,1.5,2",
+                                  "10,1,2,4", "inf,1,2"])
+def test_bad_band_text_is_one_clear_error(work, capsys, text):
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), f"--band={text}",
+                 "-o", str(work["folder"] / "bad.skops")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("gpcd calibrate: error: argument --band: expected "
+                          "CUTOFF,ORDER,DEBOUNCE like 10,1,2") and repr(text) in err
+
+
+def test_bands_refuse_select(work, capsys):
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--band", "10,1,2",
+                 "--select", "-o", str(work["folder"] / "select.skops")]) == 2
+    assert "drop --select or --band" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ --braking
+def test_braking_takes_the_limit_given_or_the_models_own(work, capsys):
+    recs = [load_recording(p) for p in work["free"]]
+    trained = load_model(work["model"])
+    qdd = np.abs(trained.features.transform(recs[0])[:, 12:18]).max()
+    limit = round(0.5 * float(qdd), 3)  # hard enough to brake on these runs
+    given = work["folder"] / "braking.skops"
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]),
+                 f"--braking={limit}", "-q", "-o", str(given)]) == 0
+    assert f"braking above {limit:.3g} rad/s^2" in capsys.readouterr().out
+    detector, _, calibration = load_detector(given)
+    assert detector.brake_limit == limit and calibration["brake_limit"] == limit
+    assert calibration["regimes"] == ["moving", "settling", "rest", "braking"]
+    blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
+              for p, r in zip(work["free"], recs)}
+    times = {p.name: r.time for p, r in zip(work["free"], recs)}
+    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
+                                 regimes=True, rest_reference=5.0, brake_limit=limit,
+                                 **DETECTOR_RULE)
+    expected = calibrate_across_recordings(template, blocks, times)
+    np.testing.assert_allclose(detector.thresholds_, expected.detector.thresholds_)
+    assert any((expected.detector.monitoring_signal(b).regime == 3).any()
+               for b in blocks.values())
+    # without LIMIT: the one gpcd train recorded in the model file
+    own = save_model(TrainedModel(trained.regressor, trained.features,
+                                  {"model": "sp_c", "inputs": "causal", "n_support": 0,
+                                   "optimizer": "none", "seed": 0,
+                                   "acceleration_limit": 2.5}), work["folder"] / "own.skops")
+    out = work["folder"] / "own_braking.skops"
+    assert main(["calibrate", str(own), *map(str, work["free"]), "--braking", "-q",
+                 "-o", str(out)]) == 0
+    assert load_detector(out)[0].brake_limit == 2.5
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--braking"], "does not record the largest acceleration"),  # the fixture's model: {}
+    (["--braking=-1"], "argument --braking: expected an acceleration > 0"),
+    (["--braking=fast"], "argument --braking: expected an acceleration > 0"),
+    (["--braking=2", "--no-regimes"], "--braking is a regime: drop --no-regimes"),
+])
+def test_braking_errors_say_what_to_do(work, capsys, args, message):
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), *args,
+                 "-o", str(work["folder"] / "bad.skops")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_settle_time_is_an_option_and_select_refuses_it(work, capsys):
+    out = work["folder"] / "settle.skops"
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--settle-time",
+                 "2", "--rest-reference", "2", "-q", "-o", str(out)]) == 0
+    detector = load_detector(out)[0]
+    assert (detector.settle_time, detector.rest_reference) == (2.0, 2.0)
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--settle-time",
+                 "2", "--select", "-o", str(out)]) == 2
+    assert "drop --settle-time" in capsys.readouterr().err
