@@ -59,7 +59,14 @@ Monitors: ``i - i_des`` (the peer: ``ControllerCurrent``), P_f, SP_S, SP_P
 current as mean, GP correction), the "+R" variants with the rest
 re-reference (``rest_reference=REST_TAU``) and the "sel" variants of the
 peer, P_f, SP_S and SP_C with settle time and rest reference chosen across
-recordings (5b).
+recordings (5b). The "bands" monitors (our extension, ``BANDED``) run the
+peer, SP_C and P_f~ (P_f with a smooth Coulomb column, ``COULOMB_WIDTH``)
+through ``MultiBandDetector`` (a 10 Hz first-order, 2-sample band beside
+the rule's, alarm when either fires) with the braking regime
+(``brake_limit`` at the training runs' largest causal ``|qdd|``),
+calibrated by ``calibrate_bands_across_recordings`` (nested false alarms of
+the union of the bands); P_f~ on the 2020 task too. That band was picked in
+``real_ur10e_studies.py --study braking`` by looking at these recordings.
 
 Run::
 
@@ -91,7 +98,9 @@ from sklearn_gpcd.detection import (  # noqa: E402
     MARGIN_RULES,
     REGIME_NAMES,
     CollisionDetector,
+    MultiBandDetector,
     calibrate_across_recordings,
+    calibrate_bands_across_recordings,
     regime_excursions,
     regime_levels,
     stack_currents,
@@ -105,7 +114,7 @@ from sklearn_gpcd.features import contiguous_segments  # noqa: E402
 from sklearn_gpcd.io import RecordingWarning, load_recording  # noqa: E402
 from sklearn_gpcd.metrics import alarm_onsets  # noqa: E402
 from sklearn_gpcd.robots import load_robot  # noqa: E402
-from sklearn_gpcd.workflow import train_model, training_set  # noqa: E402
+from sklearn_gpcd.workflow import acceleration_limit, train_model, training_set  # noqa: E402
 
 DATASET = "ur10e_mamedov"
 IDENTIFICATION = "identification_data"
@@ -125,6 +134,14 @@ FILTER_CUTOFF = 2.0   # Hz
 MIN_DURATION = 5      # samples (50 ms at 100 Hz)
 REST_TAU = 5.0        # s, time constant of the rest reference
 PEER = "i - i_des"
+#: Width [rad/s] of the smooth Coulomb column of the banded P_f monitor
+#: (``--study braking`` of real_ur10e_studies.py).
+COULOMB_WIDTH = 0.01
+#: Settle time and rest reference [s] of the banded monitors on ``C``: SP_C
+#: sel's choice across these recordings (``SP_C_SEL`` of the studies).
+BANDED_SETTINGS = {"settle_time": 3.0, "rest_reference": 2.0}
+#: The banded monitors: model name -> shown name.
+BANDED = {PEER: PEER + " bands", "P_f~": "P_f~ bands", "SP_C": "SP_C bands"}
 TABLES = "real_ur10e_tables.rst.inc"
 
 
@@ -202,6 +219,62 @@ def detector(regressor, rest_reference=None, margin=1.0):
         min_duration=MIN_DURATION, sample_time="auto", sigma_v=None, regimes=True,
         settle_time=0.5, rest_reference=rest_reference,
     )
+
+
+def banded_detector(regressor, limit, **settings):
+    """The rule with a fast second band and the braking regime (our extension).
+
+    ``MultiBandDetector`` with its default bands -- the rule's own 2 Hz band
+    and a 10 Hz first-order band with a 2-sample debounce, alarm when either
+    fires -- and ``brake_limit=limit`` (a regime of its own for the 0.5 s
+    after a joint's causal ``|qdd|`` exceeds the largest of the training
+    runs).
+    """
+    return MultiBandDetector(detector(regressor).set_params(brake_limit=limit, **settings))
+
+
+def band_text(det):
+    """A band's filter and debounce, as the tables show them.
+
+    >>> band_text(CollisionDetector(filter_cutoff=10.0, filter_order=1, min_duration=2))
+    '10 Hz, order 1, debounce 2'
+    """
+    return f"{det.filter_cutoff:g} Hz, order {det.filter_order}, debounce {det.min_duration}"
+
+
+def banded_result(model, limit, blocks, unseen, pushes, push_blocks, labels):
+    """A banded monitor (:func:`banded_detector`, ``BANDED_SETTINGS``) on ``C``:
+    every band calibrated across the recordings, nested false alarms of the
+    union of the bands (``calibrate_bands_across_recordings``), pushes scored
+    at the operating point. The result has the keys of the other monitors;
+    ``thresholds`` are the first (2 Hz) band's, ``band_thresholds`` every band's."""
+    calibration = calibrate_bands_across_recordings(
+        banded_detector(model, limit, **BANDED_SETTINGS), blocks, times_of(unseen),
+        rule=MARGIN_RULE)
+    det = calibration.detector
+    events, outside = {}, {}
+    for key, rec in pushes.items():
+        events[key], outside[key], _ = score_events(det, push_blocks[key], rec,
+                                                    labels[key]["events"])
+    delays = [e["delay_s"] for v in events.values() for e in v if e["detected"]]
+    main_band = det.detectors_[0]
+    return {
+        "margin": np.array([np.max(band.margin) for band in calibration.bands]),
+        "thresholds": np.atleast_2d(main_band.thresholds_),
+        "band_thresholds": [np.atleast_2d(d.thresholds_) for d in det.detectors_],
+        "bands": [band_text(d) for d in det.detectors_], "brake_limit": limit,
+        "folds": calibration.folds, "onsets": calibration.n_false_alarms,
+        "onsets_by_margin_rule": {MARGIN_RULE: calibration.n_false_alarms},
+        "first_second_alarm_samples": sum(
+            f["first_second_alarm_samples"] for f in calibration.folds.values()),
+        "events": events, "outside": outside,
+        "n_events": sum(len(v) for v in events.values()),
+        "n_detected": sum(e["detected"] for v in events.values() for e in v),
+        "median_delay_s": float(np.median(delays)) if delays else None,
+        "max_delay_s": float(np.max(delays)) if delays else None,
+        "settle_time_s": main_band.settle_time, "rest_reference_s": main_band.rest_reference,
+        "candidates": None, "fold_settings": None, "monitors": {}, "detector": det,
+    }
 
 
 def times_of(recordings):
@@ -293,7 +366,7 @@ def family_calibration(key, blocks, times, inputs, recordings, segments):
 
 
 def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
-                     rule=MARGIN_RULE, models=None, settings=None):
+                     rule=MARGIN_RULE, models=None, settings=None, banded=None):
     """Detection on collision_detection_data_2020 (no target current logged).
 
     Models on the state only (P_f, SP_S), trained on the training runs.
@@ -306,6 +379,9 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
     on ``train`` (else P_f and SP_S are trained). ``settings`` maps a model
     name to detector settings (those its "sel" monitor chose on the unseen
     recordings): the model is scored again with them, as ``name + " sel"``.
+    ``banded`` maps shown names to ``(model, braking limit)``:
+    :func:`banded_detector` at the rule's settle time and rest reference,
+    every band calibrated on the same data.
     """
     free = load(root / FAMILY_2020 / "collision_free.csv")
     recs = {key: load(root / key) for key in COLLISIONS}
@@ -323,8 +399,15 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
         for key, rec in recs.items():
             blocks, times = family_calibration(key, base_blocks, times_of(unseen), inputs,
                                                recs, segments)
-            calibration = calibrate_across_recordings(template, blocks, times, rule=rule)
-            det, margin = calibration.detector, calibration.margin
+            if isinstance(template, MultiBandDetector):
+                calibration = calibrate_bands_across_recordings(template, blocks, times,
+                                                                rule=rule)
+                margin = [np.max(band.margin) for band in calibration.bands]
+                thresholds = calibration.detector.detectors_[0].thresholds_
+            else:
+                calibration = calibrate_across_recordings(template, blocks, times, rule=rule)
+                margin, thresholds = calibration.margin, calibration.detector.thresholds_
+            det = calibration.detector
             events, _, mon = score_events(det, inputs[key], rec, labels[key]["events"])
             t = rec.time - rec.time[0]
             alarm = mon.alarms.any(axis=1)
@@ -332,13 +415,14 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
             files[key] = {"events": events, "free_onsets": onsets,
                           "free_minutes": sum(t[b - 1] - t[a] for a, b in segments[key]) / 60,
                           "margin": float(np.max(margin)),
-                          "thresholds": np.atleast_2d(det.thresholds_)}
+                          "thresholds": np.atleast_2d(thresholds)}
         hits = sum(e["detected"] for f in files.values() for e in f["events"])
         total = sum(len(f["events"]) for f in files.values())
         onsets = sum(len(f["free_onsets"]) for f in files.values())
+        rule_of = template.detector if isinstance(template, MultiBandDetector) else template
         return {"files": files, "n_detected": hits, "n_events": total, "free_onsets": onsets,
-                "settle_time_s": template.settle_time,
-                "rest_reference_s": template.rest_reference}
+                "settle_time_s": rule_of.settle_time,
+                "rest_reference_s": rule_of.rest_reference}
 
     out = {}
     for name in ("P_f", "SP_S") if models is None else models:
@@ -353,6 +437,12 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
             progress(f"{FAMILY_2020}, {shown}: {res['n_detected']}/{res['n_events']} labelled "
                      f"collisions detected, {res['free_onsets']} alarm onset(s) on the "
                      f"event-free segments ({time.perf_counter() - tic:.0f} s)")
+    for shown, (model, limit) in (banded or {}).items():
+        tic = time.perf_counter()
+        res = out[shown] = score(banded_detector(model, limit))
+        progress(f"{FAMILY_2020}, {shown}: {res['n_detected']}/{res['n_events']} labelled "
+                 f"collisions detected, {res['free_onsets']} alarm onset(s) on the "
+                 f"event-free segments ({time.perf_counter() - tic:.0f} s)")
     return out
 
 
@@ -531,6 +621,29 @@ def main(argv=None):
                  f"{sum(len(v) for v in outside.values())} alarm onset(s) outside them "
                  f"({time.perf_counter() - tic:.0f} s)")
 
+    # -- a fast second band and the braking regime (our extension) ---------------
+    limit = acceleration_limit(data)
+    tic = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        models["P_f~"] = train_model(data, load_robot("ur10e"), "p_f",
+                                     coulomb_width=COULOMB_WIDTH,
+                                     **train_settings(n_support, args.seed, args.n_jobs)).regressor
+    progress(f"trained P_f~ (P_f, Coulomb tanh(qd / {COULOMB_WIDTH:g})) in "
+             f"{time.perf_counter() - tic:.1f} s; banded monitors: MultiBandDetector default "
+             f"bands, braking above {limit:.2f} rad/s^2 (the largest causal |qdd| of the "
+             f"training runs), settle {BANDED_SETTINGS['settle_time']:g} s, rest reference "
+             f"{BANDED_SETTINGS['rest_reference']:g} s")
+    for name, shown in BANDED.items():
+        tic = time.perf_counter()
+        res = results[shown] = banded_result(models[name], limit, blocks, unseen, pushes,
+                                             push_blocks, labels)
+        progress(f"{shown}: {res['onsets']} alarm onset(s) of the union of the bands on "
+                 f"unseen collision-free data (nested LORO), {res['n_detected']}/"
+                 f"{res['n_events']} pushes detected, "
+                 f"{sum(len(v) for v in res['outside'].values())} alarm onset(s) outside them "
+                 f"({time.perf_counter() - tic:.0f} s)")
+
     # -- collision_detection_data_2020: no target current, state-only models -----
     family = None
     if all((root / key).exists() for key in COLLISIONS):
@@ -538,7 +651,8 @@ def main(argv=None):
                          "rest_reference": results[name + " sel"]["rest_reference_s"]}
                   for name in ("P_f", "SP_S")}
         family = collision_family(root, train, labels, n_support, args.seed, args.n_jobs,
-                                  progress, settings=chosen)
+                                  progress, settings=chosen,
+                                  banded={BANDED["P_f~"]: (models["P_f~"], limit)})
 
     # -- quasi-static nMSE ---------------------------------------------------
     nmse = {}
@@ -602,10 +716,10 @@ def main(argv=None):
 def same_rule_peer(monitor):
     """The peer's monitor calibrated by the same rule as ``monitor``.
 
-    >>> [same_rule_peer(n) for n in ("SP_C", "SP_C +R", "SP_C sel", "i - i_des +R")]
-    ['i - i_des', 'i - i_des +R', 'i - i_des sel', 'i - i_des +R']
+    >>> [same_rule_peer(n) for n in ("SP_C", "SP_C +R", "SP_C sel", "P_f~ bands")]
+    ['i - i_des', 'i - i_des +R', 'i - i_des sel', 'i - i_des bands']
     """
-    for suffix in (" +R", " sel"):
+    for suffix in (" +R", " sel", " bands"):
         if monitor.endswith(suffix):
             return PEER + suffix
     return PEER
@@ -667,6 +781,24 @@ def report_tables(results, nmse, unseen, family=None):
              rst_table(["monitor", "peer, same rule"]
                        + [f"{g} j{j + 1}" for g in ("moving", "rest") for j in range(3)], rows),
              ""]
+    banded = [n for n, r in results.items() if "band_thresholds" in r]
+    if banded:
+        rows = []
+        for n in banded:
+            peer_bands = results[same_rule_peer(n)]["band_thresholds"]
+            for b, (band, thr) in enumerate(zip(results[n]["bands"],
+                                                results[n]["band_thresholds"])):
+                ratio = thr / peer_bands[b]
+                rows.append([n, band] + [f"{thr[g, j]:.2f} ({ratio[g, j]:.2f}x)"
+                                         for g in map(REGIME_NAMES.index, ("moving", "rest"))
+                                         for j in range(3)])
+        limit = results[banded[0]]["brake_limit"]
+        text += ["Banded monitors (our extension: a fast second band, alarm when either band "
+                 f"fires, and a braking regime above {limit:.2f} rad/s^2), each band's "
+                 "thresholds [A] and their ratio to the robot's residual in the same band; "
+                 "onsets above count the union of the bands", "",
+                 rst_table(["monitor", "band"] + [f"{g} j{j + 1}" for g in ("moving", "rest")
+                                                  for j in range(3)], rows), ""]
     sets = list(next(iter(nmse.values())))
     rows = [[n] + list(nmse[n][test]) for test in sets for n in nmse]
     names = [f"{n}, {test}" for test in sets for n in nmse]

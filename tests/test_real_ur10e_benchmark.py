@@ -78,21 +78,42 @@ def test_missing_data_exits_zero_with_message(bench, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.realdata
-def test_batch_equals_streaming_on_a_real_push_recording(ur10e_dir):
-    """Raw UR10e samples through StreamingMonitor == the batch detector, sample for sample."""
+def _load(path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        free = load_recording(ur10e_dir / "validation_data" / "ur-20_01_17-ptp_10_points.csv")
-        push = load_recording(ur10e_dir / "collision_push_pose" / "ur-20_01_22-push_pose_1.csv")
+        return load_recording(path)
+
+
+def _peer_on_ptp(ur10e_dir, **params):
+    """Causal features and the robot's residual as a detector (the benchmark's rule
+    with ``params``), both fitted on ptp_10_points."""
+    free = _load(ur10e_dir / "validation_data" / "ur-20_01_17-ptp_10_points.csv")
     features = CausalFeatures().fit(free)
     det = CollisionDetector(ControllerCurrent(6), n_joints=6, threshold="per_joint",
                             false_alarm_rate=0.0, margin=1.5, filter_cutoff=2.0,
-                            min_duration=5, sample_time="auto", regimes=True,
-                            rest_reference=5.0)
+                            min_duration=5, sample_time="auto", regimes=True, **params)
     det.fit(stack_currents(features.transform(free), free.current), time=free.time)
+    return features, det
+
+
+@pytest.mark.realdata
+def test_batch_equals_streaming_on_a_real_push_recording(ur10e_dir):
+    """Raw UR10e samples through StreamingMonitor == the batch detector, sample for sample."""
+    features, det = _peer_on_ptp(ur10e_dir, rest_reference=5.0)
+    push = _load(ur10e_dir / "collision_push_pose" / "ur-20_01_22-push_pose_1.csv")
     out = assert_raw_stream_equals_batch(det, features, push)
     assert (out.prediction == -1).any() and (out.prediction == 1).any()
+
+
+@pytest.mark.realdata
+def test_batch_equals_streaming_with_the_braking_regime_on_a_real_hard_stop(ur10e_dir):
+    """jointwise_2's hard stops (causal |qdd| up to 8 rad/s^2) in the braking regime,
+    raw samples through StreamingMonitor == the batch detector."""
+    features, det = _peer_on_ptp(ur10e_dir, rest_reference=2.0, settle_time=3.0,
+                                 brake_limit=5.05)
+    stops = _load(ur10e_dir / "jointwise_motion" / "ur-20_01_22-joint_2.csv")
+    out = assert_raw_stream_equals_batch(det, features, stops)
+    assert (out.regime == 3).sum() > 40
 
 
 @pytest.mark.slow
@@ -104,7 +125,7 @@ def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
     assert saved["n_support"] == 100
     assert set(saved["monitors"]) == {"i - i_des", "P_f", "SP_S", "SP_P", "SP_C",
                                       "i - i_des +R", "SP_C +R", "i - i_des sel",
-                                      "P_f sel", "SP_S sel", "SP_C sel"}
+                                      "P_f sel", "SP_S sel", "SP_C sel", *bench.BANDED.values()}
     chosen = saved["monitors"]["SP_C sel"]
     assert len(chosen["candidates"]) == 12 and len(chosen["fold_settings"]) == len(
         saved["unseen_collision_free"])
@@ -115,5 +136,5 @@ def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
         assert len(result["folds"]) == len(saved["unseen_collision_free"])
     assert (out / bench.TABLES).read_text().count("SP_C +R") >= 5
     family = saved["collision_detection_data_2020"]
-    assert set(family) == {"P_f", "SP_S", "P_f sel", "SP_S sel"}
+    assert set(family) == {"P_f", "SP_S", "P_f sel", "SP_S sel", bench.BANDED["P_f~"]}
     assert all(res["n_events"] == 25 for res in family.values())
