@@ -252,28 +252,40 @@ def banded_result(model, limit, blocks, unseen, pushes, push_blocks, labels):
         banded_detector(model, limit, **BANDED_SETTINGS), blocks, times_of(unseen),
         rule=MARGIN_RULE)
     det = calibration.detector
-    events, outside = {}, {}
-    for key, rec in pushes.items():
-        events[key], outside[key], _ = score_events(det, push_blocks[key], rec,
-                                                    labels[key]["events"])
-    delays = [e["delay_s"] for v in events.values() for e in v if e["detected"]]
     main_band = det.detectors_[0]
     return {
         "margin": np.array([np.max(band.margin) for band in calibration.bands]),
         "thresholds": np.atleast_2d(main_band.thresholds_),
         "band_thresholds": [np.atleast_2d(d.thresholds_) for d in det.detectors_],
         "bands": [band_text(d) for d in det.detectors_], "brake_limit": limit,
-        "folds": calibration.folds, "onsets": calibration.n_false_alarms,
         "onsets_by_margin_rule": {MARGIN_RULE: calibration.n_false_alarms},
+        "candidates": None, "fold_settings": None,
+        **operating_point(det, calibration.folds, pushes, push_blocks, labels, main_band),
+    }
+
+
+def operating_point(det, folds, pushes, push_blocks, labels, rule=None):
+    """What every monitor's result holds besides its thresholds: the nested
+    false alarms of ``folds``, the pushes scored at ``det``'s operating point
+    (events, onsets outside them, delays, the monitoring signals) and the
+    settle time and rest reference of ``rule`` (``det`` by default)."""
+    events, outside, monitors = {}, {}, {}
+    for key, rec in pushes.items():
+        events[key], outside[key], monitors[key] = score_events(
+            det, push_blocks[key], rec, labels[key]["events"])
+    delays = [e["delay_s"] for v in events.values() for e in v if e["detected"]]
+    rule = det if rule is None else rule
+    return {
+        "folds": folds, "onsets": sum(len(f["onsets"]) for f in folds.values()),
         "first_second_alarm_samples": sum(
-            f["first_second_alarm_samples"] for f in calibration.folds.values()),
+            f["first_second_alarm_samples"] for f in folds.values()),
         "events": events, "outside": outside,
         "n_events": sum(len(v) for v in events.values()),
         "n_detected": sum(e["detected"] for v in events.values() for e in v),
         "median_delay_s": float(np.median(delays)) if delays else None,
         "max_delay_s": float(np.max(delays)) if delays else None,
-        "settle_time_s": main_band.settle_time, "rest_reference_s": main_band.rest_reference,
-        "candidates": None, "fold_settings": None, "monitors": {}, "detector": det,
+        "settle_time_s": rule.settle_time, "rest_reference_s": rule.rest_reference,
+        "monitors": monitors, "detector": det,
     }
 
 
@@ -588,37 +600,24 @@ def main(argv=None):
         tic = time.perf_counter()
         calibration = calibrate_across_recordings(
             detector(model, tau), blocks, times_of(unseen), rule=MARGIN_RULE, param_grid=grid)
-        det, margin, folds = calibration.detector, calibration.margin, calibration.folds
+        det = calibration.detector
         by_rule = {rule: sum(len(f["onsets"]) for f in nested_false_alarms(
             calibration.series, unseen, rule).values()) for rule in MARGIN_RULES}
-        events, outside, mons = {}, {}, {}
-        for key, rec in pushes.items():
-            events[key], outside[key], mons[key] = score_events(
-                det, push_blocks[key], rec, labels[key]["events"])
-        n_events = sum(len(v) for v in events.values())
-        n_hit = sum(e["detected"] for v in events.values() for e in v)
-        delays = [e["delay_s"] for v in events.values() for e in v if e["detected"]]
-        onsets = sum(len(f["onsets"]) for f in folds.values())
-        results[name] = {
-            "margin": margin, "thresholds": np.atleast_2d(det.thresholds_), "folds": folds,
-            "onsets": onsets, "onsets_by_margin_rule": by_rule,
-            "first_second_alarm_samples": sum(
-                f["first_second_alarm_samples"] for f in folds.values()),
-            "events": events, "outside": outside, "n_events": n_events, "n_detected": n_hit,
-            "median_delay_s": float(np.median(delays)) if delays else None,
-            "max_delay_s": float(np.max(delays)) if delays else None,
-            "settle_time_s": det.settle_time, "rest_reference_s": det.rest_reference,
+        res = results[name] = {
+            "margin": calibration.margin, "thresholds": np.atleast_2d(det.thresholds_),
+            "onsets_by_margin_rule": by_rule,
             "candidates": calibration.candidates if grid else None,
             "fold_settings": calibration.fold_settings or None,
-            "monitors": mons, "detector": det,
+            **operating_point(det, calibration.folds, pushes, push_blocks, labels),
         }
         tau_text = seconds_text(det.rest_reference, unit=" s")
         n_distinct = len(set(map(str, calibration.fold_settings.values())))
         chosen = (f"settings chosen: settle {det.settle_time:g} s, rest reference {tau_text} "
                   f"({n_distinct} distinct in the nested folds); " if grid else "")
-        progress(f"{name}: {chosen}{onsets} alarm onset(s) on unseen collision-free data (nested "
-                 f"LORO; by margin rule {by_rule}), {n_hit}/{n_events} pushes detected, "
-                 f"{sum(len(v) for v in outside.values())} alarm onset(s) outside them "
+        progress(f"{name}: {chosen}{res['onsets']} alarm onset(s) on unseen collision-free "
+                 f"data (nested LORO; by margin rule {by_rule}), {res['n_detected']}/"
+                 f"{res['n_events']} pushes detected, "
+                 f"{sum(len(v) for v in res['outside'].values())} alarm onset(s) outside them "
                  f"({time.perf_counter() - tic:.0f} s)")
 
     # -- a fast second band and the braking regime (our extension) ---------------
