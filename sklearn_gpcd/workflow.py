@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", "OPTIMIZERS",
-           "TRAIN_RULE", "TrainedModel", "TrainingSet", "load_model", "save_model",
-           "train_model", "training_rows", "training_set"]
+           "TRAIN_RULE", "TrainedModel", "TrainingSet", "acceleration_limit", "load_model",
+           "save_model", "train_model", "training_rows", "training_set"]
 
 #: Estimators :func:`train_model` builds (``gpcd train --model``).
 MODELS = ("sp_p", "sp_s", "p_f", "sp_c")
