@@ -575,8 +575,7 @@ def study_presliding(root, labels, n_support, seed):
 
 
 #: Second bands of the ``impact`` study: (cut-off [Hz], filter order, debounce [samples]).
-IMPACT_BANDS = ((4.0, 2, 5), (6.0, 1, 5), (8.0, 1, 3), (10.0, 1, 3), (10.0, 2, 3),
-                (10.0, 1, 2), (15.0, 1, 3), (20.0, 1, 3))
+IMPACT_BANDS = bench.FAST_BANDS  # the candidates of the benchmark's fast band
 #: The band checked on the unseen collision-free recordings and the pushes.
 IMPACT_CHECK = (10.0, 2, 3)
 N_JOINTS = 6

@@ -12,7 +12,10 @@
     feeds the model the inputs it was trained on). Each ``--band
     CUTOFF,ORDER,DEBOUNCE`` adds a band: the file then holds a
     :class:`~sklearn_gpcd.detection.MultiBandDetector` calibrated by
-    :func:`~sklearn_gpcd.detection.calibrate_bands_across_recordings`.
+    :func:`~sklearn_gpcd.detection.calibrate_bands_across_recordings`;
+    ``--band-candidate`` (repeatable) adds one more band whose settings that
+    function chooses among the candidates across the recordings
+    (``band_grid``).
 ``gpcd monitor DETECTOR RECORDINGS... | --replay FILE | --rtde HOST``
     Feeds raw samples through :meth:`StreamingMonitor.update_raw
     <sklearn_gpcd.detection.StreamingMonitor.update_raw>` (the causal path
@@ -33,6 +36,7 @@ import subprocess
 import sys
 import time
 import warnings
+from collections import Counter
 from pathlib import Path
 
 __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "SELECT_GRID", "add_commands", "load_detector"]
@@ -174,6 +178,13 @@ def add_commands(sub):
                      "same rule on the same model; a sample is a collision when any band "
                      "alarms (repeatable; e.g. --band 10,1,2 for short taps the 2 Hz main "
                      "band smooths away). The false-alarm figure counts the union")
+    cal.add_argument("--band-candidate", type=_band_arg, action="append", default=None,
+                     metavar="CUTOFF,ORDER,DEBOUNCE", dest="band_candidates",
+                     help="a candidate for one more band whose settings are chosen across "
+                     "the recordings (repeatable: give two or more): of the candidates, the "
+                     "one with the fewest nested alarm onsets of the union of all bands, "
+                     "then the smallest time-weighted thresholds; the expected false alarms "
+                     "then count each recording with the band chosen without it")
     cal.add_argument("--braking", nargs="?", const="model", default=None, metavar="LIMIT",
                      type=_braking_arg,
                      help="a fourth regime with its own thresholds, braking: the 0.5 s after "
@@ -291,9 +302,9 @@ def _cmd_calibrate(args):
                          "regimes: drop " + ("--no-regimes" if args.no_regimes
                                              else "--rest-reference" if args.settle_time
                                              is None else "--settle-time"))
-    if args.select and args.band:
-        raise ValueError("--select chooses the settings of one band; with --band the bands "
-                         "are calibrated at fixed settings: drop --select or --band")
+    if args.select and (args.band or args.band_candidates):
+        raise ValueError("--select chooses the settings of one band; with --band or "
+                         "--band-candidate there are several: drop --select or the bands")
     trained = load_model(args.model)
     model, features = trained.regressor, trained.features
     recordings = _read_recordings(args.recordings, args, "calibration recordings")
@@ -324,9 +335,12 @@ def _cmd_calibrate(args):
                                  **DETECTOR_RULE)
     if args.settle_time is not None:
         template.set_params(settle_time=args.settle_time)
-    if args.band:
+    candidates = args.band_candidates
+    if args.band or candidates:
+        grid = [{k: [v] for k, v in c.items()} for c in candidates] if candidates else None
+        bands = [{}, *(args.band or [])] + ([candidates[0]] if candidates else [])
         result = calibrate_bands_across_recordings(
-            MultiBandDetector(template, bands=[{}, *args.band]), blocks, times)
+            MultiBandDetector(template, bands=bands), blocks, times, band_grid=grid)
         bands = result.bands
     else:
         result = calibrate_across_recordings(template, blocks, times,
@@ -353,8 +367,15 @@ def _cmd_calibrate(args):
     }
     if kt is not None:
         summary["thresholds_Nm"] = entries[0]["thresholds_Nm"]
-    if args.band:
+    if args.band or candidates:
         summary["bands"] = entries
+    if candidates:
+        summary["band_candidates"] = [
+            dict(c, params=_band_settings(CollisionDetector(**c["params"])))
+            for c in result.band_candidates]
+        summary["fold_band_settings"] = {
+            k: _band_settings(CollisionDetector(**p)) for k, p in
+            result.fold_band_settings.items()}
     save({"kind": DETECTOR_KIND, "detector": result.detector, "features": features,
           "calibration": summary}, args.output)
     _print_calibration(summary, len(recordings))
@@ -494,6 +515,17 @@ def _print_calibration(summary, n_recordings):
                   f"{band['n_false_alarms_nested']} alarm onset(s) = "
                   f"{band['false_alarms_per_hour']:.2f} per hour")
         _print_thresholds(band, summary, "    ")
+    if (table := summary.get("band_candidates")):
+        print(f"  band {len(summary['bands'])} chosen across the recordings, candidates best "
+              "first (alarms: nested onsets of the union; score: time-weighted mean log "
+              "threshold of the band, smaller is tighter):")
+        for c in sorted(table, key=lambda c: c["rank"]):
+            print(f"    {_band_label(c['params']):<28} alarms {c['n_false_alarms']}, score "
+                  f"{c['score']:+.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
+        folds = Counter(map(_band_label, summary["fold_band_settings"].values()))
+        if folds:
+            print("    chosen without each recording (for the expected false alarms): "
+                  + ", ".join(f"{label} {n}x" for label, n in folds.most_common()))
     _print_false_alarms(summary, " (any band)")
 
 
@@ -511,7 +543,8 @@ def _print_false_alarms(summary, which=""):
           f"onset(s) on left-out recordings in {summary['hours'] * 60:.1f} min = "
           f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
           "out: each recording scored with margin"
-          + (", levels and settings" if summary.get("selected") else " and levels")
+          + (", levels and settings" if summary.get("selected")
+             else ", levels and band" if summary.get("band_candidates") else " and levels")
           + " chosen without it)")
 
 

@@ -55,6 +55,19 @@ def work(tmp_path_factory):
             "detector": detector}
 
 
+def _by_hand(work):
+    """What gpcd calibrate computes on, by hand: the model's causal inputs of the
+    collision-free runs, their time stamps and the CLI's detector rule."""
+    recs = [load_recording(p) for p in work["free"]]
+    trained = load_model(work["model"])
+    blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
+              for p, r in zip(work["free"], recs)}
+    times = {p.name: r.time for p, r in zip(work["free"], recs)}
+    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
+                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    return blocks, times, template
+
+
 def test_calibrate_bands_equals_the_package_function(work, capsys):
     out = work["folder"] / "three.joblib"
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--band",
@@ -63,13 +76,7 @@ def test_calibrate_bands_equals_the_package_function(work, capsys):
     detector, features, calibration = load_detector(out)
     assert isinstance(detector, MultiBandDetector)
     # the same calibration by hand, on the model's causal inputs
-    recs = [load_recording(p) for p in work["free"]]
-    trained = load_model(work["model"])
-    blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
-              for p, r in zip(work["free"], recs)}
-    times = {p.name: r.time for p, r in zip(work["free"], recs)}
-    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
-                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    blocks, times, template = _by_hand(work)
     expected = calibrate_bands_across_recordings(
         MultiBandDetector(template, bands=[{}, FAST, MID]), blocks, times)
     assert [d.get_params()["filter_cutoff"] for d in detector.detectors_] == [2.0, 10.0, 5.0]
@@ -166,7 +173,7 @@ def test_bad_band_text_is_one_clear_error(work, capsys, text):
 def test_bands_refuse_select(work, capsys):
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--band", "10,1,2",
                  "--select", "-o", str(work["folder"] / "select.skops")]) == 2
-    assert "drop --select or --band" in capsys.readouterr().err
+    assert "drop --select or the bands" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ --braking
@@ -224,3 +231,35 @@ def test_settle_time_is_an_option_and_select_refuses_it(work, capsys):
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--settle-time",
                  "2", "--select", "-o", str(out)]) == 2
     assert "drop --settle-time" in capsys.readouterr().err
+
+
+def test_band_candidates_are_chosen_like_the_package_does(work, capsys):
+    out = work["folder"] / "chosen.skops"
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]),
+                 "--band-candidate", "10,1,2", "--band-candidate", "5,2,3", "-q",
+                 "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    detector, _, calibration = load_detector(out)
+    blocks, times, template = _by_hand(work)
+    grid = [{k: [v] for k, v in band.items()} for band in (FAST, MID)]
+    expected = calibrate_bands_across_recordings(
+        MultiBandDetector(template, bands=[{}, FAST]), blocks, times, band_grid=grid)
+    chosen = expected.band_settings
+    assert detector.detectors_[1].get_params()["filter_cutoff"] == chosen["filter_cutoff"]
+    for fitted, band in zip(detector.detectors_, expected.bands):
+        np.testing.assert_allclose(fitted.thresholds_, band.detector.thresholds_)
+    assert calibration["n_false_alarms_nested"] == expected.n_false_alarms
+    assert sorted(c["rank"] for c in calibration["band_candidates"]) == [0, 1]
+    assert sorted(calibration["fold_band_settings"]) == sorted(blocks)
+    assert "<- chosen" in text and "chosen without each recording" in text
+    label = (f"{chosen['filter_cutoff']:g} Hz, order {chosen['filter_order']}, "
+             f"debounce {chosen['min_duration']}")
+    assert f"band 2 ({label})" in text
+    assert "levels and band chosen without it" in text
+
+
+def test_band_candidates_refuse_select(work, capsys):
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--select",
+                 "--band-candidate", "10,1,2", "-q", "-o",
+                 str(work["folder"] / "x.skops")]) == 2
+    assert "drop --select or the bands" in capsys.readouterr().err

@@ -7,6 +7,7 @@ import pytest
 from sklearn.base import clone
 from sklearn.frozen import FrozenEstimator
 from sklearn.linear_model import Ridge
+from sklearn.model_selection import ParameterGrid
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from sklearn_gpcd.detection import (
@@ -239,3 +240,85 @@ def test_calibrate_bands_counts_the_nested_alarms_of_the_union():
     np.testing.assert_array_equal(
         result.detector.predict_joints(Z),
         np.logical_or.reduce([d.predict_joints(Z) for d in result.detector.detectors_]))
+
+
+def _tapped_recordings(n_recordings=6, seed=0):
+    """Collision-free 1-joint recordings, some with a short tap or a slow swell."""
+    from sklearn.linear_model import LinearRegression
+
+    rng = np.random.default_rng(seed)
+    blocks, times = {}, {}
+    for r in range(n_recordings):
+        x = np.cumsum(rng.normal(size=(800, 1)), axis=0) * 0.01
+        current = 2.0 * x[:, 0] + 0.05 * rng.normal(size=800)
+        if r in (1, 3):
+            current[400:400 + 2 * r] += 0.6  # taps of 20 and 60 ms
+        if r == 4:
+            current[200:500] += 0.1 * np.sin(np.linspace(0, np.pi, 300))
+        blocks[f"r{r}"] = stack_currents(x, current)
+        times[f"r{r}"] = np.arange(800) * 0.01
+    model = FrozenEstimator(LinearRegression().fit(blocks["r0"][:, :1], blocks["r0"][:, 1]))
+    template = CollisionDetector(model, threshold="per_joint", false_alarm_rate=0.0,
+                                 sample_time=0.01, filter_cutoff=2.0, min_duration=5)
+    return template, blocks, times
+
+
+BAND_GRID = {"filter_cutoff": [5.0, 10.0, 20.0], "min_duration": [2, 4]}
+
+
+def test_band_grid_of_one_candidate_is_the_fixed_band():
+    from sklearn_gpcd.detection import calibrate_bands_across_recordings
+
+    template, blocks, times = _tapped_recordings()
+    fixed = calibrate_bands_across_recordings(MultiBandDetector(template), blocks, times)
+    grid = calibrate_bands_across_recordings(MultiBandDetector(template), blocks, times,
+                                             band_grid={k: [v] for k, v in FAST.items()})
+    assert grid.band_settings == FAST and fixed.band_settings == {}
+    assert all(s == FAST for s in grid.fold_band_settings.values())
+    assert grid.folds == fixed.folds and grid.n_false_alarms == fixed.n_false_alarms
+    for a, b in zip(grid.detector.detectors_, fixed.detector.detectors_):
+        np.testing.assert_array_equal(a.thresholds_, b.thresholds_)
+    assert [c["rank"] for c in grid.band_candidates] == [0]
+
+
+def test_band_grid_scores_each_recording_with_the_band_chosen_without_it():
+    """The nested figure, rebuilt from public calls: for each recording, every
+    candidate calibrated on the other recordings alone, the best one (fewest
+    nested onsets of the union there, then the smallest score of the band)
+    refitted there and run on the left-out recording."""
+    from sklearn_gpcd.detection import calibrate_bands_across_recordings
+    from sklearn_gpcd.metrics import alarm_onsets
+
+    template, blocks, times = _tapped_recordings()
+    result = calibrate_bands_across_recordings(MultiBandDetector(template), blocks, times,
+                                               band_grid=BAND_GRID)
+    candidates = list(ParameterGrid(BAND_GRID))
+    assert len(result.band_candidates) == len(candidates)
+    for r in blocks:
+        others = {k: v for k, v in blocks.items() if k != r}
+        runs = [calibrate_bands_across_recordings(
+            MultiBandDetector(template, bands=({}, {**FAST, **c})), others, times)
+            for c in candidates]
+        ranks = [(run.n_false_alarms, run.bands[-1].candidates[0]["score"]) for run in runs]
+        c = min(range(len(runs)), key=ranks.__getitem__)
+        assert result.fold_band_settings[r] == candidates[c]
+        alarm = runs[c].detector.predict(blocks[r]) == -1
+        assert result.folds[r]["onsets"] == alarm_onsets(alarm, times[r] - times[r][0]), r
+    # the data make the choice depend on the recording left out
+    assert len({str(s) for s in result.fold_band_settings.values()}) > 1
+    # the operating point: the candidate ranked first on all recordings, refitted on all
+    ranked = {str(c["params"]): c["rank"] for c in result.band_candidates}
+    assert ranked[str(result.band_settings)] == 0
+    best = calibrate_bands_across_recordings(
+        MultiBandDetector(template, bands=({}, {**FAST, **result.band_settings})), blocks, times)
+    for a, b in zip(result.detector.detectors_, best.detector.detectors_):
+        np.testing.assert_array_equal(a.thresholds_, b.thresholds_)
+
+
+def test_band_grid_takes_only_settings_chosen_after_the_model():
+    from sklearn_gpcd.detection import calibrate_bands_across_recordings
+
+    template, blocks, times = _tapped_recordings(n_recordings=3)
+    with pytest.raises(ValueError, match="'threshold' cannot be chosen across recordings"):
+        calibrate_bands_across_recordings(MultiBandDetector(template), blocks, times,
+                                          band_grid={"threshold": ["global"]})

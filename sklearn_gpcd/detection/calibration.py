@@ -338,59 +338,83 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     >>> result.settings, result.detector.filter_cutoff   # filtering narrows the band
     ({'filter_cutoff': 2.0}, 2.0)
     """
-    keys = list(blocks)
-    if len(keys) < 2:
-        raise ValueError("calibration across recordings needs at least 2 collision-free "
-                         f"recordings, got {len(keys)}")
-    candidates = _candidates(param_grid)
-    Z = np.concatenate([blocks[k] for k in keys])
-    groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
-    time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
-    # base = clone(...).fit(Z, ...) at a unit margin, its residuals kept: the
-    # regressor predicts each calibration row once, for every candidate and for
-    # the operating point
-    base = clone(detector).set_params(margin=1.0)
-    residual, std, starts, motion = base._fit_residuals(Z, None, groups, time,
-                                                    base._needs_std(fitting=True))
-    base._calibrate(residual, std, starts, motion, recording_index(groups))
-    residuals = _recording_residuals(base, keys, groups, residual, std, motion)
-    runs = []
-    for params in candidates:
-        series = _candidate_series(base, params, residuals)
-        peaks = {k: v[2] for k, v in series.items()}
-        folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
-        runs.append((series, loro_margin(peaks, keys, rule), folds))
+    runs = _CandidateRuns(detector, blocks, times, rule, _candidates(param_grid))
+    keys = runs.keys
     # ranked on all recordings from what the runs already hold: the nested onsets
     # of each run's folds and its score (as _best_candidate computes them on a subset)
-    table = [{"params": params, "score": _selection_score(run[0], keys, rule),
-              "margin": float(run[1].max()),
-              "n_false_alarms": sum(len(f["onsets"]) for f in run[2].values())}
-             for params, run in zip(candidates, runs)]
-    order = sorted(range(len(runs)), key=lambda c: (table[c]["n_false_alarms"],
+    table = [{"params": params, "score": _selection_score(series, keys, rule),
+              "margin": float(margin.max()),
+              "n_false_alarms": sum(len(f["onsets"]) for f in folds.values())}
+             for params, (series, margin, folds) in zip(runs.candidates, runs.runs)]
+    order = sorted(range(len(table)), key=lambda c: (table[c]["n_false_alarms"],
                                                      table[c]["score"]))
     for rank, c in enumerate(order):
         table[c]["rank"] = rank
     best = order[0]
-    series, margin, folds = runs[best]
+    folds = runs.runs[best][2]
     fold_settings = {}
-    if len(keys) >= 3 and len(candidates) > 1:  # the settings, too, chosen without r
-        chosen = {r: _best_candidate(runs, [k for k in keys if k != r], rule) for r in keys}
-        folds = {r: runs[c][2][r] for r, c in chosen.items()}
-        fold_settings = {r: candidates[c] for r, c in chosen.items()}
-    peaks = {k: v[2] for k, v in series.items()}
-    shaped = margin.reshape(np.shape(base.scale_))  # (n_joints,) without regimes
-    # the operating point: what fit would set, from the residuals already predicted
-    fitted = base.set_params(**candidates[best], margin=shaped)
-    fitted._validate_params()
-    fitted._calibrate(residual, std, starts, motion, recording_index(groups))
-    hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
-    n_false = sum(len(f["onsets"]) for f in folds.values())
-    return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
-                 folds=folds, n_false_alarms=n_false, hours=hours,
-                 false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
-                 regime_names=tuple(fitted.regime_names_), series=series,
-                 settings=dict(candidates[best]), candidates=table,
-                 fold_settings=fold_settings)
+    if len(keys) >= 3 and len(runs.candidates) > 1:  # the settings, too, chosen without r
+        chosen = {r: _best_candidate(runs.runs, [k for k in keys if k != r], rule)
+                  for r in keys}
+        folds = {r: runs.runs[c][2][r] for r, c in chosen.items()}
+        fold_settings = {r: runs.candidates[c] for r, c in chosen.items()}
+    return runs.result(best, folds, fold_settings, table)
+
+
+class _CandidateRuns:
+    """Every candidate of a calibration across recordings, from one prediction.
+
+    ``clone(detector)`` is fitted on all recordings at a unit margin and its
+    residuals kept: the regressor predicts each calibration row once, for
+    every candidate setting and for the operating point. ``runs[c]`` is
+    ``(series, margin, folds)`` of candidate ``c``: its
+    :func:`regime_excursions`, its :func:`loro_margin` and its
+    :func:`nested_false_alarms` (empty with fewer than 3 recordings).
+    """
+
+    def __init__(self, detector, blocks, times, rule, candidates):
+        keys = list(blocks)
+        if len(keys) < 2:
+            raise ValueError("calibration across recordings needs at least 2 collision-free "
+                             f"recordings, got {len(keys)}")
+        self.keys, self.times, self.rule, self.candidates = keys, times, rule, candidates
+        Z = np.concatenate([blocks[k] for k in keys])
+        self.groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
+        time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
+        base = clone(detector).set_params(margin=1.0)
+        self.residuals = base._fit_residuals(Z, None, self.groups, time,
+                                             base._needs_std(fitting=True))
+        base._calibrate(*self.residuals, recording_index(self.groups))
+        self.base = base
+        per_recording = _recording_residuals(base, keys, self.groups, *self.residuals[:2],
+                                             self.residuals[3])
+        self.runs = []
+        for params in candidates:
+            series = _candidate_series(base, params, per_recording)
+            peaks = {k: v[2] for k, v in series.items()}
+            folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
+            self.runs.append((series, loro_margin(peaks, keys, rule), folds))
+
+    def result(self, c, folds, fold_settings, table):
+        """The Bunch of :func:`calibrate_across_recordings` at candidate ``c``,
+        its detector refitted at that candidate's margin (from the residuals
+        already predicted), with the nested ``folds`` given."""
+        series, margin = self.runs[c][:2]
+        keys = self.keys
+        peaks = {k: v[2] for k, v in series.items()}
+        shaped = margin.reshape(np.shape(self.base.scale_))  # (n_joints,) without regimes
+        fitted = copy.copy(self.base).set_params(**self.candidates[c], margin=shaped)
+        fitted._validate_params()
+        fitted._calibrate(*self.residuals, recording_index(self.groups))
+        times = self.times
+        hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
+        n_false = sum(len(f["onsets"]) for f in folds.values())
+        return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
+                     folds=folds, n_false_alarms=n_false, hours=hours,
+                     false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
+                     regime_names=tuple(fitted.regime_names_), series=series,
+                     settings=dict(self.candidates[c]), candidates=table,
+                     fold_settings=fold_settings)
 
 
 def _candidates(param_grid):

@@ -27,7 +27,16 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._persistence import VersionedStateMixin
 from ._signal import segment_starts
-from .calibration import _folds, calibrate_across_recordings, nested_alarms
+from ..metrics import alarm_onsets
+from .calibration import (
+    _CandidateRuns,
+    _candidates,
+    _folds,
+    _held_out_alarm,
+    _selection_score,
+    calibrate_across_recordings,
+    nested_alarms,
+)
 from .detector import CollisionDetector
 from .streaming import MonitorStatus, StreamingMonitor
 
@@ -252,7 +261,8 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         return self.monitoring_signal(X, groups).alarms
 
 
-def calibrate_bands_across_recordings(detector, blocks, times, rule="global"):
+def calibrate_bands_across_recordings(detector, blocks, times, rule="global",
+                                      band_grid=None):
     """:func:`~sklearn_gpcd.detection.calibrate_across_recordings` for every band;
     nested false alarms of their union.
 
@@ -265,6 +275,18 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global"):
     would miss that a second band adds alarms where the first is quiet, and
     count twice an excursion both see.
 
+    With ``band_grid`` the settings of the **last** band are chosen too, the
+    way :func:`~sklearn_gpcd.detection.calibrate_across_recordings` chooses
+    settings, but for the union: the candidate with the fewest nested onsets
+    of the union on the calibration recordings, then the smallest
+    time-weighted mean log threshold of the last band, :math:`J`. A fast
+    band picked by looking at the recordings it is scored on would promise
+    fewer false alarms than it delivers; here recording ``r`` is scored with
+    the candidate chosen on the other recordings alone (ranked there, its
+    margins and levels calibrated there), so the nested figure never saw
+    ``r`` even through the choice of band. The regressor predicts each
+    recording once for all candidates.
+
     Parameters
     ----------
     detector : MultiBandDetector
@@ -274,15 +296,29 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global"):
         :func:`~sklearn_gpcd.detection.calibrate_across_recordings`).
     blocks, times, rule
         As for :func:`~sklearn_gpcd.detection.calibrate_across_recordings`.
+    band_grid : dict or list of dicts, default=None
+        Candidate settings of the last band, as for
+        :class:`sklearn.model_selection.ParameterGrid`, with keys in
+        :data:`~sklearn_gpcd.detection.SELECTABLE_PARAMS` (they override the
+        last band's own), e.g. ``[{"filter_cutoff": [8.0, 10.0, 20.0],
+        "filter_order": [1], "min_duration": [2, 3]}]``. None keeps every
+        band as given.
 
     Returns
     -------
     result : Bunch
-        ``detector`` (the fitted MultiBandDetector), ``bands`` (each band's
+        ``detector`` (the fitted MultiBandDetector, its last band at the
+        chosen settings), ``bands`` (each band's
         :func:`~sklearn_gpcd.detection.calibrate_across_recordings` result),
         ``folds`` (onsets of the union per left-out recording, empty with 2
         recordings), ``n_false_alarms``, ``hours`` and
-        ``false_alarms_per_hour`` (None with fewer than 3 recordings).
+        ``false_alarms_per_hour`` (None with fewer than 3 recordings). With
+        ``band_grid``: ``band_settings`` (the chosen candidate),
+        ``fold_band_settings`` (the candidate chosen without each recording,
+        with which its ``folds`` are counted) and ``band_candidates`` (per
+        candidate: ``params``, ``n_false_alarms`` of the union and ``score``
+        :math:`J` on all recordings, ``rank``: 0 for the chosen one); empty
+        without.
 
     Examples
     --------
@@ -304,21 +340,85 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global"):
     ([2.0, 10.0], ['a', 'b', 'c', 'd'])
     >>> result.n_false_alarms >= max(band.n_false_alarms for band in result.bands)
     True
+
+    The fast band's cut-off chosen across the recordings:
+
+    >>> result = calibrate_bands_across_recordings(
+    ...     MultiBandDetector(template), blocks, times,
+    ...     band_grid={"filter_cutoff": [5.0, 10.0], "min_duration": [2, 3]})
+    >>> sorted(result.band_settings), len(result.band_candidates), sorted(result.fold_band_settings)
+    (['filter_cutoff', 'min_duration'], 4, ['a', 'b', 'c', 'd'])
+    >>> result.detector.detectors_[1].filter_cutoff == result.band_settings["filter_cutoff"]
+    True
     """
-    results = [calibrate_across_recordings(template, blocks, times, rule)
-               for template in detector._band_templates()]
+    templates = detector._band_templates()
     keys = list(blocks)
-    folds = {}
-    if len(keys) >= 3:
-        per_band = [nested_alarms(result.series, rule) for result in results]
-        folds = _folds({k: np.logical_or.reduce([alarms[k] for alarms in per_band])
-                        for k in keys}, times)
+    if band_grid is None:
+        results = [calibrate_across_recordings(template, blocks, times, rule)
+                   for template in templates]
+        alarms = {}
+        if len(keys) >= 3:
+            per_band = [nested_alarms(result.series, rule) for result in results]
+            alarms = {k: np.logical_or.reduce([a[k] for a in per_band]) for k in keys}
+        band_settings, fold_band_settings, table = {}, {}, []
+    else:
+        results, alarms, band_settings, fold_band_settings, table = _choose_last_band(
+            templates, blocks, times, rule, band_grid)
+    folds = _folds(alarms, times) if alarms else {}
     n_false = sum(len(fold["onsets"]) for fold in folds.values())
     hours = results[0].hours
     fitted = clone(detector)._adopt([result.detector for result in results])
     return Bunch(detector=fitted, bands=results, folds=folds, n_false_alarms=n_false,
                  hours=hours,
-                 false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None))
+                 false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
+                 band_settings=band_settings, band_candidates=table,
+                 fold_band_settings=fold_band_settings)
+
+
+def _choose_last_band(templates, blocks, times, rule, band_grid):
+    """The fixed bands calibrated, the last band's settings chosen from
+    ``band_grid``: calibrations, nested alarms of the union, the chosen
+    settings, those chosen without each recording, and the candidate table."""
+    keys = list(blocks)
+    fixed = [calibrate_across_recordings(template, blocks, times, rule)
+             for template in templates[:-1]]
+    runs = _CandidateRuns(templates[-1], blocks, times, rule, _candidates(band_grid))
+    candidates = [run[0] for run in runs.runs]
+
+    def union_onsets(c, subset):
+        """Nested onsets of the union with candidate ``c`` on ``subset``."""
+        if len(subset) < 3:  # no margin without two other recordings
+            return 0
+        return sum(len(alarm_onsets(_held_out_union(fixed, candidates[c], subset, r, rule)))
+                   for r in subset)
+
+    def choose(subset):
+        ranks = [(union_onsets(c, subset), _selection_score(candidates[c], subset, rule))
+                 for c in range(len(candidates))]
+        return min(range(len(candidates)), key=ranks.__getitem__), ranks
+
+    best, ranks = choose(keys)
+    order = sorted(range(len(ranks)), key=ranks.__getitem__)
+    table = [{"params": runs.candidates[c], "n_false_alarms": ranks[c][0],
+              "score": ranks[c][1], "rank": order.index(c)} for c in range(len(ranks))]
+    alarms, fold_settings = {}, {}
+    if len(keys) >= 3:
+        for r in keys:
+            c = choose([k for k in keys if k != r])[0] if len(runs.candidates) > 1 else best
+            alarms[r] = _held_out_union(fixed, candidates[c], keys, r, rule)
+            fold_settings[r] = runs.candidates[c]
+    last = runs.result(best, runs.runs[best][2], {}, [])
+    return (fixed + [last], alarms, dict(runs.candidates[best]), fold_settings, table)
+
+
+def _held_out_union(fixed, series, keys, r, rule):
+    """Alarms of recording ``r`` when any of the ``fixed`` calibrations or the
+    band of ``series`` alarms, each with margin and levels from the other
+    recordings of ``keys``."""
+    alarm = _held_out_alarm(series, keys, r, rule)
+    for result in fixed:
+        alarm = alarm | _held_out_alarm(result.series, keys, r, rule)
+    return alarm
 
 
 class _TeePredictor:
