@@ -338,9 +338,10 @@ def _cmd_calibrate(args):
     candidates = args.band_candidates
     if args.band or candidates:
         grid = [{k: [v] for k, v in c.items()} for c in candidates] if candidates else None
-        bands = [{}, *(args.band or [])] + ([candidates[0]] if candidates else [])
+        # the chosen band is the last; its overrides stand in until the grid's replace them
+        overrides = [{}, *(args.band or [])] + ([candidates[0]] if candidates else [])
         result = calibrate_bands_across_recordings(
-            MultiBandDetector(template, bands=bands), blocks, times, band_grid=grid)
+            MultiBandDetector(template, bands=overrides), blocks, times, band_grid=grid)
         bands = result.bands
     else:
         result = calibrate_across_recordings(template, blocks, times,

@@ -377,7 +377,7 @@ class _CandidateRuns:
         if len(keys) < 2:
             raise ValueError("calibration across recordings needs at least 2 collision-free "
                              f"recordings, got {len(keys)}")
-        self.keys, self.times, self.rule, self.candidates = keys, times, rule, candidates
+        self.keys, self.times, self.candidates = keys, times, candidates
         Z = np.concatenate([blocks[k] for k in keys])
         self.groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
         time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])

@@ -35,7 +35,6 @@ from .calibration import (
     _held_out_alarm,
     _selection_score,
     calibrate_across_recordings,
-    nested_alarms,
 )
 from .detector import CollisionDetector
 from .streaming import MonitorStatus, StreamingMonitor
@@ -356,10 +355,9 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global",
     if band_grid is None:
         results = [calibrate_across_recordings(template, blocks, times, rule)
                    for template in templates]
-        alarms = {}
-        if len(keys) >= 3:
-            per_band = [nested_alarms(result.series, rule) for result in results]
-            alarms = {k: np.logical_or.reduce([a[k] for a in per_band]) for k in keys}
+        series = [result.series for result in results]
+        alarms = ({r: _held_out_union(series, keys, r, rule) for r in keys}
+                  if len(keys) >= 3 else {})
         band_settings, fold_band_settings, table = {}, {}, []
     else:
         results, alarms, band_settings, fold_band_settings, table = _choose_last_band(
@@ -384,17 +382,20 @@ def _choose_last_band(templates, blocks, times, rule, band_grid):
              for template in templates[:-1]]
     runs = _CandidateRuns(templates[-1], blocks, times, rule, _candidates(band_grid))
     candidates = [run[0] for run in runs.runs]
+    fixed_series = [result.series for result in fixed]
 
-    def union_onsets(c, subset):
-        """Nested onsets of the union with candidate ``c`` on ``subset``."""
+    def union_onsets(subset):
+        """Nested onsets of the union on ``subset``, per candidate (the fixed
+        bands' held-out alarms computed once for all candidates)."""
         if len(subset) < 3:  # no margin without two other recordings
-            return 0
-        return sum(len(alarm_onsets(_held_out_union(fixed, candidates[c], subset, r, rule)))
-                   for r in subset)
+            return [0] * len(candidates)
+        held_out = {r: _held_out_union(fixed_series, subset, r, rule) for r in subset}
+        return [sum(len(alarm_onsets(held_out[r] | _held_out_alarm(series, subset, r, rule)))
+                    for r in subset) for series in candidates]
 
     def choose(subset):
-        ranks = [(union_onsets(c, subset), _selection_score(candidates[c], subset, rule))
-                 for c in range(len(candidates))]
+        ranks = list(zip(union_onsets(subset),
+                         (_selection_score(series, subset, rule) for series in candidates)))
         return min(range(len(candidates)), key=ranks.__getitem__), ranks
 
     best, ranks = choose(keys)
@@ -405,20 +406,18 @@ def _choose_last_band(templates, blocks, times, rule, band_grid):
     if len(keys) >= 3:
         for r in keys:
             c = choose([k for k in keys if k != r])[0] if len(runs.candidates) > 1 else best
-            alarms[r] = _held_out_union(fixed, candidates[c], keys, r, rule)
+            alarms[r] = _held_out_union(fixed_series + [candidates[c]], keys, r, rule)
             fold_settings[r] = runs.candidates[c]
     last = runs.result(best, runs.runs[best][2], {}, [])
     return (fixed + [last], alarms, dict(runs.candidates[best]), fold_settings, table)
 
 
-def _held_out_union(fixed, series, keys, r, rule):
-    """Alarms of recording ``r`` when any of the ``fixed`` calibrations or the
-    band of ``series`` alarms, each with margin and levels from the other
-    recordings of ``keys``."""
-    alarm = _held_out_alarm(series, keys, r, rule)
-    for result in fixed:
-        alarm = alarm | _held_out_alarm(result.series, keys, r, rule)
-    return alarm
+def _held_out_union(bands, keys, r, rule):
+    """Alarms of recording ``r`` where any band alarms (``bands``: each band's
+    :func:`~sklearn_gpcd.detection.regime_excursions`), each band with margin
+    and levels from the other recordings of ``keys``
+    (:func:`~sklearn_gpcd.detection.nested_alarms` of the union)."""
+    return np.logical_or.reduce([_held_out_alarm(series, keys, r, rule) for series in bands])
 
 
 class _TeePredictor:
