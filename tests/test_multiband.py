@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 from sklearn.frozen import FrozenEstimator
-from sklearn.linear_model import Ridge
+from sklearn.linear_model import LinearRegression, Ridge
 from sklearn.model_selection import ParameterGrid
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
@@ -313,6 +313,71 @@ def test_band_grid_scores_each_recording_with_the_band_chosen_without_it():
         MultiBandDetector(template, bands=({}, {**FAST, **result.band_settings})), blocks, times)
     for a, b in zip(result.detector.detectors_, best.detector.detectors_):
         np.testing.assert_array_equal(a.thresholds_, b.thresholds_)
+
+
+class RowCountingRegression(LinearRegression):
+    """LinearRegression that counts the rows it predicts (module level so it pickles)."""
+
+    rows = 0
+
+    def predict(self, X):
+        type(self).rows += len(X)
+        return super().predict(X)
+
+
+THREE_BANDS = ({}, FAST, {"filter_cutoff": 5.0, "filter_order": 2})
+
+
+def test_the_bands_share_one_prediction_and_calibrate_as_alone():
+    from sklearn_gpcd.detection import (
+        calibrate_across_recordings,
+        calibrate_bands_across_recordings,
+    )
+
+    template, blocks, times = _tapped_recordings()
+    n_rows = sum(len(block) for block in blocks.values())
+    model = RowCountingRegression().fit(blocks["r0"][:, :1], blocks["r0"][:, 1])
+    template.set_params(regressor=FrozenEstimator(model))
+    for band_grid in (None, BAND_GRID):
+        RowCountingRegression.rows = 0
+        result = calibrate_bands_across_recordings(
+            MultiBandDetector(template, bands=THREE_BANDS), blocks, times, band_grid=band_grid)
+        assert RowCountingRegression.rows == n_rows, band_grid  # once, for every band
+    RowCountingRegression.rows = 0
+    result = calibrate_bands_across_recordings(
+        MultiBandDetector(template, bands=THREE_BANDS), blocks, times)
+    for band, settings in zip(result.bands, THREE_BANDS):
+        alone = calibrate_across_recordings(clone(template).set_params(**settings),
+                                            blocks, times)
+        np.testing.assert_array_equal(band.detector.thresholds_, alone.detector.thresholds_)
+        np.testing.assert_array_equal(band.margin, alone.margin)
+        np.testing.assert_array_equal(band.levels, alone.levels)
+        assert band.folds == alone.folds and band.settings == alone.settings == {}
+        assert band.candidates == alone.candidates
+        assert band.detector.get_params() == alone.detector.get_params()
+    assert RowCountingRegression.rows == 4 * n_rows  # the bands once, each alone once
+
+
+def test_a_band_with_another_rule_predicts_on_its_own(rng):
+    x, _, noisy = _taps(rng)
+    X = stack_currents(x, noisy)
+    template = CollisionDetector(RowCountingRegression(), n_joints=2, sample_time=0.01,
+                                 filter_cutoff=2.0, min_duration=5, contamination=0.01)
+    RowCountingRegression.rows = 0
+    shared = MultiBandDetector(template, bands=THREE_BANDS).fit(X)
+    assert RowCountingRegression.rows == len(X)
+    RowCountingRegression.rows = 0
+    other = MultiBandDetector(template, bands=({}, {"contamination": 0.05})).fit(X)
+    assert RowCountingRegression.rows == 2 * len(X)  # the contamination acts on the levels
+    first_alone = clone(template).fit(X)  # the same model: the bands left it as it was
+    np.testing.assert_array_equal(shared.detectors_[0].thresholds_, first_alone.thresholds_)
+    for det, bands in ((shared, THREE_BANDS), (other, ({}, {"contamination": 0.05}))):
+        for band, settings in zip(det.detectors_[1:], bands[1:]):
+            frozen = FrozenEstimator(det.regressor_)
+            alone = clone(template).set_params(regressor=frozen, **settings).fit(X)
+            np.testing.assert_array_equal(band.thresholds_, alone.thresholds_)
+            assert band.offset_ == alone.offset_
+            assert band.get_params()["regressor"] is band.regressor_
 
 
 def test_band_grid_takes_only_settings_chosen_after_the_model():

@@ -339,6 +339,13 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     ({'filter_cutoff': 2.0}, 2.0)
     """
     runs = _CandidateRuns(detector, blocks, times, rule, _candidates(param_grid))
+    return _calibration_result(runs, rule)
+
+
+def _calibration_result(runs, rule):
+    """The Bunch of :func:`calibrate_across_recordings` from its candidate runs:
+    the candidates ranked, the operating point, and the nested folds (each
+    recording at the candidate chosen without it)."""
     keys = runs.keys
     # ranked on all recordings from what the runs already hold: the nested onsets
     # of each run's folds and its score (as _best_candidate computes them on a subset)
@@ -370,20 +377,34 @@ class _CandidateRuns:
     ``(series, margin, folds)`` of candidate ``c``: its
     :func:`regime_excursions`, its :func:`loro_margin` and its
     :func:`nested_false_alarms` (empty with fewer than 3 recordings).
+
+    With ``shared`` (the runs of another detector on the same recordings,
+    e.g. another band of one model), its prediction is reused when
+    ``detector`` differs from that detector only in settings of
+    :data:`SELECTABLE_PARAMS` (and the margin, which is replaced): the
+    regressor then predicts nothing again. Otherwise ``detector`` predicts
+    on its own.
     """
 
-    def __init__(self, detector, blocks, times, rule, candidates):
+    def __init__(self, detector, blocks, times, rule, candidates, shared=None):
         keys = list(blocks)
         if len(keys) < 2:
             raise ValueError("calibration across recordings needs at least 2 collision-free "
                              f"recordings, got {len(keys)}")
         self.keys, self.times, self.candidates = keys, times, candidates
-        Z = np.concatenate([blocks[k] for k in keys])
-        self.groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
-        time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
-        base = clone(detector).set_params(margin=1.0)
-        self.residuals = base._fit_residuals(Z, None, self.groups, time,
-                                             base._needs_std(fitting=True))
+        self.detector = detector
+        settings = None if shared is None else _shared_settings(shared.detector, detector)
+        if settings is None:
+            Z = np.concatenate([blocks[k] for k in keys])
+            self.groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
+            time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
+            base = clone(detector).set_params(margin=1.0)
+            self.residuals = base._fit_residuals(Z, None, self.groups, time,
+                                                 base._needs_std(fitting=True))
+        else:
+            self.groups, self.residuals = shared.groups, shared.residuals
+            base = copy.copy(shared.base).set_params(regressor=detector.regressor, **settings)
+            base._validate_params()
         base._calibrate(*self.residuals, recording_index(self.groups))
         self.base = base
         per_recording = _recording_residuals(base, keys, self.groups, *self.residuals[:2],
@@ -415,6 +436,57 @@ class _CandidateRuns:
                      regime_names=tuple(fitted.regime_names_), series=series,
                      settings=dict(self.candidates[c]), candidates=table,
                      fold_settings=fold_settings)
+
+
+def _shared_settings(reference, detector):
+    """The settings by which ``detector`` differs from ``reference``, when they
+    may reuse its predictions; None when they may not.
+
+    Two detectors share a prediction of the currents when every parameter
+    but the regressor and the margin is equal, or differs only among
+    :data:`SELECTABLE_PARAMS`, the settings that act after the regressor.
+    The regressor is not compared: the caller shares one fitted model (as the
+    bands of a :class:`~sklearn_gpcd.detection.MultiBandDetector` do).
+
+    Parameters
+    ----------
+    reference, detector : CollisionDetector
+
+    Returns
+    -------
+    settings : dict or None
+        ``{name: value of detector}`` for the differing parameters (empty when
+        none differ), or None when some parameter outside
+        :data:`SELECTABLE_PARAMS` differs.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.detection import CollisionDetector
+    >>> fast = CollisionDetector(filter_cutoff=10.0, min_duration=2)
+    >>> _shared_settings(CollisionDetector(filter_cutoff=2.0), fast)
+    {'filter_cutoff': 10.0, 'min_duration': 2}
+    >>> print(_shared_settings(CollisionDetector(), CollisionDetector(threshold="std")))
+    None
+    """
+    ours, theirs = reference.get_params(deep=False), detector.get_params(deep=False)
+    settings = {}
+    for name, value in theirs.items():
+        if name in ("regressor", "margin") or _same_value(ours.get(name), value):
+            continue
+        if name not in SELECTABLE_PARAMS:
+            return None
+        settings[name] = value
+    return settings
+
+
+def _same_value(a, b):
+    """Parameter values equal (arrays element-wise, anything else by ``==``)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.shape(a) == np.shape(b) and np.array_equal(a, b))
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):
+        return a is b
 
 
 def _candidates(param_grid):

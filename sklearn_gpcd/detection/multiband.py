@@ -14,10 +14,14 @@ fitted model -- each band with its own filter, debounce and calibrated
 thresholds (``bands``: parameter overrides of a
 :class:`~sklearn_gpcd.detection.CollisionDetector`) -- and a sample is a
 collision when any band says so. The regressor is fitted once; the other
-bands calibrate on it frozen (:class:`sklearn.frozen.FrozenEstimator`).
+bands calibrate on it frozen (:class:`sklearn.frozen.FrozenEstimator`), from
+its one prediction of the training rows when they differ from the first band
+only in settings that act after the regressor.
 :class:`MultiBandMonitor` makes the same decisions one sample at a time with
 one prediction per tick. This composition is ours, not the paper's.
 """
+
+import copy
 
 import numpy as np
 from sklearn.base import BaseEstimator, OutlierMixin, clone
@@ -26,15 +30,16 @@ from sklearn.utils import Bunch
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._persistence import VersionedStateMixin
-from ._signal import segment_starts
+from ._signal import recording_index, segment_starts
 from ..metrics import alarm_onsets
 from .calibration import (
+    _calibration_result,
     _CandidateRuns,
     _candidates,
     _folds,
     _held_out_alarm,
     _selection_score,
-    calibrate_across_recordings,
+    _shared_settings,
 )
 from .detector import CollisionDetector
 from .streaming import MonitorStatus, StreamingMonitor
@@ -141,6 +146,11 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     def fit(self, X, y=None, *, labels=None, groups=None, time=None):
         """Fit the model once (first band) and calibrate every band on it.
 
+        The regressor predicts the training rows once: a band whose settings
+        differ from the first band's only in
+        :data:`~sklearn_gpcd.detection.SELECTABLE_PARAMS` (filter, debounce,
+        settle time, rest reference) calibrates on the first band's residuals.
+
         Parameters
         ----------
         X : array-like of shape (n_samples, n_inputs + n_joints)
@@ -155,12 +165,23 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         self : MultiBandDetector
         """
         first, *others = self._band_templates()
-        first.fit(X, labels=labels, groups=groups, time=time)
+        fitted = first._fit_residuals(X, labels, groups, time, first._needs_std(fitting=True))
+        recordings = recording_index(groups, labels)
+        first._calibrate(*fitted, recordings)
         frozen = FrozenEstimator(first.regressor_)
-        return self._adopt([first] + [
-            band.set_params(regressor=frozen).fit(X, labels=labels, groups=groups, time=time)
-            for band in others
-        ])
+        bands = [first]
+        for band in others:
+            band.set_params(regressor=frozen)
+            settings = _shared_settings(first, band)
+            if settings is None:  # another rule than the first band's: its own prediction
+                band.fit(X, labels=labels, groups=groups, time=time)
+            else:  # the first band's residuals, this band's filter, debounce, regimes
+                band = copy.copy(first).set_params(regressor=frozen, **settings)
+                band.regressor_ = frozen
+                band._validate_params()
+                band._calibrate(*fitted, recordings)
+            bands.append(band)
+        return self._adopt(bands)
 
     def _adopt(self, detectors):
         """Set the fitted attributes from fitted bands (one model)."""
@@ -283,8 +304,12 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global",
     fewer false alarms than it delivers; here recording ``r`` is scored with
     the candidate chosen on the other recordings alone (ranked there, its
     margins and levels calibrated there), so the nested figure never saw
-    ``r`` even through the choice of band. The regressor predicts each
-    recording once for all candidates.
+    ``r`` even through the choice of band.
+
+    The regressor predicts each recording once for every band and candidate
+    whose settings differ from the first band's only in
+    :data:`~sklearn_gpcd.detection.SELECTABLE_PARAMS`; a band with another
+    rule (e.g. another ``threshold``) predicts on its own.
 
     Parameters
     ----------
@@ -353,8 +378,7 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global",
     templates = detector._band_templates()
     keys = list(blocks)
     if band_grid is None:
-        results = [calibrate_across_recordings(template, blocks, times, rule)
-                   for template in templates]
+        results = _fixed_bands(templates, blocks, times, rule)[0]
         series = [result.series for result in results]
         alarms = ({r: _held_out_union(series, keys, r, rule) for r in keys}
                   if len(keys) >= 3 else {})
@@ -373,14 +397,28 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global",
                  fold_band_settings=fold_band_settings)
 
 
+def _fixed_bands(templates, blocks, times, rule):
+    """:func:`~sklearn_gpcd.detection.calibrate_across_recordings` of each band,
+    and the first band's candidate runs (None without bands). The regressor
+    predicts the recordings once: every band whose settings differ from the
+    first band's only in :data:`~sklearn_gpcd.detection.SELECTABLE_PARAMS`
+    reuses that prediction."""
+    results, first = [], None
+    for template in templates:
+        runs = _CandidateRuns(template, blocks, times, rule, [{}], shared=first)
+        first = first or runs
+        results.append(_calibration_result(runs, rule))
+    return results, first
+
+
 def _choose_last_band(templates, blocks, times, rule, band_grid):
     """The fixed bands calibrated, the last band's settings chosen from
     ``band_grid``: calibrations, nested alarms of the union, the chosen
     settings, those chosen without each recording, and the candidate table."""
     keys = list(blocks)
-    fixed = [calibrate_across_recordings(template, blocks, times, rule)
-             for template in templates[:-1]]
-    runs = _CandidateRuns(templates[-1], blocks, times, rule, _candidates(band_grid))
+    fixed, shared = _fixed_bands(templates[:-1], blocks, times, rule)
+    runs = _CandidateRuns(templates[-1], blocks, times, rule, _candidates(band_grid),
+                          shared=shared)
     candidates = [run[0] for run in runs.runs]
     fixed_series = [result.series for result in fixed]
 
