@@ -1,6 +1,7 @@
 """Several bands on one model (MultiBandDetector) and their streaming twin."""
 
 import pickle
+import warnings
 
 import numpy as np
 import pytest
@@ -358,23 +359,30 @@ def test_the_bands_share_one_prediction_and_calibrate_as_alone():
     assert RowCountingRegression.rows == 4 * n_rows  # the bands once, each alone once
 
 
-def test_a_band_with_another_rule_predicts_on_its_own(rng):
+def test_a_band_that_differs_before_the_regressor_predicts_on_its_own(rng):
     x, _, noisy = _taps(rng)
     X = stack_currents(x, noisy)
     template = CollisionDetector(RowCountingRegression(), n_joints=2, sample_time=0.01,
                                  filter_cutoff=2.0, min_duration=5, contamination=0.01)
+    after = THREE_BANDS + ({"contamination": 0.05},)  # the level acts after the model
     RowCountingRegression.rows = 0
-    shared = MultiBandDetector(template, bands=THREE_BANDS).fit(X)
+    shared = MultiBandDetector(template, bands=after).fit(X)
     assert RowCountingRegression.rows == len(X)
+    before = ({}, {"sample_time": 0.02})  # the sampling period is set with the fit
     RowCountingRegression.rows = 0
-    other = MultiBandDetector(template, bands=({}, {"contamination": 0.05})).fit(X)
-    assert RowCountingRegression.rows == 2 * len(X)  # the contamination acts on the levels
+    with pytest.warns(UserWarning, match="sample_time=0.02"):
+        other = MultiBandDetector(template, bands=before).fit(X, time=np.arange(len(X)) * 0.01)
+    assert RowCountingRegression.rows == 2 * len(X)
+    assert other.detectors_[1].sample_time_ == 0.02
     first_alone = clone(template).fit(X)  # the same model: the bands left it as it was
     np.testing.assert_array_equal(shared.detectors_[0].thresholds_, first_alone.thresholds_)
-    for det, bands in ((shared, THREE_BANDS), (other, ({}, {"contamination": 0.05}))):
+    for det, bands in ((shared, after), (other, before)):
         for band, settings in zip(det.detectors_[1:], bands[1:]):
             frozen = FrozenEstimator(det.regressor_)
-            alone = clone(template).set_params(regressor=frozen, **settings).fit(X)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # sample_time against time: checked above
+                alone = clone(template).set_params(regressor=frozen, **settings).fit(
+                    X, time=np.arange(len(X)) * 0.01)
             np.testing.assert_array_equal(band.thresholds_, alone.thresholds_)
             assert band.offset_ == alone.offset_
             assert band.get_params()["regressor"] is band.regressor_

@@ -35,6 +35,7 @@ from sklearn.utils import Bunch
 from ..metrics import alarm_onsets
 from ._signal import debounce_segments, recording_index, segment_starts
 from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
+from .detector import _post_processing_settings
 
 __all__ = [
     "MARGIN_RULES",
@@ -380,10 +381,11 @@ class _CandidateRuns:
 
     With ``shared`` (the runs of another detector on the same recordings,
     e.g. another band of one model), its prediction is reused when
-    ``detector`` differs from that detector only in settings of
-    :data:`SELECTABLE_PARAMS` (and the margin, which is replaced): the
-    regressor then predicts nothing again. Otherwise ``detector`` predicts
-    on its own.
+    ``detector`` differs from that detector only in settings applied after
+    the regressor (``POST_PROCESSING_PARAMS`` of the detector module; the
+    margin is replaced anyway) and the prediction holds the std where
+    ``detector`` reads it: the regressor then predicts nothing again.
+    Otherwise ``detector`` predicts on its own.
     """
 
     def __init__(self, detector, blocks, times, rule, candidates, shared=None):
@@ -393,7 +395,10 @@ class _CandidateRuns:
                              f"recordings, got {len(keys)}")
         self.keys, self.times, self.candidates = keys, times, candidates
         self.detector = detector
-        settings = None if shared is None else _shared_settings(shared.detector, detector)
+        settings = None
+        if shared is not None and (shared.residuals[1] is not None
+                                   or not detector._needs_std(fitting=True)):
+            settings = _post_processing_settings(shared.detector, detector)
         if settings is None:
             Z = np.concatenate([blocks[k] for k in keys])
             self.groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
@@ -436,57 +441,6 @@ class _CandidateRuns:
                      regime_names=tuple(fitted.regime_names_), series=series,
                      settings=dict(self.candidates[c]), candidates=table,
                      fold_settings=fold_settings)
-
-
-def _shared_settings(reference, detector):
-    """The settings by which ``detector`` differs from ``reference``, when they
-    may reuse its predictions; None when they may not.
-
-    Two detectors share a prediction of the currents when every parameter
-    but the regressor and the margin is equal, or differs only among
-    :data:`SELECTABLE_PARAMS`, the settings that act after the regressor.
-    The regressor is not compared: the caller shares one fitted model (as the
-    bands of a :class:`~sklearn_gpcd.detection.MultiBandDetector` do).
-
-    Parameters
-    ----------
-    reference, detector : CollisionDetector
-
-    Returns
-    -------
-    settings : dict or None
-        ``{name: value of detector}`` for the differing parameters (empty when
-        none differ), or None when some parameter outside
-        :data:`SELECTABLE_PARAMS` differs.
-
-    Examples
-    --------
-    >>> from sklearn_gpcd.detection import CollisionDetector
-    >>> fast = CollisionDetector(filter_cutoff=10.0, min_duration=2)
-    >>> _shared_settings(CollisionDetector(filter_cutoff=2.0), fast)
-    {'filter_cutoff': 10.0, 'min_duration': 2}
-    >>> print(_shared_settings(CollisionDetector(), CollisionDetector(threshold="std")))
-    None
-    """
-    ours, theirs = reference.get_params(deep=False), detector.get_params(deep=False)
-    settings = {}
-    for name, value in theirs.items():
-        if name in ("regressor", "margin") or _same_value(ours.get(name), value):
-            continue
-        if name not in SELECTABLE_PARAMS:
-            return None
-        settings[name] = value
-    return settings
-
-
-def _same_value(a, b):
-    """Parameter values equal (arrays element-wise, anything else by ``==``)."""
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        return bool(np.shape(a) == np.shape(b) and np.array_equal(a, b))
-    try:
-        return bool(a == b)
-    except (TypeError, ValueError):
-        return a is b
 
 
 def _candidates(param_grid):

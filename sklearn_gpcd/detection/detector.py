@@ -33,6 +33,24 @@ from ._thresholds import (
 _THRESHOLD_RULES = ("contamination", "false_alarm_rate", "per_joint", "std")
 #: Relative deviation of ``sample_time`` from the data's median step that warns.
 _SAMPLE_TIME_RTOL = 0.2
+#: CollisionDetector parameters applied after the regressor: detectors that
+#: differ only in these share one fitted regressor and its residuals
+#: (``_post_processing_settings``; CollisionThresholdCV's candidates, the
+#: bands of a MultiBandDetector, the settings chosen across recordings).
+POST_PROCESSING_PARAMS = frozenset(
+    {
+        "threshold",
+        "contamination",
+        "false_alarm_rate",
+        "k",
+        "normalize",
+        "filter_cutoff",
+        "filter_order",
+        "min_duration",
+        "settle_time",
+        "rest_reference",
+    }
+)
 
 
 class SampleTimeWarning(UserWarning):
@@ -911,6 +929,62 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         fired : ndarray of bool, shape (n_samples, n_joints)
         """
         return self.monitoring_signal(X, groups).alarms
+
+
+def _post_processing_settings(reference, detector):
+    """The settings by which ``detector`` differs from ``reference``, when it may
+    reuse its fitted regressor and residuals; None when it may not.
+
+    It may when every parameter but the regressor and the margin is equal,
+    or differs only among :data:`POST_PROCESSING_PARAMS`, the settings
+    applied after the regressor. The regressor is not compared: the caller
+    shares one fitted model. A detector that reads the predictive std
+    (``_needs_std``) needs residuals computed with it.
+
+    Parameters
+    ----------
+    reference, detector : CollisionDetector
+
+    Returns
+    -------
+    settings : dict or None
+        ``{name: value of detector}`` for the differing parameters (empty when
+        none differ), or None when some parameter outside
+        :data:`POST_PROCESSING_PARAMS` differs.
+
+    Examples
+    --------
+    >>> fast = CollisionDetector(filter_cutoff=10.0, min_duration=2)
+    >>> _post_processing_settings(CollisionDetector(filter_cutoff=2.0), fast)
+    {'filter_cutoff': 10.0, 'min_duration': 2}
+    >>> print(_post_processing_settings(CollisionDetector(), CollisionDetector(sample_time=0.01)))
+    None
+    """
+    ours, theirs = reference.get_params(deep=False), detector.get_params(deep=False)
+    settings = {}
+    for name, value in theirs.items():
+        if name in ("regressor", "margin") or _same_param(ours.get(name), value):
+            continue
+        if name not in POST_PROCESSING_PARAMS:
+            return None
+        settings[name] = value
+    return settings
+
+
+def _same_param(a, b):
+    """Parameter values equal: the same object, equal arrays, or ``a == b``.
+
+    >>> _same_param([1, 2], [1, 2]), _same_param(np.zeros(2), np.zeros(3))
+    (True, False)
+    """
+    if a is b:
+        return True
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.shape(a) == np.shape(b) and np.array_equal(a, b))
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):
+        return False
 
 
 def _is_loro(margin):

@@ -12,21 +12,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._persistence import VersionedStateMixin
 from ..metrics import event_recall, false_alarms_per_hour, mean_detection_delay
 from ._signal import recording_index, segment_starts
-
-#: CollisionDetector parameters applied after the regressor: changing them
-#: re-uses the fitted regressor and its residuals.
-POST_PROCESSING_PARAMS = frozenset(
-    {
-        "threshold",
-        "contamination",
-        "false_alarm_rate",
-        "k",
-        "normalize",
-        "filter_cutoff",
-        "filter_order",
-        "min_duration",
-    }
-)
+from .detector import POST_PROCESSING_PARAMS, _same_param
 
 METRICS = ("recall", "false_alarms_per_hour", "delay")
 
@@ -341,20 +327,13 @@ def _group_by_fit(candidates):
         heavy = {k: v for k, v in params.items() if k not in POST_PROCESSING_PARAMS}
         for block_heavy, members in blocks:
             if block_heavy.keys() == heavy.keys() and all(
-                block_heavy[k] is heavy[k] or _equal(block_heavy[k], heavy[k]) for k in heavy
+                _same_param(block_heavy[k], heavy[k]) for k in heavy
             ):
                 members.append(i)
                 break
         else:
             blocks.append((heavy, [i]))
     return blocks
-
-
-def _equal(a, b):
-    try:
-        return bool(a == b)
-    except (TypeError, ValueError):
-        return False
 
 
 def _evaluate_fold(detector, heavy, lights, X, labels, groups, train, test, max_delay,

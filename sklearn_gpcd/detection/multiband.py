@@ -16,7 +16,7 @@ thresholds (``bands``: parameter overrides of a
 collision when any band says so. The regressor is fitted once; the other
 bands calibrate on it frozen (:class:`sklearn.frozen.FrozenEstimator`), from
 its one prediction of the training rows when they differ from the first band
-only in settings that act after the regressor.
+only in settings applied after the regressor.
 :class:`MultiBandMonitor` makes the same decisions one sample at a time with
 one prediction per tick. This composition is ours, not the paper's.
 """
@@ -39,9 +39,8 @@ from .calibration import (
     _folds,
     _held_out_alarm,
     _selection_score,
-    _shared_settings,
 )
-from .detector import CollisionDetector
+from .detector import CollisionDetector, _post_processing_settings
 from .streaming import MonitorStatus, StreamingMonitor
 
 __all__ = ["MultiBandDetector", "MultiBandMonitor", "calibrate_bands_across_recordings"]
@@ -147,9 +146,11 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         """Fit the model once (first band) and calibrate every band on it.
 
         The regressor predicts the training rows once: a band whose settings
-        differ from the first band's only in
-        :data:`~sklearn_gpcd.detection.SELECTABLE_PARAMS` (filter, debounce,
-        settle time, rest reference) calibrates on the first band's residuals.
+        differ from the first band's only in settings applied after the
+        regressor (threshold rule and level, filter, debounce, settle time,
+        rest reference) calibrates on the first band's residuals; one that
+        differs before it (e.g. ``sample_time``, ``brake_limit``) predicts
+        them again.
 
         Parameters
         ----------
@@ -165,17 +166,18 @@ class MultiBandDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         self : MultiBandDetector
         """
         first, *others = self._band_templates()
-        fitted = first._fit_residuals(X, labels, groups, time, first._needs_std(fitting=True))
+        need_std = any(band._needs_std(fitting=True) for band in (first, *others))
+        fitted = first._fit_residuals(X, labels, groups, time, need_std)
         recordings = recording_index(groups, labels)
         first._calibrate(*fitted, recordings)
         frozen = FrozenEstimator(first.regressor_)
         bands = [first]
         for band in others:
             band.set_params(regressor=frozen)
-            settings = _shared_settings(first, band)
-            if settings is None:  # another rule than the first band's: its own prediction
+            settings = _post_processing_settings(first, band)
+            if settings is None:  # differs before the regressor: its own prediction
                 band.fit(X, labels=labels, groups=groups, time=time)
-            else:  # the first band's residuals, this band's filter, debounce, regimes
+            else:  # the first band's residuals, this band's post-processing
                 band = copy.copy(first).set_params(regressor=frozen, **settings)
                 band.regressor_ = frozen
                 band._validate_params()
@@ -307,9 +309,10 @@ def calibrate_bands_across_recordings(detector, blocks, times, rule="global",
     ``r`` even through the choice of band.
 
     The regressor predicts each recording once for every band and candidate
-    whose settings differ from the first band's only in
-    :data:`~sklearn_gpcd.detection.SELECTABLE_PARAMS`; a band with another
-    rule (e.g. another ``threshold``) predicts on its own.
+    whose settings differ from the first band's only in settings applied
+    after the regressor (threshold rule and level, filter, debounce, settle
+    time, rest reference); a band that differs before it (e.g.
+    ``sample_time``, ``brake_limit``) predicts on its own.
 
     Parameters
     ----------
@@ -401,8 +404,7 @@ def _fixed_bands(templates, blocks, times, rule):
     """:func:`~sklearn_gpcd.detection.calibrate_across_recordings` of each band,
     and the first band's candidate runs (None without bands). The regressor
     predicts the recordings once: every band whose settings differ from the
-    first band's only in :data:`~sklearn_gpcd.detection.SELECTABLE_PARAMS`
-    reuses that prediction."""
+    first band's only after the regressor reuses that prediction."""
     results, first = [], None
     for template in templates:
         runs = _CandidateRuns(template, blocks, times, rule, [{}], shared=first)
