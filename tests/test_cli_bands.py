@@ -7,7 +7,7 @@ import pytest
 from sklearn.frozen import FrozenEstimator
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.cli_monitor import DETECTOR_RULE, load_detector
+from sklearn_gpcd.workflow import DETECTOR_RULE, load_detector
 from sklearn_gpcd.datasets import make_d1
 from sklearn_gpcd.detection import (
     CollisionDetector,
@@ -141,7 +141,7 @@ def _replayed_onsets(work):
 
 
 def test_monitor_replay_of_a_multi_band_file(work, capsys, monkeypatch):
-    import sklearn_gpcd.cli_monitor as cli_monitor
+    import sklearn_gpcd.cli.monitor as cli_monitor
 
     hooks = []  # the environment of each --hook call, instead of running it
     monkeypatch.setattr(cli_monitor.subprocess, "Popen",

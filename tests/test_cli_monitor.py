@@ -8,7 +8,7 @@ import pytest
 from sklearn.frozen import FrozenEstimator
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.cli_monitor import DETECTOR_RULE, SELECT_GRID, load_detector
+from sklearn_gpcd.workflow import DETECTOR_RULE, SELECT_GRID, load_detector
 from sklearn_gpcd.datasets import make_d1
 from sklearn_gpcd.detection import (
     CollisionDetector,
@@ -86,17 +86,17 @@ def test_calibrate_applies_the_loro_rule_and_reports_it(work, capsys):
     np.testing.assert_allclose(kt[0], [11.976, 11.976, 9.839, 10.763, 10.763, 10.763])
 
 
-def test_calibrate_reads_a_bare_regressor_with_a_warning(work, capsys):
-    """A model file from before gpcd train saved its features: calibrated on causal features
-    fitted on the calibration recordings, with one warning line."""
+def test_calibrate_refuses_a_bare_regressor(work, capsys):
+    """A file holding a regressor without its features is not a model file: one error line
+    that names the file and the command that writes a model file."""
     from sklearn_gpcd.persistence import save
 
     bare = save(load_model(work["model"]).regressor, work["folder"] / "bare.joblib")
     out = work["folder"] / "bare_detector.skops"
-    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out)]) == 0
+    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "holds no input features" in err[0]
-    assert load_detector(out)[2]["training"] == {}
+    assert len(err) == 1 and str(bare) in err[0] and "gpcd train" in err[0]
+    assert not out.exists()
 
 
 def test_calibrate_refuses_a_detector_file_as_model(work, capsys):
@@ -115,7 +115,7 @@ def test_calibrate_needs_two_recordings(work, capsys):
 def test_calibrate_split_cuts_one_long_log_into_left_out_pieces(work, capsys):
     """--split: one recording, cut into pieces that leave-one-recording-out treats as
     recordings; the same thresholds as calibrate_across_recordings on those pieces."""
-    from sklearn_gpcd.cli_monitor import split_recordings
+    from sklearn_gpcd.workflow import split_recordings
 
     rec = load_recording(work["free"][2])
     out = work["folder"] / "split.skops"

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.cli_monitor import load_detector
+from sklearn_gpcd.workflow import load_detector
 from sklearn_gpcd.detection import stack_currents
 from sklearn_gpcd.workflow import load_model
 

@@ -58,12 +58,12 @@ CUSTOM_MAP = {"time": 0, "current": [1, 2, 3, 4, 5, 6], "q": [7, 8, 9, 10, 11, 1
 
 # ------------------------------------------------------------------ Ctrl-C
 def test_keyboard_interrupt_exits_130_with_one_line(monkeypatch, capsys):
-    import sklearn_gpcd.cli as cli
+    import sklearn_gpcd.cli.reproduce as verb
 
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "_cmd_robots", interrupted)
+    monkeypatch.setattr(verb, "run_robots", interrupted)
     assert main(["robots"]) == 130
     captured = capsys.readouterr()
     assert captured.err.splitlines() == ["gpcd robots: interrupted"]
@@ -130,14 +130,15 @@ def test_bad_urdf_prints_one_gpcd_line_and_no_library_noise(tmp_path, name):
     ["train", "a.csv", "-o", "{folder}/model.txt"],
 ])
 def test_output_paths_are_checked_before_any_work(argv, tmp_path, capsys, monkeypatch):
-    import sklearn_gpcd.cli as cli
+    from sklearn_gpcd.cli import _args, diagnose, reproduce, train
 
     def no_work(*args, **kwargs):
         raise AssertionError("work started before the output path was checked")
 
-    for name in ("_cmd_simulate", "_cmd_reproduce", "_cmd_diagnose", "_cmd_train",
-                 "_read_recordings"):
-        monkeypatch.setattr(cli, name, no_work)
+    for module, name in ((reproduce, "run_simulate"), (reproduce, "run_reproduce"),
+                         (diagnose, "run"), (train, "run"), (diagnose, "read_recordings"),
+                         (train, "read_recordings"), (_args, "read_recordings")):
+        monkeypatch.setattr(module, name, no_work)
     (tmp_path / "file").write_text("x")
     argv = [a.format(missing=tmp_path / "nope", folder=tmp_path, file=tmp_path / "file")
             for a in argv]
@@ -369,7 +370,8 @@ def test_train_progress_bar_has_an_eta(sims, tmp_path, capsys):
 
 
 def test_train_rule_thins_long_logs_to_every_kth_row():
-    from sklearn_gpcd.cli import MAX_TRAIN_ROWS, _training_rows
+    from sklearn_gpcd.workflow import MAX_TRAIN_ROWS
+    from sklearn_gpcd.workflow import training_rows as _training_rows
 
     assert _training_rows(41_707) == slice(0, 41_707, 1)
     rows = _training_rows(1_800_000)

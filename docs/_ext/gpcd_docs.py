@@ -39,9 +39,8 @@ PUBLIC_MODULES = {
     "diagnosis": "Sim-to-real diagnosis",
     "experiments": "The paper's experiments",
     "persistence": "Saving and loading models",
-    "workflow": "Training a detection model (gpcd train)",
+    "workflow": "Training and calibrating a detector (gpcd train, gpcd calibrate)",
     "cli": "The gpcd command",
-    "cli_monitor": "gpcd calibrate and gpcd monitor",
 }
 
 GENERATED = "generated"

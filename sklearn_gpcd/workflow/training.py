@@ -1,5 +1,5 @@
 """Training a collision-detection model on recordings: the one function behind
-``gpcd train`` and ``benchmarks/real_ur10e.py``.
+``gpcd train``.
 
 :func:`train_model` turns collision-free recordings into a fitted estimator
 (P_f, SP_S, SP_P or SP_C) *together with* the fitted
@@ -177,7 +177,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     >>> data.X.shape, data.y.shape, data.inputs
     ((100, 12), (100, 2), 'causal')
     """
-    from .features import CausalFeatures, make_inputs
+    from ..features import CausalFeatures, make_inputs
 
     if inputs not in INPUTS:
         raise ValueError(f"inputs must be one of {INPUTS}, got {inputs!r}")
@@ -246,8 +246,8 @@ class TrainedModel:
 
 
 def _build(model, robot, n_joints, params, coulomb_width=None):
-    from .dynamics import RigidBodyRegressor
-    from .gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
+    from ..dynamics import RigidBodyRegressor
+    from ..gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
     if model == "sp_c":
         if coulomb_width is not None:
@@ -293,7 +293,7 @@ def acceleration_limit(data):
     >>> round(acceleration_limit(data), 2)   # causal: low-passed, a little lower
     0.82
     """
-    from .layout import block_columns
+    from ..layout import block_columns
 
     n_joints = data.y.shape[1]
     return float(np.abs(data.X[:, block_columns("qdd", n_joints)]).max())
@@ -359,7 +359,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
-    from .gp import resolve_n_support
+    from ..gp import resolve_n_support
 
     data = recordings if isinstance(recordings, TrainingSet) else None
     if data is None:
@@ -420,7 +420,7 @@ def save_model(trained, path):
     >>> save_model(trained, pathlib.Path(tempfile.mkdtemp()) / "m.joblib").name
     'm.joblib'
     """
-    from .persistence import save
+    from ..persistence import save
 
     return save({"kind": MODEL_KIND, "regressor": trained.regressor,
                  "features": trained.features, "training": trained.training}, path)
@@ -428,9 +428,6 @@ def save_model(trained, path):
 
 def load_model(path):
     """Read a model file written by ``gpcd train`` (:func:`save_model`).
-
-    A file holding a bare regressor (written by ``gpcd train`` before it
-    saved its features) gives ``features=None`` and ``training={}``.
 
     Parameters
     ----------
@@ -444,7 +441,8 @@ def load_model(path):
     Raises
     ------
     ValueError
-        If the file holds neither (e.g. a detector file from ``gpcd calibrate``).
+        If the file is not a model file (e.g. a detector file from ``gpcd
+        calibrate``, or a bare regressor).
 
     Examples
     --------
@@ -457,18 +455,15 @@ def load_model(path):
     >>> load_model(path).training
     {'inputs': 'causal'}
     """
-    from .persistence import load
+    from ..persistence import load
 
     bundle = load(path)
-    if isinstance(bundle, dict):
-        if bundle.get("kind") != MODEL_KIND:
-            raise ValueError(f"{path}: not a model file written by gpcd train (kind "
-                             f"{bundle.get('kind')!r})")
-        return TrainedModel(bundle["regressor"], bundle["features"],
-                            dict(bundle.get("training") or {}))
-    if not hasattr(bundle, "predict"):
-        raise ValueError(f"{path}: not a model file written by gpcd train")
-    return TrainedModel(bundle, None, {})
+    kind = bundle.get("kind") if isinstance(bundle, dict) else type(bundle).__name__
+    if kind != MODEL_KIND:
+        raise ValueError(f"{path}: not a model file written by gpcd train (it holds "
+                         f"{kind!r}); train one with gpcd train")
+    return TrainedModel(bundle["regressor"], bundle["features"],
+                        dict(bundle.get("training") or {}))
 
 
 # ---------------------------------------------------------------- progress
@@ -489,7 +484,7 @@ def _count_fitted_outputs(progress):
     output appends one byte to a temporary file, which a thread of this
     process polls.
     """
-    from .gp import regressor
+    from ..gp import regressor
 
     fit_output = regressor._fit_output
     handle, ticks = tempfile.mkstemp(prefix="gpcd-progress-")

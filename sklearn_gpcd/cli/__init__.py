@@ -1,0 +1,193 @@
+"""The ``gpcd`` command.
+
+Subcommands
+-----------
+``gpcd reproduce [--quick] -o DIR``
+    The paper's experiments end to end on the built-in simulator (the main job).
+``gpcd simulate --robot ROBOT --scenario NAME -o FILE.csv``
+    Write a simulated recording as a UR RTDE CSV.
+``gpcd robots``
+    List the built-in robot models.
+``gpcd train RECORDINGS... [--robot ROBOT] --model sp_p|sp_s|p_f|sp_c -o MODEL.skops``
+    Fit the paper's estimator on a user's own recordings, on causal inputs by
+    default (:func:`sklearn_gpcd.workflow.train_model`, rule ``TRAIN_RULE``).
+``gpcd diagnose TRAIN... [--test TEST]... [--robot ROBOT]``
+    Name the physics the robot model misses in real recordings.
+``gpcd calibrate MODEL COLLISION_FREE... -o DETECTOR.skops``
+    Detection thresholds chosen across recordings (:func:`sklearn_gpcd.workflow.calibrate_detector`).
+``gpcd monitor DETECTOR RECORDINGS... | --replay FILE | --rtde HOST``
+    Alarm events through the causal streaming path, offline or live.
+
+Every option that names a robot (``--robot``) takes a built-in name (``ur10``,
+``ur10e``, ...) or the path of a URDF file. Commands that read recordings take
+the robot from the recordings' metadata when they name it (the
+``ur10e_mamedov`` column preset, files written by ``gpcd simulate``), else
+``--robot`` is required; ``--robot`` always wins. Recordings are read with
+:func:`sklearn_gpcd.io.load_recording` (``--column-map``: a JSON object, a
+JSON file or a preset name) and must have the robot's number of joints.
+Options that take several recordings are repeated (``--test a.csv --test
+b.csv``), so they never swallow positional arguments. Output paths
+(``-o``, ``--json``, ``--plot``) are checked before any work starts.
+
+Exit status: 0 on success; 2 for bad input -- a usage error (argparse), or a
+recording or option the command cannot use (``ValueError``, ``OSError``, a
+missing optional package); 130 when interrupted (Ctrl-C). Bad input prints ONE
+line ``gpcd COMMAND: error: MESSAGE`` on stderr (the message names the file,
+and the column and line where relevant), never a traceback; Ctrl-C prints one
+line ``gpcd COMMAND: interrupted``. Warnings, such as a
+:class:`~sklearn_gpcd.io.RecordingWarning` for dropped rows, print one line
+each, ``gpcd COMMAND: warning: MESSAGE``, and the command goes on. Progress
+bars (with an ETA) go to stderr.
+
+One module per verb (:mod:`~sklearn_gpcd.cli.train`, ``calibrate``,
+``monitor``, ``diagnose``, ``reproduce`` with ``simulate`` and ``robots``),
+each a thin layer over the library, and :mod:`~sklearn_gpcd.cli._args` for
+what they share.
+"""
+
+import argparse
+import sys
+import warnings
+
+from . import calibrate, diagnose, monitor, reproduce, train
+
+__all__ = ["main", "build_parser", "parse_args"]
+
+
+def build_parser():
+    """The argument parser of the ``gpcd`` command.
+
+    Returns
+    -------
+    parser : argparse.ArgumentParser
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.cli import build_parser
+    >>> args = build_parser().parse_args(["reproduce", "--quick", "-o", "out"])
+    >>> args.quick, args.output
+    (True, 'out')
+    >>> args = build_parser().parse_args(["diagnose", "--test", "held.csv", "train.csv"])
+    >>> args.train, args.test
+    (['train.csv'], ['held.csv'])
+    """
+    parser = argparse.ArgumentParser(
+        prog="gpcd",
+        description="Proprioceptive collision detection with Gaussian Processes.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    reproduce.add_parsers(sub)  # reproduce, simulate, robots
+    train.add_parser(sub)
+    diagnose.add_parser(sub)
+    calibrate.add_parser(sub)
+    monitor.add_parser(sub)
+    return parser
+
+
+#: Subcommand -> its positional list of recordings (arguments left over after
+#: the options, e.g. ``a.csv --test h.csv b.csv``, belong to it).
+_RECORDING_POSITIONALS = {name: verb.RECORDINGS for name, verb in (
+    ("train", train), ("diagnose", diagnose), ("calibrate", calibrate), ("monitor", monitor))}
+
+
+def parse_args(argv=None):
+    """Parse ``gpcd`` arguments; recordings may come before, between or after options.
+
+    argparse takes one contiguous run of positionals, so ``gpcd diagnose a.csv
+    --test h.csv b.csv`` would leave ``b.csv`` unrecognised; here such
+    leftovers join the subcommand's list of recordings. Anything else left
+    over is a usage error.
+
+    Parameters
+    ----------
+    argv : list of str, default=None
+        Arguments without the program name; ``None`` reads ``sys.argv``.
+
+    Returns
+    -------
+    args : argparse.Namespace
+
+    Examples
+    --------
+    >>> args = parse_args(["diagnose", "a.csv", "--test", "h.csv", "b.csv"])
+    >>> args.train, args.test
+    (['a.csv', 'b.csv'], ['h.csv'])
+    """
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    dest = _RECORDING_POSITIONALS.get(args.command)
+    if extra and dest is not None and not any(a.startswith("-") for a in extra):
+        getattr(args, dest).extend(extra)
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    return args
+
+
+def main(argv=None):
+    """Entry point of the ``gpcd`` command.
+
+    Parameters
+    ----------
+    argv : list of str, default=None
+        Arguments without the program name; ``None`` reads ``sys.argv``.
+
+    Returns
+    -------
+    status : int
+        Process exit status (130 after Ctrl-C).
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.cli import main
+    >>> main(["robots"])  # doctest: +ELLIPSIS
+    ur3 ...
+    0
+    """
+    prefix = "gpcd"
+    try:
+        try:
+            args = parse_args(argv)
+        except SystemExit as exc:  # usage error or --help: argparse printed why
+            return exc.code if isinstance(exc.code, int) else 2
+        prefix = f"gpcd {args.command}"
+        with warnings.catch_warnings():
+            warnings.showwarning = _warning_printer(prefix)
+            try:
+                return args.func(args)
+            except (ValueError, OSError, ImportError) as exc:
+                print(f"{prefix}: error: {_one_line(exc)}", file=sys.stderr)
+                return 2
+    except KeyboardInterrupt:
+        fresh_line = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
+        print(f"{fresh_line}{prefix}: interrupted", file=sys.stderr)  # after a bar's \r
+        return 130
+
+
+def _one_line(message):
+    """``message`` as one line: runs of whitespace, newlines included, become a space.
+
+    Parameters
+    ----------
+    message : object
+        An exception or warning message.
+
+    Returns
+    -------
+    text : str
+
+    Examples
+    --------
+    >>> _one_line(ValueError("a.csv: bad\\n  line 3"))
+    'a.csv: bad line 3'
+    """
+    return " ".join(str(message).split())
+
+
+def _warning_printer(prefix):
+    """A :func:`warnings.showwarning` that prints ``PREFIX: warning: MESSAGE``."""
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{prefix}: warning: {_one_line(message)}", file=sys.stderr if file is None
+              else file)
+
+    return show

@@ -1,0 +1,269 @@
+"""``gpcd calibrate``: detection thresholds chosen across collision-free
+recordings, a thin layer over :func:`sklearn_gpcd.workflow.calibrate_detector`
+(rule :data:`~sklearn_gpcd.workflow.DETECTOR_RULE`), saved with
+:func:`~sklearn_gpcd.workflow.save_detector` for ``gpcd monitor``."""
+
+import argparse
+import math
+import time
+from collections import Counter
+from pathlib import Path
+
+from ..workflow.calibration import band_label
+from ._args import (
+    Progress,
+    add_recording_options,
+    existing_file,
+    model_file_arg,
+    non_negative_float,
+    positive_float,
+    read_recordings,
+    robot_for,
+)
+
+#: The positional list that recordings left over after the options join.
+RECORDINGS = "recordings"
+
+
+def _band_arg(value):
+    """``CUTOFF,ORDER,DEBOUNCE`` as CollisionDetector overrides (``--band``)."""
+    usage = ("expected CUTOFF,ORDER,DEBOUNCE like 10,1,2 (low-pass cut-off > 0 Hz, filter "
+             f"order 1 or 2, debounce >= 1 samples), got {value!r}")
+    parts = value.split(",")
+    try:
+        cutoff, order, debounce = float(parts[0]), int(parts[1]), int(parts[2])
+    except (ValueError, IndexError):
+        raise argparse.ArgumentTypeError(usage) from None
+    if len(parts) != 3 or not (0 < cutoff < math.inf and order in (1, 2) and debounce >= 1):
+        raise argparse.ArgumentTypeError(usage)
+    return {"filter_cutoff": cutoff, "filter_order": order, "min_duration": debounce}
+
+
+def _braking_arg(value):
+    """``--braking [LIMIT]``: "model", or a finite acceleration > 0 [rad/s^2]."""
+    if value == "model":
+        return value
+    try:
+        limit = float(value)
+    except ValueError:
+        limit = float("nan")
+    if not (0.0 < limit < float("inf")):
+        raise argparse.ArgumentTypeError(
+            f"expected an acceleration > 0 in rad/s^2 (or nothing: the model's own "
+            f"limit), got {value!r}")
+    return limit
+
+
+def add_parser(sub):
+    """Register ``calibrate`` on the ``gpcd`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+
+    Examples
+    --------
+    >>> import argparse
+    >>> parser = argparse.ArgumentParser(prog="gpcd")
+    >>> add_parser(parser.add_subparsers(dest="command"))
+    >>> sorted(parser._subparsers._group_actions[0].choices)
+    ['calibrate']
+    """
+    cal = sub.add_parser(
+        "calibrate",
+        help="choose detection thresholds on collision-free recordings",
+        description="Wrap a model saved by 'gpcd train' in a collision detector on causal "
+        "inputs (2 Hz causal low-pass, 5-sample debounce, a threshold per joint and per "
+        "regime of the arm: moving, settling, rest). Each level is the largest excursion of "
+        "the calibration recordings, times a margin chosen by leave-one-recording-out: the "
+        "largest factor by which a left-out recording exceeds the levels of the others. The "
+        "expected false alarms per hour come from the nested version (margin and levels "
+        "chosen without the recording they are counted on).",
+    )
+    cal.add_argument("model", type=existing_file, help="model file written by gpcd train")
+    cal.add_argument("recordings", nargs="+",
+                     help="collision-free recordings (files, folders or glob patterns; at "
+                     "least 2, 3 for the false-alarm figure)")
+    add_recording_options(cal, "built-in name or URDF path, for thresholds in Nm "
+                               "(default: the robot named in the recordings' metadata)")
+    cal.add_argument("--rest-reference", type=non_negative_float, default=None,
+                     help="time constant [s] of the rest re-reference (0: none; default 5)")
+    cal.add_argument("--settle-time", type=non_negative_float, default=None,
+                     metavar="SECONDS",
+                     help="seconds the arm must be still after a motion before it is at "
+                     "rest (default 0.5)")
+    cal.add_argument("--select", action="store_true",
+                     help="choose the settle time (0.5, 1, 2, 3 s) and the rest reference "
+                     "(none, 2, 5 s) across the recordings too: of the pairs with the fewest "
+                     "nested alarm onsets on the recordings, the one with the smallest "
+                     "time-weighted thresholds at its own leave-one-recording-out margin; "
+                     "the expected false alarms then count each recording at the pair "
+                     "chosen without it")
+    cal.add_argument("--no-regimes", action="store_true",
+                     help="one threshold per joint for every regime (no rest reference)")
+    cal.add_argument("--band", type=_band_arg, action="append", default=None,
+                     metavar="CUTOFF,ORDER,DEBOUNCE",
+                     help="add a band: the same detector with its own causal low-pass "
+                     "(cut-off [Hz], order 1 or 2) and debounce [samples], calibrated by the "
+                     "same rule on the same model; a sample is a collision when any band "
+                     "alarms (repeatable; e.g. --band 10,1,2 for short taps the 2 Hz main "
+                     "band smooths away). The false-alarm figure counts the union")
+    cal.add_argument("--band-candidate", type=_band_arg, action="append", default=None,
+                     metavar="CUTOFF,ORDER,DEBOUNCE", dest="band_candidates",
+                     help="a candidate for one more band whose settings are chosen across "
+                     "the recordings (repeatable: give two or more): of the candidates, the "
+                     "one with the fewest nested alarm onsets of the union of all bands, "
+                     "then the smallest time-weighted thresholds; the expected false alarms "
+                     "then count each recording with the band chosen without it")
+    cal.add_argument("--braking", nargs="?", const="model", default=None, metavar="LIMIT",
+                     type=_braking_arg,
+                     help="a fourth regime with its own thresholds, braking: the 0.5 s after "
+                     "a sample where some joint's |qdd| exceeds LIMIT [rad/s^2] (hard stops "
+                     "ring the current); without LIMIT, the largest |qdd| the model was "
+                     "trained on (recorded by gpcd train)")
+    cal.add_argument("--split", type=positive_float, default=None, metavar="SECONDS",
+                     help="cut every recording into pieces of at least SECONDS, each left "
+                     "out in turn like a recording of its own (for one long collision-free "
+                     "log; pieces of one log are less independent than separate runs, so "
+                     "the margin and the false-alarm figure are less safe)")
+    cal.add_argument("-o", "--output", type=model_file_arg, required=True,
+                     help="detector file to write (.skops, or .joblib / .pkl)")
+    cal.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    cal.set_defaults(func=run)
+
+
+def _optional_robot(args, recordings):
+    """The robot for Nm figures: --robot, else the recordings' metadata, else None."""
+    try:
+        return robot_for(args, recordings)
+    except ValueError:
+        if args.robot is not None:
+            raise
+        return None
+
+
+def run(args):
+    """``gpcd calibrate``: thresholds across the recordings, saved with the model's features."""
+    from ..io.load import recording_paths
+    from ..workflow import (
+        calibrate_detector,
+        check_calibration_options,
+        load_model,
+        recording_keys,
+        save_detector,
+    )
+
+    start = time.perf_counter()
+    paths = [Path(p).resolve() for p in recording_paths(args.recordings)]
+    if (twice := sorted({str(p) for p in paths if paths.count(p) > 1})):
+        raise ValueError(f"{twice[0]} is given twice; a left-out recording must not stay in "
+                         "the others (check overlapping patterns)")
+    if len(paths) < 2 and args.split is None:  # before any work
+        raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
+                         f"give at least 2 collision-free recordings, got {len(paths)} "
+                         "(or cut a long one into pieces with --split SECONDS)")
+    options = dict(regimes=not args.no_regimes, rest_reference=args.rest_reference,
+                   settle_time=args.settle_time, select=args.select,
+                   bands=args.band or (), band_candidates=args.band_candidates or (),
+                   braking=args.braking)
+    check_calibration_options(**options)
+    trained = load_model(args.model)
+    recordings = read_recordings(args.recordings, args, "calibration recordings")
+    robot = _optional_robot(args, recordings)
+    calibrated = calibrate_detector(
+        trained, recordings, keys=recording_keys(recordings), split=args.split, robot=robot,
+        progress=lambda label, total: Progress(label, total, enabled=not args.quiet),
+        **options)
+    save_detector(calibrated, args.output)
+    _print_calibration(calibrated.calibration, len(calibrated.calibration["recordings"]))
+    print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}")
+    return 0
+
+
+def _seconds(value):
+    return "none" if value is None else f"{value:g} s"
+
+
+def _print_calibration(summary, n_recordings):
+    if summary.get("split_s") is not None:
+        print(f"cut {summary['n_files']} recording(s) into {n_recordings} pieces of at least "
+              f"{summary['split_s']:g} s (--split), each left out in turn like a recording; "
+              "pieces of one log are less independent than separate runs")
+    print(f"calibrated on {n_recordings} collision-free recording(s), "
+          f"{summary['hours'] * 60:.1f} min, sample time {summary['sample_time_s']:g} s, "
+          f"controller signals used: {', '.join(summary['signals']) or 'none'}; settle "
+          f"time {_seconds(summary['settle_time_s'])}, rest reference "
+          f"{_seconds(summary['rest_reference_s'])}"
+          + (" (chosen across the recordings)" if summary.get("selected") else "")
+          + ("" if summary.get("brake_limit") is None else
+             f"; braking above {summary['brake_limit']:.3g} rad/s^2"))
+    if summary.get("candidates"):
+        print("  candidates, best first (alarms: nested onsets at that fixed candidate, "
+              "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
+        for c in sorted(summary["candidates"], key=lambda c: c["rank"]):
+            settle, tau = c["params"]["settle_time_s"], c["params"]["rest_reference_s"]
+            print(f"    settle {_seconds(settle):>6}, rest reference {_seconds(tau):>5}: "
+                  f"alarms {c['n_false_alarms']}, score {c['score']:+.3f}, "
+                  f"margin {c['margin']:.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
+    if (info := summary.get("training")):
+        print(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
+              f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "
+              f"seed {info['seed']}")
+    if "bands" not in summary:
+        _print_margin(summary, "  ")
+        _print_false_alarms(summary)
+        _print_thresholds(summary, summary, "  ")
+        return
+    for b, band in enumerate(summary["bands"], start=1):
+        print(f"  band {b} ({band_label(band)})" + (", the main one:" if b == 1 else ":"))
+        _print_margin(band, "    ")
+        if band["false_alarms_per_hour"] is not None:
+            print(f"    nested false alarms of this band alone: "
+                  f"{band['n_false_alarms_nested']} alarm onset(s) = "
+                  f"{band['false_alarms_per_hour']:.2f} per hour")
+        _print_thresholds(band, summary, "    ")
+    if (table := summary.get("band_candidates")):
+        print(f"  band {len(summary['bands'])} chosen across the recordings, candidates best "
+              "first (alarms: nested onsets of the union; score: time-weighted mean log "
+              "threshold of the band, smaller is tighter):")
+        for c in sorted(table, key=lambda c: c["rank"]):
+            print(f"    {band_label(c['params']):<28} alarms {c['n_false_alarms']}, score "
+                  f"{c['score']:+.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
+        folds = Counter(map(band_label, summary["fold_band_settings"].values()))
+        if folds:
+            print("    chosen without each recording (for the expected false alarms): "
+                  + ", ".join(f"{label} {n}x" for label, n in folds.most_common()))
+    _print_false_alarms(summary, " (any band)")
+
+
+def _print_margin(entry, pad):
+    print(f"{pad}margin (leave-one-recording-out, one for all joints and regimes): "
+          f"{entry['margin']:.3f}")
+
+
+def _print_false_alarms(summary, which=""):
+    if summary["false_alarms_per_hour"] is None:
+        print(f"  expected false alarms{which} per hour: n/a (the nested figure needs >= 3 "
+              "recordings)")
+        return
+    print(f"  expected false alarms{which}: {summary['n_false_alarms_nested']} alarm "
+          f"onset(s) on left-out recordings in {summary['hours'] * 60:.1f} min = "
+          f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
+          "out: each recording scored with margin"
+          + (", levels and settings" if summary.get("selected")
+             else ", levels and band" if summary.get("band_candidates") else " and levels")
+          + " chosen without it)")
+
+
+def _print_thresholds(entry, summary, pad):
+    """The thresholds table(s) of ``entry`` (A, and Nm when known), one row per regime."""
+    n = len(entry["thresholds_A"][0])
+    units = [("A", entry["thresholds_A"])]
+    if "thresholds_Nm" in entry:
+        units.append((f"Nm, torque constants of {summary['robot']}", entry["thresholds_Nm"]))
+    for unit, table in units:
+        print(f"{pad}thresholds [{unit}]:")
+        print(f"{pad}  " + f"{'regime':<10}" + "".join(f"{f'joint {j + 1}':>10}"
+                                                        for j in range(n)))
+        for name, row in zip(summary["regimes"], table):
+            print(f"{pad}  " + f"{name:<10}" + "".join(f"{v:>10.3f}" for v in row))

@@ -1,0 +1,520 @@
+"""Choosing detection thresholds on collision-free recordings: the one function
+behind ``gpcd calibrate``.
+
+:func:`calibrate_detector` wraps a model from :func:`~sklearn_gpcd.workflow.train_model`
+in a :class:`~sklearn_gpcd.detection.CollisionDetector` that applies
+:data:`DETECTOR_RULE` on the model's causal inputs, and chooses its
+thresholds across recordings
+(:func:`~sklearn_gpcd.detection.calibrate_across_recordings`: one level per
+joint and regime, the largest excursion of the recordings, times a margin
+chosen by leaving one recording out). It returns the fitted detector with the
+model's :class:`~sklearn_gpcd.features.CausalFeatures` and a summary of the
+calibration; :func:`save_detector` / :func:`load_detector` write and read
+that bundle, the file ``gpcd monitor`` runs.
+
+Options:
+
+* ``select=True`` also chooses the settle time and the rest reference among
+  :data:`SELECT_GRID`;
+* ``bands`` adds bands (each with its own low-pass and debounce, calibrated
+  by the same rule on the same model; a sample is a collision when any band
+  alarms); ``band_candidates`` adds one more band whose settings are chosen
+  among the candidates across the recordings;
+* ``braking`` adds the braking regime; ``split`` cuts long logs into pieces
+  that are left out in turn like recordings.
+"""
+
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "SELECT_GRID", "CalibratedDetector",
+           "band_label", "band_settings", "calibrate_detector", "check_calibration_options",
+           "load_detector", "recording_keys", "save_detector", "split_recordings"]
+
+#: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
+DETECTOR_KIND = "gpcd-detector"
+#: The detection rule :func:`calibrate_detector` applies: a 2 Hz causal
+#: low-pass, a 5-sample debounce, one threshold per joint (and regime) with no
+#: false alarm on the calibration recordings, the sample time of the data.
+DETECTOR_RULE = dict(threshold="per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
+                     min_duration=5, sample_time="auto", sigma_v=None, settle_time=0.5)
+#: The settings ``select=True`` chooses among: settle time [s] x rest
+#: reference time constant [s].
+SELECT_GRID = {"settle_time": [0.5, 1.0, 2.0, 3.0], "rest_reference": [None, 2.0, 5.0]}
+#: Rest reference time constant [s] when none is given.
+DEFAULT_REST_REFERENCE = 5.0
+
+
+class CalibratedDetector(NamedTuple):
+    """A detector with thresholds chosen across recordings, and how they were chosen.
+
+    Attributes
+    ----------
+    detector : CollisionDetector or MultiBandDetector
+        Fitted on a frozen model; a
+        :class:`~sklearn_gpcd.detection.MultiBandDetector` with ``bands`` or
+        ``band_candidates``.
+    features : CausalFeatures
+        Computes the detector's inputs from raw samples (the model's own).
+    calibration : dict
+        The summary ``gpcd calibrate`` prints: recordings, hours, margin,
+        thresholds (A, and Nm with torque constants), nested false alarms,
+        settings, and per band the same.
+
+    Examples
+    --------
+    >>> detector, features, calibration = CalibratedDetector(None, None, {})
+    >>> calibration
+    {}
+    """
+
+    detector: object
+    features: object
+    calibration: dict
+
+
+def recording_keys(recordings):
+    """Unique names of the recordings: their file names, numbered on a clash.
+
+    Parameters
+    ----------
+    recordings : list of Recording
+
+    Returns
+    -------
+    keys : list of str
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as R
+    >>> recording_keys([R(name="a/x.csv"), R(name="b/x.csv"), R(name=None)])
+    ['x.csv', 'x.csv (2)', '#2']
+    """
+    keys = []
+    for i, rec in enumerate(recordings):
+        name = Path(str(rec.name or f"#{i}")).name
+        keys.append(name if name not in keys else f"{name} ({i + 1})")
+    return keys
+
+
+def split_recordings(keys, recordings, seconds):
+    """Each recording cut into pieces of at least ``seconds``, keyed ``"name#i"``.
+
+    A recording shorter than ``2 * seconds`` stays whole. The pieces of a
+    recording have about equal numbers of samples (``floor(duration / seconds)``
+    of them); filters and debounce restart at each piece, as at the start of
+    a recording.
+
+    Parameters
+    ----------
+    keys : list of str
+        Names of the recordings.
+    recordings : list of Recording
+    seconds : float
+        Shortest piece [s].
+
+    Returns
+    -------
+    keys, pieces : list of str, list of Recording
+
+    Raises
+    ------
+    ValueError
+        When the pieces are fewer than 2.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> rec = Recording(time=np.arange(1000) * 0.01, q=np.zeros((1000, 1)),
+    ...                 qd=np.zeros((1000, 1)), current=np.zeros((1000, 1)))
+    >>> keys, pieces = split_recordings(["free.csv"], [rec], 3.0)
+    >>> keys, [p.n_samples for p in pieces]
+    (['free.csv#1', 'free.csv#2', 'free.csv#3'], [333, 334, 333])
+    """
+    out_keys, pieces = [], []
+    for key, rec in zip(keys, recordings):
+        n_pieces = int(rec.duration // seconds) if rec.duration >= 2 * seconds else 1
+        if n_pieces == 1:
+            out_keys.append(key)
+            pieces.append(rec)
+            continue
+        bounds = np.linspace(0, rec.n_samples, n_pieces + 1).round().astype(int)
+        for i, (start, stop) in enumerate(zip(bounds[:-1], bounds[1:]), start=1):
+            out_keys.append(f"{key}#{i}")
+            pieces.append(rec.slice(start, stop))
+    if len(pieces) < 2:
+        longest = max(rec.duration for rec in recordings)
+        raise ValueError(f"--split {seconds:g} leaves {len(pieces)} piece: the longest "
+                         f"recording lasts {longest:.1f} s; use a split of at most "
+                         f"{longest / 2:.1f} s")
+    return out_keys, pieces
+
+
+def band_settings(detector):
+    """What sets a band apart: its low-pass filter and debounce.
+
+    Parameters
+    ----------
+    detector : CollisionDetector
+
+    Returns
+    -------
+    settings : dict
+        ``filter_cutoff_hz``, ``filter_order``, ``debounce_samples``.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.detection import CollisionDetector
+    >>> band_settings(CollisionDetector(filter_cutoff=10.0, min_duration=2))
+    {'filter_cutoff_hz': 10.0, 'filter_order': 1, 'debounce_samples': 2}
+    """
+    return {"filter_cutoff_hz": detector.filter_cutoff, "filter_order": detector.filter_order,
+            "debounce_samples": detector.min_duration}
+
+
+def band_label(settings):
+    """A band's settings in words, from :func:`band_settings`.
+
+    Parameters
+    ----------
+    settings : dict
+        ``filter_cutoff_hz``, ``filter_order``, ``debounce_samples``.
+
+    Returns
+    -------
+    label : str
+
+    Examples
+    --------
+    >>> band_label({"filter_cutoff_hz": 10.0, "filter_order": 1, "debounce_samples": 2})
+    '10 Hz, order 1, debounce 2'
+    """
+    cutoff = settings["filter_cutoff_hz"]
+    low_pass = "no low-pass" if cutoff is None else (f"{cutoff:g} Hz, order "
+                                                     f"{settings['filter_order']}")
+    return f"{low_pass}, debounce {settings['debounce_samples']}"
+
+
+def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_reference=None,
+                       settle_time=None, select=False, bands=(), band_candidates=(),
+                       braking=None, split=None, robot=None, progress=None):
+    """Thresholds for a trained model, chosen across collision-free recordings.
+
+    The detector applies :data:`DETECTOR_RULE` to the model's causal inputs
+    (its own :class:`~sklearn_gpcd.features.CausalFeatures`); each level is
+    the largest excursion of the recordings in that joint and regime, times
+    one margin chosen by leaving one recording out
+    (:func:`~sklearn_gpcd.detection.calibrate_across_recordings`). The
+    expected false alarms come from the nested version: each recording is
+    scored with the margin and levels chosen without it.
+
+    Parameters
+    ----------
+    trained : TrainedModel
+        What :func:`~sklearn_gpcd.workflow.train_model` (or
+        :func:`~sklearn_gpcd.workflow.load_model`) returned.
+    recordings : list of Recording
+        Collision-free recordings, at least 2 (or one long one with ``split``).
+    keys : list of str, default=None
+        Their names in the summary (default: :func:`recording_keys`).
+    regimes : bool, default=True
+        One threshold per joint and per regime of the arm (moving, settling,
+        rest); False: one per joint, no rest reference.
+    rest_reference : float or None, default=None
+        Time constant [s] of the rest re-reference; None takes 5 s, 0 none.
+    settle_time : float or None, default=None
+        Seconds the arm must be still after a motion before it is at rest
+        (None: 0.5 s of :data:`DETECTOR_RULE`).
+    select : bool, default=False
+        Choose the settle time and the rest reference among
+        :data:`SELECT_GRID` across the recordings.
+    bands : sequence of dict, default=()
+        Extra bands, each ``{"filter_cutoff": Hz, "filter_order": 1 or 2,
+        "min_duration": samples}``.
+    band_candidates : sequence of dict, default=()
+        Candidates (same keys) for one more band chosen across the recordings.
+    braking : None, "model" or float, default=None
+        The braking regime above this acceleration [rad/s^2]; "model" takes
+        the largest one the model was trained on.
+    split : float or None, default=None
+        Cut every recording into pieces of at least this many seconds, each
+        left out in turn (:func:`split_recordings`).
+    robot : Robot or None, default=None
+        Named in the summary; its ``torque_constants`` (Nm/A) give the
+        thresholds in Nm.
+    progress : callable or None, default=None
+        ``progress(label, total)`` returning an object with ``update()``.
+
+    Returns
+    -------
+    calibrated : CalibratedDetector
+
+    Raises
+    ------
+    ValueError
+        Conflicting options, too few recordings, recordings the model cannot
+        read.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> from sklearn_gpcd.workflow import calibrate_detector, train_model
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(600) * 0.01
+    >>> def rec(phase):
+    ...     q = np.sin(t + phase)[:, None]
+    ...     i_c = 2 * q
+    ...     return Recording(time=t, q=q, qd=np.cos(t + phase)[:, None],
+    ...                      current=i_c + 0.05 * rng.normal(size=q.shape), target_current=i_c)
+    >>> trained = train_model([rec(0.0)], model="sp_c", n_support=50)
+    >>> calibrated = calibrate_detector(trained, [rec(1.0), rec(2.0), rec(3.0)])
+    >>> calibrated.calibration["regimes"]
+    ['moving', 'settling', 'rest']
+    >>> np.shape(calibrated.detector.thresholds_)
+    (3, 1)
+    """
+    from sklearn.frozen import FrozenEstimator
+
+    from ..detection import (
+        CollisionDetector,
+        MultiBandDetector,
+        calibrate_across_recordings,
+        calibrate_bands_across_recordings,
+        stack_currents,
+    )
+
+    bands, band_candidates = list(bands or ()), list(band_candidates or ())
+    check_calibration_options(regimes=regimes, rest_reference=rest_reference,
+                              settle_time=settle_time, select=select, bands=bands,
+                              band_candidates=band_candidates, braking=braking)
+    keys = recording_keys(recordings) if keys is None else list(keys)
+    n_files = len(recordings)
+    if n_files < 2 and split is None:
+        raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
+                         f"give at least 2 collision-free recordings, got {n_files} "
+                         "(or cut a long one into pieces with --split SECONDS)")
+    model, features = trained.regressor, trained.features
+    if features is None:
+        raise ValueError("the model file holds no input features (written by an earlier "
+                         "gpcd train): train the model again with gpcd train")
+    _check_model_inputs(model, features)
+    if split is not None:
+        keys, recordings = split_recordings(keys, recordings, split)
+    bar = progress("causal inputs", len(recordings)) if progress is not None else None
+    blocks, times = {}, {}
+    for key, rec in zip(keys, recordings):
+        blocks[key] = stack_currents(features.transform(rec), rec.current)
+        times[key] = rec.time
+        if bar is not None:
+            bar.update()
+    tau = DEFAULT_REST_REFERENCE if rest_reference is None else rest_reference
+    template = CollisionDetector(
+        FrozenEstimator(model), n_joints=features.n_joints_, regimes=regimes,
+        rest_reference=tau if (regimes and tau > 0) else None,
+        brake_limit=_brake_limit(braking, trained.training), **DETECTOR_RULE)
+    if settle_time is not None:
+        template.set_params(settle_time=settle_time)
+    if bands or band_candidates:
+        grid = [{k: [v] for k, v in c.items()} for c in band_candidates] or None
+        # the chosen band is the last; its overrides stand in until the grid's replace them
+        overrides = [{}, *bands] + band_candidates[:1]
+        result = calibrate_bands_across_recordings(
+            MultiBandDetector(template, bands=overrides), blocks, times, band_grid=grid)
+        per_band = result.bands
+    else:
+        result = calibrate_across_recordings(template, blocks, times,
+                                             param_grid=SELECT_GRID if select else None)
+        per_band = [result]
+    summary = _summary(result, per_band, trained, features, robot,
+                       keys=keys, split=split, n_files=n_files, select=select,
+                       several=bool(bands or band_candidates),
+                       chosen_band=bool(band_candidates))
+    return CalibratedDetector(result.detector, features, summary)
+
+
+def check_calibration_options(*, regimes=True, rest_reference=None, settle_time=None,
+                              select=False, bands=(), band_candidates=(), braking=None):
+    """Refuse options of :func:`calibrate_detector` that contradict each other.
+
+    ``gpcd calibrate`` calls it before any work; the messages name the
+    command-line options.
+
+    Parameters
+    ----------
+    regimes, rest_reference, settle_time, select, bands, band_candidates, braking
+        As for :func:`calibrate_detector`.
+
+    Raises
+    ------
+    ValueError
+        ``select`` with a settle time, a rest reference, no regimes or bands;
+        ``braking`` without regimes.
+
+    Examples
+    --------
+    >>> check_calibration_options(select=True, settle_time=2.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: --select chooses the settle time and the rest reference of the regimes: drop --settle-time
+    """
+    if select and (not regimes or rest_reference is not None or settle_time is not None):
+        raise ValueError("--select chooses the settle time and the rest reference of the "
+                         "regimes: drop " + ("--no-regimes" if not regimes
+                                             else "--rest-reference" if settle_time
+                                             is None else "--settle-time"))
+    if select and (bands or band_candidates):
+        raise ValueError("--select chooses the settings of one band; with --band or "
+                         "--band-candidate there are several: drop --select or the bands")
+    if braking is not None and not regimes:
+        raise ValueError("--braking is a regime: drop --no-regimes")
+
+
+def _check_model_inputs(model, features):
+    n_in = getattr(model, "n_features_in_", None)
+    n_rows = (6 if features.augmented else 3) * features.n_joints_
+    if n_in is not None and n_in != n_rows:
+        raise ValueError(f"the model takes {n_in} input columns but the recordings "
+                         f"give {n_rows} ({features.n_joints_} joints)")
+
+
+def _brake_limit(braking, training):
+    """``CollisionDetector(brake_limit=...)`` from ``braking`` and the model's record."""
+    if braking is None or braking != "model":
+        return braking
+    if (limit := training.get("acceleration_limit")) is None:
+        raise ValueError("the model does not record the largest acceleration it was "
+                         "trained on (written by an earlier gpcd train): give --braking "
+                         "LIMIT in rad/s^2, or train the model again")
+    return float(limit)
+
+
+def _summary(result, per_band, trained, features, robot, *, keys, split, n_files,
+             select, several, chosen_band):
+    """The calibration summary: what ``gpcd calibrate`` prints and the file keeps."""
+    torque_constants = None if robot is None else getattr(robot, "torque_constants", None)
+    entries = [_band_entry(band, torque_constants) for band in per_band]
+    det = per_band[0].detector  # the main band
+    summary = {
+        "recordings": keys, "split_s": split, "n_files": n_files,
+        "hours": result.hours, "margin": entries[0]["margin"],
+        "margin_rule": "global", "regimes": list(per_band[0].regime_names),
+        "settle_time_s": det.settle_time, "rest_reference_s": det.rest_reference,
+        "brake_limit": det.brake_limit, "selected": bool(select),
+        "candidates": [dict(c, params=_json_params(c["params"])) for c in result.candidates]
+        if select else [],
+        "thresholds_A": entries[0]["thresholds_A"],
+        "n_false_alarms_nested": result.n_false_alarms,
+        "false_alarms_per_hour": result.false_alarms_per_hour,
+        "nested_onsets_s": {k: f["onsets"] for k, f in result.folds.items()},
+        "training": trained.training,
+        "signals": list(features.signals_), "sample_time_s": float(det.sample_time_),
+        "robot": None if robot is None else robot.name,
+    }
+    if torque_constants is not None:
+        summary["thresholds_Nm"] = entries[0]["thresholds_Nm"]
+    if several:
+        summary["bands"] = entries
+    if chosen_band:
+        from ..detection import CollisionDetector
+
+        summary["band_candidates"] = [
+            dict(c, params=band_settings(CollisionDetector(**c["params"])))
+            for c in result.band_candidates]
+        summary["fold_band_settings"] = {
+            k: band_settings(CollisionDetector(**p)) for k, p in
+            result.fold_band_settings.items()}
+    return summary
+
+
+def _band_entry(result, torque_constants):
+    """One band's calibration (a calibrate_across_recordings result) for the summary."""
+    thresholds = np.atleast_2d(result.detector.thresholds_)
+    entry = {**band_settings(result.detector), "margin": float(result.margin.max()),
+             "thresholds_A": thresholds.tolist(),
+             "n_false_alarms_nested": result.n_false_alarms,
+             "false_alarms_per_hour": result.false_alarms_per_hour}
+    if torque_constants is not None:
+        entry["thresholds_Nm"] = (thresholds * np.asarray(torque_constants)).tolist()
+    return entry
+
+
+def _json_params(params):
+    """Candidate settings with JSON keys: ``settle_time`` -> ``settle_time_s``."""
+    return {f"{k}_s" if k in ("settle_time", "rest_reference") else k: v
+            for k, v in params.items()}
+
+
+def save_detector(calibrated, path):
+    """Write a :class:`CalibratedDetector` (``.skops``, or ``.joblib`` / ``.pkl``).
+
+    Parameters
+    ----------
+    calibrated : CalibratedDetector
+        What :func:`calibrate_detector` returned.
+    path : str or path-like
+        The extension chooses the format.
+
+    Returns
+    -------
+    path : Path
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "detector.joblib"
+    >>> save_detector(CalibratedDetector(None, None, {"margin": 1.5}), path).name
+    'detector.joblib'
+    >>> load_detector(path).calibration
+    {'margin': 1.5}
+    """
+    from ..persistence import save
+
+    return save({"kind": DETECTOR_KIND, "detector": calibrated.detector,
+                 "features": calibrated.features, "calibration": calibrated.calibration}, path)
+
+
+def load_detector(path):
+    """Read a detector file written by ``gpcd calibrate`` (:func:`save_detector`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.skops`` (or ``.joblib`` / ``.pkl``) file.
+
+    Returns
+    -------
+    calibrated : CalibratedDetector
+        ``(detector, features, calibration)``: the fitted detector, the causal
+        features that compute its inputs from raw samples (for
+        :meth:`StreamingMonitor.update_raw
+        <sklearn_gpcd.detection.StreamingMonitor.update_raw>`), and what
+        ``gpcd calibrate`` printed (margin, thresholds, false alarms).
+
+    Raises
+    ------
+    ValueError
+        If the file is not a detector file (e.g. a model from ``gpcd train``).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from sklearn_gpcd.persistence import save
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "not_a_detector.joblib"
+    >>> _ = save({"kind": "something else"}, path)
+    >>> load_detector(path)
+    Traceback (most recent call last):
+    ...
+    ValueError: ...not_a_detector.joblib: not a detector file written by gpcd calibrate...
+    """
+    from ..persistence import load
+
+    bundle = load(path)
+    if not (isinstance(bundle, dict) and bundle.get("kind") == DETECTOR_KIND):
+        raise ValueError(f"{path}: not a detector file written by gpcd calibrate (a model "
+                         "from gpcd train goes through gpcd calibrate first)")
+    return CalibratedDetector(bundle["detector"], bundle["features"],
+                              bundle.get("calibration", {}))
