@@ -110,7 +110,7 @@ from sklearn_gpcd.detection import (  # noqa: E402
 )
 from sklearn_gpcd.detection import loro_margin as _loro_margin  # noqa: E402
 from sklearn_gpcd.detection import nested_false_alarms as _nested_false_alarms  # noqa: E402
-from sklearn_gpcd.cli_monitor import SELECT_GRID  # noqa: E402
+from sklearn_gpcd.workflow import SELECT_GRID  # noqa: E402
 from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress, split_nmse  # noqa: E402
 from sklearn_gpcd.features import contiguous_segments  # noqa: E402
@@ -138,7 +138,7 @@ MIN_DURATION = 5      # samples (50 ms at 100 Hz)
 REST_TAU = 5.0        # s, time constant of the rest reference
 PEER = "i - i_des"
 #: Width [rad/s] of the smooth Coulomb column of the banded P_f monitor
-#: (``--study braking`` of real_ur10e_studies.py).
+#: (the braking study, retired at commit d324c58: results page).
 COULOMB_WIDTH = 0.01
 #: Settle time and rest reference [s] of the banded monitors on ``C``: SP_C
 #: sel's choice across these recordings (``SP_C_SEL`` of the studies).

@@ -8,7 +8,6 @@ the moving threshold and a push during ordinary motion goes unseen; with
 their own.
 """
 
-import pickle
 
 import numpy as np
 import pytest
@@ -103,25 +102,3 @@ def test_brake_limit_is_checked():
         _detector(brake_limit=LIMIT, brake_hold=-0.1).fit(Z)
     with pytest.raises(ValueError, match="needs the joint accelerations"):
         _detector(brake_limit=LIMIT, velocity_columns=[0]).fit(Z[:, [1, 3]])
-
-
-def test_detectors_and_monitors_saved_before_the_braking_regime_load(fitted):
-    Z, plain, _ = fitted
-    monitor = StreamingMonitor(plain)
-    for row in Z[:200]:
-        monitor.update(row)
-    old = pickle.loads(pickle.dumps(monitor))
-    # the state an earlier version wrote: no braking fields anywhere
-    for name in ("brake_limit", "brake_hold", "acceleration_columns_"):
-        del old.detector.__dict__[name]
-    for name in ("n_joints", "brake_limit", "brake_hold", "_braking_for"):
-        del old._regime_state.__dict__[name]
-    old.__dict__["_velocity_columns"] = old.__dict__.pop("_motion_columns")
-    old.__dict__["_qd"] = old.__dict__.pop("_motion")
-    loaded = pickle.loads(pickle.dumps(old))
-    assert loaded.detector.get_params()["brake_limit"] is None
-    statuses = [loaded.update(row) for row in Z[200:400]]
-    for row in Z[200:400]:
-        monitor.update(row)
-    np.testing.assert_array_equal(loaded.signal, monitor.signal)
-    assert [str(s) for s in statuses].count("collision") == 0

@@ -115,20 +115,6 @@ def test_signals_choose_which_controller_signals_are_used_and_required():
         CausalFeatures(signals=("target_q",), augmented=False).fit(trained)
 
 
-def test_features_saved_before_the_signals_parameter_load_as_auto():
-    import pickle
-
-    trained = _recording(target_current=np.ones((400, 2)))
-    features = CausalFeatures().fit(trained)
-    old = features.__getstate__()
-    del old["signals"]  # what a file written before the parameter holds
-    loaded = CausalFeatures.__new__(CausalFeatures)
-    loaded.__setstate__(old)
-    assert loaded.get_params()["signals"] == "auto" and loaded.signals_ == ("target_current",)
-    again = pickle.loads(pickle.dumps(loaded))
-    np.testing.assert_array_equal(again.transform(trained), features.transform(trained))
-
-
 def test_time_must_advance_in_the_online_state():
     state = CausalFeatures(augmented=False).online(n_joints=1)
     state.step(1.0, [0.0], [0.0])

@@ -118,14 +118,6 @@ class RegimeState:
         self._step = np.zeros(n_joints)
         self.reset()
 
-    def __setstate__(self, state):
-        """States saved before the braking regime resume without it."""
-        state.setdefault("n_joints", len(state["reference"]))
-        state.setdefault("brake_limit", None)
-        state.setdefault("brake_hold", 0)
-        state.setdefault("_braking_for", 0)
-        self.__dict__.update(state)
-
     def reset(self):
         """A new stream: no motion seen yet, no reference."""
         self._still_for = 0

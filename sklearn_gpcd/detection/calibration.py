@@ -3,8 +3,8 @@
 A detector calibrated with ``threshold="per_joint", false_alarm_rate=0`` sets
 each (regime, joint) level to the largest debounced excursion of its
 collision-free calibration data. On a recording it never saw, the excursions
-can be larger. The rule here (the one of ``benchmarks/real_ur10e.py`` and of
-``gpcd calibrate``):
+can be larger. The rule here (the one of ``gpcd calibrate``, which the
+real-robot benchmark applies too):
 
 1. **levels**: per recording ``r``, the peak debounced ``|m|`` per (regime,
    joint) cell (:func:`regime_excursions`); the level of a set of recordings

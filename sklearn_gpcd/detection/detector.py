@@ -379,15 +379,6 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         self.brake_limit = brake_limit
         self.brake_hold = brake_hold
 
-    def __setstate__(self, state):
-        """Detectors saved before the braking regime load without it."""
-        state.setdefault("brake_limit", None)
-        state.setdefault("brake_hold", 0.5)
-        if "velocity_columns_" in state:
-            state.setdefault("acceleration_columns_", None)
-        super().__setstate__(state)
-
-    # ------------------------------------------------------------------ fit
     def fit(self, X, y=None, *, labels=None, groups=None, time=None):
         """Learn the collision-free currents and the thresholds.
 

@@ -346,24 +346,7 @@ class StreamingMonitor(VersionedStateMixin):
         return state
 
     def __setstate__(self, state):
-        """Restore a pickled monitor; it resumes exactly where it was saved.
-
-        Raises
-        ------
-        ValueError
-            When the monitor was saved by an earlier layout of its state
-            (before the filter state moved into one ``_filter`` buffer):
-            rebuild it from the detector, ``StreamingMonitor(detector)``.
-        """
-        if "_filter" not in state:
-            raise ValueError(
-                "this StreamingMonitor was saved by an earlier sklearn-gpcd whose filter "
-                "state has another layout; rebuild it with StreamingMonitor(detector) from "
-                "the saved detector (the filter and debounce restart, as after reset())"
-            )
-        if "_velocity_columns" in state:  # saved before the braking regime
-            state["_motion_columns"] = state.pop("_velocity_columns")
-            state["_motion"] = state.pop("_qd")
+        """Restore a pickled monitor; it resumes exactly where it was saved."""
         super().__setstate__(state)
         if self.status is not None:
             self.status = MonitorStatus(self.status)

@@ -281,10 +281,6 @@ default="target-minus-actual"
         self.allow_missing = allow_missing
         self.signals = signals
 
-    def __setstate__(self, state):
-        state.setdefault("signals", "auto")  # files written before the parameter
-        super().__setstate__(state)
-
     def _check_params(self):
         self._check_common()
         cutoff = self.acceleration_cutoff

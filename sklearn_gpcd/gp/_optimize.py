@@ -77,8 +77,8 @@ def resolve_optimizer(optimizer, n_exact, n_theta):
     "auto" is exact while both are small: ``n_exact <= 3000`` and
     ``n_exact * n_theta <= 60000``. At the corner, 3,000 rows of an 18-dim
     ARD RBF + noise, the exact fit reaches scikit-learn's likelihood while
-    Adam stops at a clearly lower one; ``benchmarks/gp_fit.py`` measures
-    both against scikit-learn.
+    Adam stops at a clearly lower one (measured against scikit-learn by the
+    project's GP-fit benchmark).
 
     Parameters
     ----------

@@ -16,7 +16,7 @@ monitor needs:
 
 :class:`LoopbackRTDEServer` answers the same messages on 127.0.0.1 and
 streams a :class:`~sklearn_gpcd.io.Recording` at its own time stamps (real
-time): the seam tests and ``benchmarks/rtde_loopback.py`` drive to run
+time): the seam tests and the loopback benchmark drive it to run
 ``gpcd monitor --rtde`` end to end without a robot.
 """
 
