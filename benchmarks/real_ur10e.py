@@ -61,11 +61,11 @@ re-reference (``rest_reference=REST_TAU``) and the "sel" variants of the
 peer, P_f, SP_S and SP_C with settle time and rest reference chosen across
 recordings (5b). The "bands" monitors (our extension, ``BANDED``) run the
 peer, SP_C and P_f~ (P_f with a smooth Coulomb column, ``COULOMB_WIDTH``)
-through ``MultiBandDetector`` (a fast second band beside the rule's, alarm
-when either fires) with the braking regime (``brake_limit`` at the training
-runs' largest causal ``|qdd|``), calibrated by
-``calibrate_bands_across_recordings`` with the fast band chosen among
-``FAST_BANDS`` across the recordings (``band_grid``): each recording's nested
+with two alarm rules (a fast second band beside the rule's, alarm when
+either fires) and the braking regime (``brake_limit`` at the training runs'
+largest causal ``|qdd|``), calibrated by ``calibrate_across_recordings``
+with the fast band chosen among ``FAST_BANDS`` across the recordings
+(``param_grid`` of the last rule): each recording's nested
 false alarms are counted with the band, margins and levels chosen on the
 other recordings alone; P_f~ on the 2020 task too, each file with the band
 chosen on its own calibration pool.
@@ -94,16 +94,16 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import real_data_path, require_data, rst_table, write_json  # noqa: E402
 
+from sklearn.base import clone  # noqa: E402
 from sklearn.frozen import FrozenEstimator  # noqa: E402
 
-from sklearn_gpcd.layout import block_columns  # noqa: E402
-from sklearn_gpcd.detection import (  # noqa: E402
+from sklearn_gpcd.detection import (
+    AlarmRule,
+    CollisionDetector,
     MARGIN_RULES,
     REGIME_NAMES,
-    CollisionDetector,
-    MultiBandDetector,
+    Regimes,
     calibrate_across_recordings,
-    calibrate_bands_across_recordings,
     regime_excursions,
     regime_levels,
     stack_currents,
@@ -221,74 +221,87 @@ def train_models(data, n_support, seed, n_jobs, names=tuple(MODELS), progress=No
     return models, seconds
 
 
-def detector(regressor, rest_reference=None, margin=1.0):
-    """The one detection rule every monitor goes through."""
-    return CollisionDetector(
-        FrozenEstimator(regressor), n_joints=6, threshold="per_joint",
-        false_alarm_rate=0.0, margin=margin, filter_cutoff=FILTER_CUTOFF,
-        min_duration=MIN_DURATION, sample_time="auto", sigma_v=None, regimes=True,
-        settle_time=0.5, rest_reference=rest_reference,
-    )
+def detector(regressor, rest_reference=None, margin=1.0, **regimes):
+    """The one detection rule every monitor goes through (``regimes``: other
+    settings of its regimes, e.g. ``settle_time``)."""
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=margin,
+                     filter_cutoff=FILTER_CUTOFF, min_duration=MIN_DURATION,
+                     regimes=Regimes(**{"settle_time": 0.5, **regimes},
+                                     rest_reference=rest_reference))
+    return CollisionDetector(FrozenEstimator(regressor), n_joints=6, sample_time="auto",
+                             rules=rule)
+
+
+#: The fast band the banded monitors start from, until calibration chooses it
+#: from ``BAND_GRID``: 10 Hz first order with a 2-sample debounce.
+FAST_BAND = {"filter_cutoff": 10.0, "filter_order": 1, "min_duration": 2}
 
 
 def banded_detector(regressor, limit, **settings):
     """The rule with a fast second band and the braking regime (our extension).
 
-    ``MultiBandDetector`` with its default bands -- the rule's own 2 Hz band
-    and a fast band (``MultiBandDetector``'s default, 10 Hz first order with
-    a 2-sample debounce, until calibration chooses it from ``BAND_GRID``),
-    alarm when either fires -- and ``brake_limit=limit`` (a regime of its
-    own for the 0.5 s after a joint's causal ``|qdd|`` exceeds the largest of
-    the training runs).
+    Two alarm rules -- the rule's own 2 Hz band and a fast band
+    (``FAST_BAND``, until calibration chooses it from ``BAND_GRID``), alarm
+    when either fires -- with ``brake_limit=limit`` (a regime of its own for
+    the 0.5 s after a joint's causal ``|qdd|`` exceeds the largest of the
+    training runs); ``settings``: the regimes' settle time and rest reference.
     """
-    return MultiBandDetector(detector(regressor).set_params(brake_limit=limit, **settings))
+    det = detector(regressor, brake_limit=limit, **settings)
+    fast = clone(det.rules).set_params(**FAST_BAND)
+    return det.set_params(rules=[det.rules, fast])
 
 
-def band_text(det):
+def band_text(rule):
     """A band's filter and debounce, as the tables show them.
 
-    >>> band_text(CollisionDetector(filter_cutoff=10.0, filter_order=1, min_duration=2))
+    >>> band_text(AlarmRule(filter_cutoff=10.0, filter_order=1, min_duration=2))
     '10 Hz, order 1, debounce 2'
     """
-    return f"{det.filter_cutoff:g} Hz, order {det.filter_order}, debounce {det.min_duration}"
+    return f"{rule.filter_cutoff:g} Hz, order {rule.filter_order}, debounce {rule.min_duration}"
+
+
+def flat(params):
+    """Candidate settings with the regimes' names unnested, as the JSON keeps them."""
+    return {k.removeprefix("regimes__"): v for k, v in params.items()}
 
 
 def banded_result(model, limit, blocks, unseen, pushes, push_blocks, labels):
     """A banded monitor (:func:`banded_detector`, ``BANDED_SETTINGS``) on ``C``:
     every band calibrated across the recordings, the fast one chosen from
     ``BAND_GRID``, nested false alarms of the union of the bands
-    (``calibrate_bands_across_recordings``), pushes scored at the operating
+    (``calibrate_across_recordings``), pushes scored at the operating
     point. The result has the keys of the other monitors; ``thresholds`` are
     the first (2 Hz) band's, ``band_thresholds`` every band's, ``fold_settings``
     the fast band chosen without each recording."""
-    calibration = calibrate_bands_across_recordings(
+    calibration = calibrate_across_recordings(
         banded_detector(model, limit, **BANDED_SETTINGS), blocks, times_of(unseen),
-        rule=MARGIN_RULE, band_grid=BAND_GRID)
+        rule=MARGIN_RULE, param_grid=BAND_GRID)
     det = calibration.detector
-    main_band = det.detectors_[0]
     return {
         "margin": np.array([np.max(band.margin) for band in calibration.bands]),
-        "thresholds": np.atleast_2d(main_band.thresholds_),
-        "band_thresholds": [np.atleast_2d(d.thresholds_) for d in det.detectors_],
-        "bands": [band_text(d) for d in det.detectors_], "brake_limit": limit,
+        "thresholds": np.atleast_2d(det.rules_[0].thresholds_),
+        "band_thresholds": [np.atleast_2d(rule.thresholds_) for rule in det.rules_],
+        "bands": [band_text(rule) for rule in det.rules_], "brake_limit": limit,
         "onsets_by_margin_rule": {MARGIN_RULE: calibration.n_false_alarms},
-        "candidates": calibration.band_candidates,
-        "fold_settings": calibration.fold_band_settings or None,
-        **operating_point(det, calibration.folds, pushes, push_blocks, labels, main_band),
+        "candidates": [{"params": c["params"], "n_false_alarms": c["n_false_alarms"],
+                        "score": c["score"], "rank": c["rank"]}
+                       for c in calibration.candidates],
+        "fold_settings": calibration.fold_settings or None,
+        **operating_point(det, calibration.folds, pushes, push_blocks, labels),
     }
 
 
-def operating_point(det, folds, pushes, push_blocks, labels, rule=None):
+def operating_point(det, folds, pushes, push_blocks, labels):
     """What every monitor's result holds besides its thresholds: the nested
     false alarms of ``folds``, the pushes scored at ``det``'s operating point
     (events, onsets outside them, delays, the monitoring signals) and the
-    settle time and rest reference of ``rule`` (``det`` by default)."""
+    settle time and rest reference of its first rule."""
     events, outside, monitors = {}, {}, {}
     for key, rec in pushes.items():
         events[key], outside[key], monitors[key] = score_events(
             det, push_blocks[key], rec, labels[key]["events"])
     delays = [e["delay_s"] for v in events.values() for e in v if e["detected"]]
-    rule = det if rule is None else rule
+    regimes = det.rules_[0].regimes
     return {
         "folds": folds, "onsets": sum(len(f["onsets"]) for f in folds.values()),
         "first_second_alarm_samples": sum(
@@ -298,7 +311,7 @@ def operating_point(det, folds, pushes, push_blocks, labels, rule=None):
         "n_detected": sum(e["detected"] for v in events.values() for e in v),
         "median_delay_s": float(np.median(delays)) if delays else None,
         "max_delay_s": float(np.max(delays)) if delays else None,
-        "settle_time_s": rule.settle_time, "rest_reference_s": rule.rest_reference,
+        "settle_time_s": regimes.settle_time, "rest_reference_s": regimes.rest_reference,
         "monitors": monitors, "detector": det,
     }
 
@@ -425,14 +438,11 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
         for key, rec in recs.items():
             blocks, times = family_calibration(key, base_blocks, times_of(unseen), inputs,
                                                recs, segments)
-            if isinstance(template, MultiBandDetector):
-                calibration = calibrate_bands_across_recordings(template, blocks, times,
-                                                                rule=rule, band_grid=BAND_GRID)
-                margin = [np.max(band.margin) for band in calibration.bands]
-                thresholds = calibration.detector.detectors_[0].thresholds_
-            else:
-                calibration = calibrate_across_recordings(template, blocks, times, rule=rule)
-                margin, thresholds = calibration.margin, calibration.detector.thresholds_
+            banded = len(template.alarm_rules()) > 1
+            calibration = calibrate_across_recordings(
+                template, blocks, times, rule=rule, param_grid=BAND_GRID if banded else None)
+            margin = [np.max(band.margin) for band in calibration.bands]
+            thresholds = calibration.detector.rules_[0].thresholds_
             det = calibration.detector
             events, _, mon = score_events(det, inputs[key], rec, labels[key]["events"])
             t = rec.time - rec.time[0]
@@ -445,10 +455,10 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
         hits = sum(e["detected"] for f in files.values() for e in f["events"])
         total = sum(len(f["events"]) for f in files.values())
         onsets = sum(len(f["free_onsets"]) for f in files.values())
-        rule_of = template.detector if isinstance(template, MultiBandDetector) else template
+        regimes = template.alarm_rules()[0].regimes
         return {"files": files, "n_detected": hits, "n_events": total, "free_onsets": onsets,
-                "settle_time_s": rule_of.settle_time,
-                "rest_reference_s": rule_of.rest_reference}
+                "settle_time_s": regimes.settle_time,
+                "rest_reference_s": regimes.rest_reference}
 
     out = {}
     for name in ("P_f", "SP_S") if models is None else models:
@@ -459,7 +469,7 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
         if settings and name in settings:
             variants[name + " sel"] = settings[name]
         for shown, params in variants.items():
-            res = out[shown] = score(detector(model).set_params(**params))
+            res = out[shown] = score(detector(model, **params))
             progress(f"{FAMILY_2020}, {shown}: {res['n_detected']}/{res['n_events']} labelled "
                      f"collisions detected, {res['free_onsets']} alarm onset(s) on the "
                      f"event-free segments ({time.perf_counter() - tic:.0f} s)")
@@ -474,9 +484,9 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
 
 def rest_referenced_prediction(model, block, rest_reference, settle_time=0.5):
     """Causal prediction incl. the rest reference (unfiltered monitor), for nMSE."""
-    det = CollisionDetector(FrozenEstimator(model), n_joints=6, threshold="per_joint",
-                            false_alarm_rate=0.0, sample_time=0.01, regimes=True,
-                            settle_time=settle_time, rest_reference=rest_reference)
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0,
+                     regimes=Regimes(settle_time=settle_time, rest_reference=rest_reference))
+    det = CollisionDetector(FrozenEstimator(model), n_joints=6, sample_time=0.01, rules=rule)
     mon = det.fit(block).monitoring_signal(block)
     return mon.predicted + (0.0 if mon.reference is None else mon.reference)
 
@@ -620,13 +630,14 @@ def main(argv=None):
         res = results[name] = {
             "margin": calibration.margin, "thresholds": np.atleast_2d(det.thresholds_),
             "onsets_by_margin_rule": by_rule,
-            "candidates": calibration.candidates if grid else None,
-            "fold_settings": calibration.fold_settings or None,
+            "candidates": ([dict(c, params=flat(c["params"])) for c in calibration.candidates]
+                           if grid else None),
+            "fold_settings": {k: flat(v) for k, v in calibration.fold_settings.items()} or None,
             **operating_point(det, calibration.folds, pushes, push_blocks, labels),
         }
-        tau_text = seconds_text(det.rest_reference, unit=" s")
+        tau_text = seconds_text(res["rest_reference_s"], unit=" s")
         n_distinct = len(set(map(str, calibration.fold_settings.values())))
-        chosen = (f"settings chosen: settle {det.settle_time:g} s, rest reference {tau_text} "
+        chosen = (f"settings chosen: settle {res['settle_time_s']:g} s, rest reference {tau_text} "
                   f"({n_distinct} distinct in the nested folds); " if grid else "")
         progress(f"{name}: {chosen}{res['onsets']} alarm onset(s) on unseen collision-free "
                  f"data (nested LORO; by margin rule {by_rule}), {res['n_detected']}/"
@@ -652,8 +663,7 @@ def main(argv=None):
         tic = time.perf_counter()
         res = results[shown] = banded_result(models[name], limit, blocks, unseen, pushes,
                                              push_blocks, labels)
-        chosen = Counter(band_text(CollisionDetector().set_params(**s))
-                         for s in res["fold_settings"].values())
+        chosen = Counter(band_text(AlarmRule(**s)) for s in res["fold_settings"].values())
         progress(f"{shown}: fast band {res['bands'][-1]} (chosen on all; in the nested "
                  f"folds {dict(chosen)}); {res['onsets']} alarm onset(s) of the union of the "
                  f"bands on unseen collision-free data (nested LORO), {res['n_detected']}/"
@@ -675,8 +685,7 @@ def main(argv=None):
     nmse = {}
     tests = {"p1..p10": STILL, "ptp_10_points": [PTP]}
     for name, (model, *_) in monitors.items():
-        det = results[name]["detector"]
-        tau, settle = det.rest_reference, det.settle_time
+        tau, settle = results[name]["rest_reference_s"], results[name]["settle_time_s"]
         nmse[name] = {}
         for test, keys in tests.items():
             y = np.concatenate([unseen[k].current for k in keys])

@@ -37,7 +37,7 @@ import time
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor, stack_currents
+from sklearn_gpcd.detection import AlarmRule, CollisionDetector, StreamingMonitor, stack_currents
 from sklearn_gpcd.dynamics import RigidBodyRegressor
 from sklearn_gpcd.gp import make_sp_p
 
@@ -114,9 +114,9 @@ def main(argv=None):
                     for joint in range(N_JOINTS)]
     regressor = make_sp_p(features, N_JOINTS, sigma_v=SIGMA_V, optimizer=None, n_jobs=2,
                           n_support=args.n_support)
-    detector = CollisionDetector(
-        regressor, n_joints=N_JOINTS, filter_cutoff=10.0, filter_order=2, min_duration=3
-    )
+    detector = CollisionDetector(regressor, n_joints=N_JOINTS,
+                                 rules=AlarmRule(filter_cutoff=10.0, filter_order=2,
+                                                 min_duration=3))
     start = time.perf_counter()
     detector.fit(stack_currents(X, y))
     fit_seconds = time.perf_counter() - start

@@ -29,8 +29,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from sklearn_gpcd.datasets import Contact, make_joint1_cyclic, reference_joint1_cyclic, simulate
-from sklearn_gpcd.detection import (CollisionDetector, MonitorStatus, StreamingMonitor,
-                                    stack_currents)
+from sklearn_gpcd.detection import (
+    AlarmRule,
+    CollisionDetector,
+    MonitorStatus,
+    StreamingMonitor,
+    stack_currents,
+)
 from sklearn_gpcd.dynamics import RigidBodyRegressor
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
@@ -39,8 +44,8 @@ from sklearn_gpcd.gp import make_sp_p
 features = [RigidBodyRegressor("ur10", joint=j, base_parameters=False) for j in range(6)]
 model = make_sp_p(features, n_joints=6, n_support=150, random_state=0)
 training = make_joint1_cyclic("ur10", rest_duration=2.0, random_state=0)
-detector = CollisionDetector(model, n_joints=6, contamination=1e-3, filter_cutoff=2.0,
-                             min_duration=5, sample_time=1 / 125)
+rule = AlarmRule(contamination=1e-3, filter_cutoff=2.0, min_duration=5)
+detector = CollisionDetector(model, n_joints=6, sample_time=1 / 125, rules=rule)
 detector.fit(stack_currents(*make_inputs(training)))
 print("thresholds [A]:", np.round(detector.thresholds_, 3))
 

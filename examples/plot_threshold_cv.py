@@ -34,7 +34,8 @@ import numpy as np
 from sklearn.frozen import FrozenEstimator
 
 from sklearn_gpcd.datasets import Contact, make_joint1_cyclic, reference_joint1_cyclic, simulate
-from sklearn_gpcd.detection import CollisionDetector, CollisionThresholdCV, stack_currents
+from sklearn_gpcd.detection import (AlarmRule, CollisionDetector, CollisionThresholdCV,
+                                    stack_currents)
 from sklearn_gpcd.dynamics import RigidBodyRegressor
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
@@ -82,10 +83,12 @@ model.fit(*make_inputs(free))
 # low-pass filters the residual, whose moving-phase part is high-frequency;
 # ``min_duration`` debounces. Detections more than 0.3 s after a contact's
 # onset do not count.
-detector = CollisionDetector(FrozenEstimator(model), n_joints=6, sample_time=1 / 125)
+detector = CollisionDetector(FrozenEstimator(model), n_joints=6, sample_time=1 / 125,
+                             rules=AlarmRule())
 search = CollisionThresholdCV(
     detector,
-    {"contamination": [1e-3, 1e-2], "filter_cutoff": [None, 2.0], "min_duration": [1, 5]},
+    {"rules__contamination": [1e-3, 1e-2], "rules__filter_cutoff": [None, 2.0],
+     "rules__min_duration": [1, 5]},
     cv=4,
     max_delay=0.3,
 )
@@ -96,7 +99,7 @@ print(f"{'candidate':56s} recall  false alarms/h  delay [s]")
 for params, recall, alarms, delay in zip(results["params"], results["mean_test_recall"],
                                          results["mean_test_false_alarms_per_hour"],
                                          results["mean_test_delay"]):
-    text = ", ".join(f"{k}={v}" for k, v in params.items())
+    text = ", ".join(f"{k.removeprefix('rules__')}={v}" for k, v in params.items())
     print(f"{text:56s} {recall:6.3f}  {alarms:14.0f}  {delay:9.3f}")
 print("chosen:", search.best_params_)
 

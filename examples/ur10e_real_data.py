@@ -52,7 +52,7 @@ if DATA is None:
           "holds ur10e_mamedov/). Skipping this example.")
     sys.exit(0)
 
-from sklearn_gpcd.detection import CollisionDetector, stack_currents  # noqa: E402
+from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
 from sklearn_gpcd.dynamics import RigidBodyRegressor  # noqa: E402
 from sklearn_gpcd.features import make_inputs  # noqa: E402
 from sklearn_gpcd.gp import make_sp_p, make_sp_s  # noqa: E402
@@ -112,8 +112,8 @@ for test_name, (X_test, y_test) in tests.items():
 # arm three times. The files have **no labels**; the shaded intervals are the
 # data README's estimates by inspection, not ground truth. Thresholds come
 # from the still poses (collision-free, unseen in training).
-detector = CollisionDetector(models["SP_P"], n_joints=6, contamination=1e-3,
-                             filter_cutoff=2.0, min_duration=5, sample_time=0.01)
+rule = AlarmRule(contamination=1e-3, filter_cutoff=2.0, min_duration=5)
+detector = CollisionDetector(models["SP_P"], n_joints=6, sample_time=0.01, rules=rule)
 detector.fit(stack_currents(*make_inputs(still + train)))
 push = load_recording(DATA / "collision_push_pose" / "ur-20_01_22-push_pose_1.csv")
 t = push.time - push.time[0]

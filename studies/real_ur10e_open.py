@@ -95,7 +95,7 @@ from sklearn_gpcd.workflow import training_set  # noqa: E402
 
 def rule(model, settle_time, rest_reference):
     """The benchmark's detection rule with another settle time."""
-    return bench.detector(model, rest_reference).set_params(settle_time=settle_time)
+    return bench.detector(model, rest_reference, settle_time=settle_time)
 
 
 def pushes_detected(det, pushes, push_blocks, labels):
@@ -379,8 +379,8 @@ def study_correction(root, labels, n_support, seed):
     train, unseen, _ = bench.split_recordings(root, quick=False)
     velocities = [int(c) for c in block_columns("qd", N_JOINTS)]
     settle, reference = SP_C_SEL
-    rule = bench.detector(_Given()).set_params(
-        velocity_columns=velocities, settle_time=settle, rest_reference=reference)
+    rule = bench.detector(_Given(), reference, settle_time=settle).set_params(
+        velocity_columns=velocities)
     ratios = []
     for k, held in enumerate(train):
         data = training_set([r for i, r in enumerate(train) if i != k], "causal")

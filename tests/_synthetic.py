@@ -1,6 +1,7 @@
 """Synthetic runs shared by the detection and streaming test modules."""
 
 import numpy as np
+from sklearn_gpcd.detection import AlarmRule, Regimes
 
 
 def augmented_run(n_samples, n_joints, rng, period=0.008):
@@ -54,6 +55,20 @@ def controller_detector():
     from sklearn_gpcd.detection import CollisionDetector
     from sklearn_gpcd.dynamics import ControllerCurrent
 
-    return CollisionDetector(ControllerCurrent(6), n_joints=6, threshold="per_joint",
-                             false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
-                             sample_time="auto", regimes=True, rest_reference=5.0)
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
+                     regimes=Regimes(rest_reference=5.0))
+    return CollisionDetector(ControllerCurrent(6), n_joints=6, sample_time="auto", rules=rule)
+
+
+#: The fast band of the multi-band tests: 10 Hz first order, debounce 2.
+FAST = {"filter_cutoff": 10.0, "filter_order": 1, "min_duration": 2}
+
+
+def banded(detector, *bands):
+    """``detector`` with its (single) rule followed by one rule per override in
+    ``bands`` (default: :data:`FAST`): several bands on one model."""
+    from sklearn.base import clone
+
+    rule = detector.rules if detector.rules is not None else AlarmRule()
+    extra = [clone(rule).set_params(**band) for band in (bands or (FAST,))]
+    return clone(detector).set_params(rules=[clone(rule), *extra])

@@ -135,3 +135,33 @@ def test_the_package_names_no_benchmark_or_study_script():
     offences = [str(p.relative_to(ROOT)) for p in ROOT.rglob("*.py")
                 if "benchmarks/" in p.read_text() or "studies/" in p.read_text()]
     assert not offences
+
+
+def _private_methods(path, class_name):
+    tree = ast.parse(path.read_text())
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef) and node.name == class_name:
+            return {f.name for f in node.body if isinstance(f, ast.FunctionDef)
+                    and f.name.startswith("_") and not f.name.startswith("__")}
+    raise AssertionError(f"{class_name} not found in {path}")
+
+
+@pytest.mark.parametrize("module, class_name", [
+    ("detection/detector.py", "CollisionDetector"),
+    ("detection/rules.py", "AlarmRule"),
+    ("detection/streaming.py", "StreamingMonitor"),
+])
+def test_no_module_calls_the_detectors_private_methods(module, class_name):
+    """The detector's parts talk through public methods (fit_residuals, calibrate,
+    residuals, stages, ...), not through each other's private ones."""
+    private = _private_methods(ROOT / module, class_name)
+    offences = []
+    for path in ROOT.rglob("*.py"):
+        if path == ROOT / module:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Attribute) and node.attr in private
+                    and not (isinstance(node.value, ast.Name)
+                             and node.value.id in ("self", "cls"))):
+                offences.append(f"{path.relative_to(ROOT)}:{node.lineno} .{node.attr}")
+    assert not offences, "\n".join(offences)

@@ -13,7 +13,13 @@ import numpy as np
 import pytest
 from sklearn.linear_model import LinearRegression
 
-from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor, stack_currents
+from sklearn_gpcd.detection import (
+    AlarmRule,
+    CollisionDetector,
+    Regimes,
+    StreamingMonitor,
+    stack_currents,
+)
 from sklearn_gpcd.detection._regimes import BRAKING, MOVING
 
 DT = 0.01
@@ -35,9 +41,10 @@ def _reversals(n=3000, seed=0):
     return np.column_stack([q, qd, qdd]), current
 
 
-def _detector(**params):
-    return CollisionDetector(LinearRegression(), threshold="per_joint", false_alarm_rate=0.0,
-                             sample_time=DT, regimes=True, **params)
+def _detector(velocity_columns=None, **regimes):
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, regimes=Regimes(**regimes))
+    return CollisionDetector(LinearRegression(), sample_time=DT, rules=rule,
+                             velocity_columns=velocity_columns)
 
 
 @pytest.fixture(scope="module")
@@ -94,10 +101,8 @@ def test_brake_limit_is_checked():
     X, current = _reversals(n=300)
     Z = stack_currents(X, current)
     for bad in (0.0, -1.0, np.inf, "5"):
-        with pytest.raises(ValueError, match="brake_limit must be None, or a finite"):
+        with pytest.raises(ValueError, match="'brake_limit' parameter of Regimes must be None"):
             _detector(brake_limit=bad).fit(Z)
-    with pytest.raises(ValueError, match="brake_limit"):
-        CollisionDetector(LinearRegression(), brake_limit=LIMIT).fit(Z)  # regimes off
     with pytest.raises(ValueError, match="brake_hold"):
         _detector(brake_limit=LIMIT, brake_hold=-0.1).fit(Z)
     with pytest.raises(ValueError, match="needs the joint accelerations"):

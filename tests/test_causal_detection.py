@@ -12,8 +12,10 @@ import pytest
 from sklearn.linear_model import LinearRegression
 
 from sklearn_gpcd.detection import (
-    REGIME_NAMES,
+    AlarmRule,
     CollisionDetector,
+    REGIME_NAMES,
+    Regimes,
     SampleTimeWarning,
     StreamingMonitor,
     stack_currents,
@@ -158,11 +160,14 @@ def _still_then_moving(n_joints=2, seed=0):
 def test_per_regime_thresholds_are_tighter_at_rest_with_the_reference():
     qd, current = _still_then_moving()
     X = stack_currents(qd, current)
-    common = dict(n_joints=2, threshold="per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
-                  min_duration=5, sample_time=0.01, regimes=True,
-                  velocity_columns=[0, 1])
-    plain = CollisionDetector(LinearRegression(), **common).fit(X)
-    ref = CollisionDetector(LinearRegression(), rest_reference=5.0, **common).fit(X)
+    common = dict(n_joints=2, sample_time=0.01, velocity_columns=[0, 1])
+
+    def rule(**regimes):
+        return AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
+                         regimes=Regimes(**regimes))
+
+    plain = CollisionDetector(LinearRegression(), rules=rule(), **common).fit(X)
+    ref = CollisionDetector(LinearRegression(), rules=rule(rest_reference=5.0), **common).fit(X)
     rest = REGIME_NAMES.index("rest")
     assert plain.thresholds_.shape == (3, 2)
     assert np.all(ref.thresholds_[rest] < 0.5 * plain.thresholds_[rest])
@@ -177,10 +182,11 @@ def test_per_joint_levels_do_not_inflate_quiet_joints():
     qd = rng.normal(size=(3000, 2))
     current = 2 * qd + np.column_stack([rng.standard_t(2, 3000), rng.normal(size=3000)]) * 0.1
     X = stack_currents(qd, current)
-    shared = CollisionDetector(LinearRegression(), n_joints=2, threshold="false_alarm_rate",
-                               false_alarm_rate=0.0, sample_time=0.01).fit(X)
-    own = CollisionDetector(LinearRegression(), n_joints=2, threshold="per_joint",
-                            false_alarm_rate=0.0, sample_time=0.01).fit(X)
+    shared = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                               rules=AlarmRule(threshold="false_alarm_rate",
+                                               false_alarm_rate=0.0)).fit(X)
+    own = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            rules=AlarmRule(threshold="per_joint", false_alarm_rate=0.0)).fit(X)
     residual = current - own.regressor_.predict(qd)
     np.testing.assert_allclose(own.thresholds_, np.abs(residual).max(axis=0), rtol=1e-6)
     assert own.thresholds_[1] < 0.7 * shared.thresholds_[1]  # the quiet joint is not dragged up
@@ -189,10 +195,10 @@ def test_per_joint_levels_do_not_inflate_quiet_joints():
 def test_streaming_with_regimes_and_reference_equals_batch():
     qd, current = _still_then_moving()
     X = stack_currents(qd, current)
-    det = CollisionDetector(LinearRegression(), n_joints=2, threshold="per_joint",
-                            false_alarm_rate=0.0, margin=1.0, filter_cutoff=2.0,
-                            min_duration=3, sample_time=0.01, regimes=True,
-                            rest_reference=2.0, velocity_columns=[0, 1]).fit(X)
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.0, filter_cutoff=2.0,
+                     min_duration=3, regimes=Regimes(rest_reference=2.0))
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rule).fit(X)
     bumped = current.copy()
     bumped[650:700] += 1.0
     Z = stack_currents(qd, bumped)
@@ -269,9 +275,8 @@ def test_joint_count_mismatch_names_both_counts():
 def test_regimes_need_velocities():
     X = np.random.default_rng(0).normal(size=(50, 3))
     with pytest.raises(ValueError, match="velocity_columns"):
-        CollisionDetector(LinearRegression(), n_joints=1, regimes=True).fit(X)
-    with pytest.raises(ValueError, match="rest_reference"):
-        CollisionDetector(LinearRegression(), n_joints=1, rest_reference=5.0).fit(X)
+        CollisionDetector(LinearRegression(), n_joints=1,
+                          rules=AlarmRule(regimes=Regimes(rest_reference=5.0))).fit(X)
 
 
 # ------------------------------------------------------ the controller's model

@@ -10,17 +10,19 @@ from sklearn_gpcd.cli import main
 from sklearn_gpcd.workflow import DETECTOR_RULE, load_detector
 from sklearn_gpcd.datasets import make_d1
 from sklearn_gpcd.detection import (
+    AlarmRule,
     CollisionDetector,
-    MultiBandDetector,
-    MultiBandMonitor,
+    StreamingMonitor,
+    Regimes,
     calibrate_across_recordings,
-    calibrate_bands_across_recordings,
     stack_currents,
 )
 from sklearn_gpcd.dynamics import ControllerCurrent
 from sklearn_gpcd.features import CausalFeatures, contiguous_segments
 from sklearn_gpcd.io import load_recording, write_rtde_csv
 from sklearn_gpcd.workflow import TrainedModel, load_model, save_model
+
+from _synthetic import banded
 
 FAST = {"filter_cutoff": 10.0, "filter_order": 1, "min_duration": 2}
 MID = {"filter_cutoff": 5.0, "filter_order": 2, "min_duration": 3}
@@ -63,8 +65,9 @@ def _by_hand(work):
     blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
               for p, r in zip(work["free"], recs)}
     times = {p.name: r.time for p, r in zip(work["free"], recs)}
-    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
-                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    template = CollisionDetector(
+        FrozenEstimator(trained.regressor), n_joints=6, sample_time="auto",
+        rules=AlarmRule(**DETECTOR_RULE, regimes=Regimes(rest_reference=5.0)))
     return blocks, times, template
 
 
@@ -74,15 +77,14 @@ def test_calibrate_bands_equals_the_package_function(work, capsys):
                  "10,1,2", "--band", "5, 2, 3", "-q", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     detector, features, calibration = load_detector(out)
-    assert isinstance(detector, MultiBandDetector)
+    assert len(detector.rules_) == 3
     # the same calibration by hand, on the model's causal inputs
     blocks, times, template = _by_hand(work)
-    expected = calibrate_bands_across_recordings(
-        MultiBandDetector(template, bands=[{}, FAST, MID]), blocks, times)
-    assert [d.get_params()["filter_cutoff"] for d in detector.detectors_] == [2.0, 10.0, 5.0]
-    for fitted, band, saved in zip(detector.detectors_, expected.bands, calibration["bands"]):
-        np.testing.assert_allclose(fitted.thresholds_, band.detector.thresholds_)
-        np.testing.assert_allclose(saved["thresholds_A"], band.detector.thresholds_)
+    expected = calibrate_across_recordings(banded(template, FAST, MID), blocks, times)
+    assert [rule.filter_cutoff for rule in detector.rules_] == [2.0, 10.0, 5.0]
+    for fitted, band, saved in zip(detector.rules_, expected.bands, calibration["bands"]):
+        np.testing.assert_allclose(fitted.thresholds_, band.rule.thresholds_)
+        np.testing.assert_allclose(saved["thresholds_A"], band.rule.thresholds_)
         assert saved["margin"] == pytest.approx(band.margin.max())
         assert saved["n_false_alarms_nested"] == band.n_false_alarms
         assert f"{band.margin.max():.3f}" in text
@@ -99,14 +101,14 @@ def test_calibrate_bands_equals_the_package_function(work, capsys):
 
 def test_a_multi_band_file_loads_and_says_so(work):
     detector, features, calibration = load_detector(work["detector"])  # skops: trusted
-    assert isinstance(detector, MultiBandDetector) and len(detector.detectors_) == 2
+    assert len(detector.rules_) == 2
     assert [(b["filter_cutoff_hz"], b["filter_order"], b["debounce_samples"])
             for b in calibration["bands"]] == [(2.0, 1, 5), (10.0, 1, 2)]
     single = work["folder"] / "single.skops"
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "-q",
                  "-o", str(single)]) == 0
     detector, _, calibration = load_detector(single)
-    assert isinstance(detector, CollisionDetector) and "bands" not in calibration
+    assert len(detector.rules_) == 1 and "bands" not in calibration
 
 
 def test_monitor_names_the_band_that_caught_a_tap(work, capsys):
@@ -125,17 +127,17 @@ def test_monitor_names_the_band_that_caught_a_tap(work, capsys):
     assert "bands" in text.splitlines()[3]  # the event table's header
     assert saved["bands"] == ["2 Hz, order 1, debounce 5", "10 Hz, order 1, debounce 2"]
     assert (plots / "tap.png").stat().st_size > 0
-    # the same union alarms as MultiBandMonitor.replay_recording
+    # the same union alarms as StreamingMonitor.replay_recording
     onsets, result, t = _replayed_onsets(work)
     assert [e["start_s"] for e in events] == pytest.approx(onsets)
     assert not result.bands[0].alarms[np.abs(t - TAP_S) < 0.1].any()
 
 
 def _replayed_onsets(work):
-    """Onsets [s] of the union alarms of MultiBandMonitor.replay_recording on the taps."""
+    """Onsets [s] of the union alarms of StreamingMonitor.replay_recording on the taps."""
     detector, features, _ = load_detector(work["detector"])
     rec = load_recording(work["taps"])
-    result = MultiBandMonitor(detector, features=features).replay_recording(rec)
+    result = StreamingMonitor(detector, features=features).replay_recording(rec)
     t = rec.time - rec.time[0]
     return [t[a] for a, _ in contiguous_segments(result.alarms.any(axis=1))], result, t
 
@@ -187,14 +189,15 @@ def test_braking_takes_the_limit_given_or_the_models_own(work, capsys):
                  f"--braking={limit}", "-q", "-o", str(given)]) == 0
     assert f"braking above {limit:.3g} rad/s^2" in capsys.readouterr().out
     detector, _, calibration = load_detector(given)
-    assert detector.brake_limit == limit and calibration["brake_limit"] == limit
+    assert detector.rules[0].regimes.brake_limit == limit
+    assert calibration["brake_limit"] == limit
     assert calibration["regimes"] == ["moving", "settling", "rest", "braking"]
     blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
               for p, r in zip(work["free"], recs)}
     times = {p.name: r.time for p, r in zip(work["free"], recs)}
-    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
-                                 regimes=True, rest_reference=5.0, brake_limit=limit,
-                                 **DETECTOR_RULE)
+    template = CollisionDetector(
+        FrozenEstimator(trained.regressor), n_joints=6, sample_time="auto",
+        rules=AlarmRule(**DETECTOR_RULE, regimes=Regimes(rest_reference=5.0, brake_limit=limit)))
     expected = calibrate_across_recordings(template, blocks, times)
     np.testing.assert_allclose(detector.thresholds_, expected.detector.thresholds_)
     assert any((expected.detector.monitoring_signal(b).regime == 3).any()
@@ -207,7 +210,7 @@ def test_braking_takes_the_limit_given_or_the_models_own(work, capsys):
     out = work["folder"] / "own_braking.skops"
     assert main(["calibrate", str(own), *map(str, work["free"]), "--braking", "-q",
                  "-o", str(out)]) == 0
-    assert load_detector(out)[0].brake_limit == 2.5
+    assert load_detector(out)[0].rules[0].regimes.brake_limit == 2.5
 
 
 @pytest.mark.parametrize("args, message", [
@@ -227,7 +230,8 @@ def test_settle_time_is_an_option_and_select_refuses_it(work, capsys):
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--settle-time",
                  "2", "--rest-reference", "2", "-q", "-o", str(out)]) == 0
     detector = load_detector(out)[0]
-    assert (detector.settle_time, detector.rest_reference) == (2.0, 2.0)
+    regimes = detector.rules[0].regimes
+    assert (regimes.settle_time, regimes.rest_reference) == (2.0, 2.0)
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "--settle-time",
                  "2", "--select", "-o", str(out)]) == 2
     assert "drop --settle-time" in capsys.readouterr().err
@@ -242,12 +246,11 @@ def test_band_candidates_are_chosen_like_the_package_does(work, capsys):
     detector, _, calibration = load_detector(out)
     blocks, times, template = _by_hand(work)
     grid = [{k: [v] for k, v in band.items()} for band in (FAST, MID)]
-    expected = calibrate_bands_across_recordings(
-        MultiBandDetector(template, bands=[{}, FAST]), blocks, times, band_grid=grid)
-    chosen = expected.band_settings
-    assert detector.detectors_[1].get_params()["filter_cutoff"] == chosen["filter_cutoff"]
-    for fitted, band in zip(detector.detectors_, expected.bands):
-        np.testing.assert_allclose(fitted.thresholds_, band.detector.thresholds_)
+    expected = calibrate_across_recordings(banded(template), blocks, times, param_grid=grid)
+    chosen = expected.settings
+    assert detector.rules_[1].filter_cutoff == chosen["filter_cutoff"]
+    for fitted, band in zip(detector.rules_, expected.bands):
+        np.testing.assert_allclose(fitted.thresholds_, band.rule.thresholds_)
     assert calibration["n_false_alarms_nested"] == expected.n_false_alarms
     assert sorted(c["rank"] for c in calibration["band_candidates"]) == [0, 1]
     assert sorted(calibration["fold_band_settings"]) == sorted(blocks)

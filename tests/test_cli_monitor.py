@@ -11,7 +11,9 @@ from sklearn_gpcd.cli import main
 from sklearn_gpcd.workflow import DETECTOR_RULE, SELECT_GRID, load_detector
 from sklearn_gpcd.datasets import make_d1
 from sklearn_gpcd.detection import (
+    AlarmRule,
     CollisionDetector,
+    Regimes,
     StreamingMonitor,
     calibrate_across_recordings,
     stack_currents,
@@ -74,8 +76,9 @@ def test_calibrate_applies_the_loro_rule_and_reports_it(work, capsys):
         recs[:2]).signals_  # fitted by gpcd train on its recordings
     blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
               for p, r in zip(work["free"], recs)}
-    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
-                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    template = CollisionDetector(
+        FrozenEstimator(trained.regressor), n_joints=6, sample_time="auto",
+        rules=AlarmRule(**DETECTOR_RULE, regimes=Regimes(rest_reference=5.0)))
     expected = calibrate_across_recordings(
         template, blocks, {p.name: r.time for p, r in zip(work["free"], recs)})
     np.testing.assert_allclose(detector.thresholds_, expected.detector.thresholds_)
@@ -130,8 +133,9 @@ def test_calibrate_split_cuts_one_long_log_into_left_out_pieces(work, capsys):
     assert sum(p.n_samples for p in pieces) == rec.n_samples
     np.testing.assert_array_equal(np.concatenate([p.time for p in pieces]), rec.time)
     trained = load_model(work["model"])
-    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
-                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    template = CollisionDetector(
+        FrozenEstimator(trained.regressor), n_joints=6, sample_time="auto",
+        rules=AlarmRule(**DETECTOR_RULE, regimes=Regimes(rest_reference=5.0)))
     expected = calibrate_across_recordings(
         template, {k: stack_currents(features.transform(p), p.current)
                    for k, p in zip(keys, pieces)},
@@ -270,13 +274,15 @@ def test_calibrate_select_chooses_settle_time_and_rest_reference(work, capsys):
     trained = load_model(work["model"])
     blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
               for p, r in zip(work["free"], recs)}
-    template = CollisionDetector(FrozenEstimator(trained.regressor), n_joints=6,
-                                 regimes=True, rest_reference=5.0, **DETECTOR_RULE)
+    template = CollisionDetector(
+        FrozenEstimator(trained.regressor), n_joints=6, sample_time="auto",
+        rules=AlarmRule(**DETECTOR_RULE, regimes=Regimes(rest_reference=5.0)))
     expected = calibrate_across_recordings(
         template, blocks, {p.name: r.time for p, r in zip(work["free"], recs)},
         param_grid=SELECT_GRID)
-    assert (detector.settle_time, detector.rest_reference) == (
-        expected.settings["settle_time"], expected.settings["rest_reference"])
+    regimes = detector.rules[0].regimes
+    assert (regimes.settle_time, regimes.rest_reference) == (
+        expected.settings["regimes__settle_time"], expected.settings["regimes__rest_reference"])
     np.testing.assert_allclose(detector.thresholds_, expected.detector.thresholds_)
     assert calibration["selected"] and len(calibration["candidates"]) == 12
     assert calibration["n_false_alarms_nested"] == expected.n_false_alarms

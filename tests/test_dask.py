@@ -27,7 +27,12 @@ from sklearn.model_selection import GridSearchCV, GroupKFold
 from sklearn.pipeline import Pipeline
 
 from sklearn_gpcd import datasets
-from sklearn_gpcd.detection import CollisionDetector, CollisionThresholdCV, stack_currents
+from sklearn_gpcd.detection import (
+    AlarmRule,
+    CollisionDetector,
+    CollisionThresholdCV,
+    stack_currents,
+)
 from sklearn_gpcd.dynamics import RigidBodyRegressor
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
@@ -155,8 +160,9 @@ def labelled(robot_data):
 def test_threshold_search_runs_on_the_workers(client, robot_data):
     Z, labels, groups = labelled(robot_data)
     search = CollisionThresholdCV(
-        CollisionDetector(sp_p(robot_data[3]), n_joints=N_JOINTS),
-        {"sigma_v": [3e-3, 3e-2], "min_duration": [1, 3]}, cv=3, max_delay=0.2, n_jobs=2,
+        CollisionDetector(sp_p(robot_data[3]), n_joints=N_JOINTS, rules=AlarmRule()),
+        {"sigma_v": [3e-3, 3e-2], "rules__min_duration": [1, 3]}, cv=3, max_delay=0.2,
+        n_jobs=2,
     )
     local = clone(search).fit(Z, labels, groups=groups)
     remote, calls = run_on_dask(client, lambda: clone(search).fit(Z, labels, groups=groups))

@@ -14,6 +14,7 @@ from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from sklearn_gpcd.layout import column_index
 from sklearn_gpcd.detection import (
+    AlarmRule,
     CollisionDetector,
     CollisionThresholdCV,
     DetectionRefit,
@@ -57,7 +58,7 @@ def small_sp_p(n_joints, **params):
         CollisionDetector(
             GaussianProcessRegressor(RBF() + WhiteKernel(), optimizer=None), normalize="std"
         ),
-        CollisionDetector(Ridge(), contamination=0.05),
+        CollisionDetector(Ridge(), rules=AlarmRule(contamination=0.05)),
     ]
 )
 def test_sklearn_compatible(estimator, check):
@@ -71,10 +72,9 @@ def test_detects_every_bump_and_stays_quiet_elsewhere(rng):
     X_test, i_test, labels = bumpy_run(rng)
     # fixed hyperparameters (normalised units) keep the test fast and deterministic
     kernel = C(1.0) * RBF([1.0, 2.0]) + WhiteKernel(1e-3)
-    det = CollisionDetector(
-        GaussianProcessRegressor(kernel, normalize_y=True, optimizer=None),
-        threshold="std", k=5.0, normalize="std", filter_cutoff=5.0, min_duration=3,
-    ).fit(stack_currents(X_train, i_train))
+    rule = AlarmRule("std", k=5.0, filter_cutoff=5.0, min_duration=3)
+    det = CollisionDetector(GaussianProcessRegressor(kernel, normalize_y=True, optimizer=None),
+                            normalize="std", rules=rule).fit(stack_currents(X_train, i_train))
     pred = det.predict(stack_currents(X_test, i_test))
     alarms = pred == -1
     assert event_recall(labels, alarms) == 1.0
@@ -88,35 +88,36 @@ def test_detects_every_bump_and_stays_quiet_elsewhere(rng):
 def test_each_threshold_rule_sets_its_level(rng):
     X, current = augmented_run(800, 2, rng)
     Z = stack_currents(X, current)
-    det = CollisionDetector(Ridge(), n_joints=2, contamination=0.02).fit(Z)
+    det = CollisionDetector(Ridge(), n_joints=2, rules=AlarmRule(contamination=0.02)).fit(Z)
     assert np.mean(det.predict(Z) == -1) == pytest.approx(0.02, abs=1 / 800)
     assert np.allclose(det.thresholds_, -det.offset_ * det.scale_)
     # scale_ = RMS of the training residual per joint
     residual = current - det.regressor_.predict(X)
     assert np.allclose(det.scale_, np.sqrt(np.mean(residual**2, axis=0)))
 
-    det = CollisionDetector(
-        Ridge(), n_joints=2, threshold="false_alarm_rate", false_alarm_rate=600.0
-    ).fit(Z)
+    det = CollisionDetector(Ridge(), n_joints=2,
+                            rules=AlarmRule(threshold="false_alarm_rate",
+                                            false_alarm_rate=600.0)).fit(Z)
     alarms = det.predict(Z) == -1
     onsets = np.sum(alarms[1:] & ~alarms[:-1]) + alarms[0]
     hours = 800 * 0.008 / 3600
     assert onsets <= 600.0 * hours  # at most 1 onset in 6.4 s
-    det.set_params(false_alarm_rate=0.0).fit(Z)
+    det.set_params(rules__false_alarm_rate=0.0).fit(Z)
     assert not (det.predict(Z) == -1).any()
 
     kernel = C(1.0) * RBF(np.full(12, 3.0)) + WhiteKernel(1e-2)
     gp = GaussianProcessRegressor(kernel, optimizer=None)
-    det = CollisionDetector(gp, n_joints=2, threshold="std", k=4.0, normalize="std").fit(Z)
+    det = CollisionDetector(gp, n_joints=2, normalize="std",
+                            rules=AlarmRule(threshold="std", k=4.0)).fit(Z)
     assert det.offset_ == -4.0 and np.allclose(det.thresholds_, 4.0)
-    det = CollisionDetector(gp, n_joints=2, threshold="std", k=4.0).fit(Z)
+    det = CollisionDetector(gp, n_joints=2, rules=AlarmRule(threshold="std", k=4.0)).fit(Z)
     _, std = det.regressor_.predict(X, return_std=True)
     assert np.allclose(det.thresholds_, 4.0 * np.sqrt(np.mean(std**2, axis=0)))
 
 
 def test_predict_joints_names_the_bumped_joint(rng):
     X, current = augmented_run(800, 2, rng)
-    det = CollisionDetector(Ridge(), n_joints=2, contamination=0.001)
+    det = CollisionDetector(Ridge(), n_joints=2, rules=AlarmRule(contamination=0.001))
     det.fit(stack_currents(X, current))
     bumped = current.copy()
     bumped[300:320, 1] += 3.0
@@ -140,9 +141,9 @@ def test_labels_leave_contacts_out_of_training(rng):
 def test_groups_restart_the_filter_and_debounce(rng):
     X, current, _ = bumpy_run(rng)
     Z = stack_currents(X, current)
-    det = CollisionDetector(
-        LinearRegression(), filter_cutoff=3.0, filter_order=2, min_duration=4
-    ).fit(Z)
+    det = CollisionDetector(LinearRegression(),
+                            rules=AlarmRule(filter_cutoff=3.0, filter_order=2,
+                                            min_duration=4)).fit(Z)
     groups = np.repeat([0, 1, 2], [500, 400, 600])
     joint = det.score_samples(Z, groups=groups)
     parts = [det.score_samples(Z[groups == g]) for g in range(3)]
@@ -154,11 +155,11 @@ def test_filter_and_debounce_change_the_signal_as_documented(rng):
     X, current, _ = bumpy_run(rng)
     Z = stack_currents(X, current)
     plain = CollisionDetector(LinearRegression()).fit(Z)
-    filtered = CollisionDetector(LinearRegression(), filter_cutoff=2.0).fit(Z)
+    filtered = CollisionDetector(LinearRegression(), rules=AlarmRule(filter_cutoff=2.0)).fit(Z)
     raw = plain.monitoring_signal(Z)
     smooth = filtered.monitoring_signal(Z)
     assert np.std(np.diff(smooth.signal[:, 0])) < 0.5 * np.std(np.diff(raw.signal[:, 0]))
-    debounced = CollisionDetector(LinearRegression(), min_duration=3).fit(Z)
+    debounced = CollisionDetector(LinearRegression(), rules=AlarmRule(min_duration=3)).fit(Z)
     ratio = np.abs(raw.residual[:, 0]) / debounced.scale_[0]
     expected = np.minimum(np.minimum(ratio[2:], ratio[1:-1]), ratio[:-2])
     assert np.allclose(debounced.monitoring_signal(Z).ratio[2:, 0], expected)
@@ -177,13 +178,15 @@ def test_default_regressor_is_sp_p(rng):
 @pytest.mark.parametrize(
     "params, match",
     [
-        ({"threshold": "quantile"}, "threshold must be one of"),
-        ({"contamination": 0.7}, "contamination must be"),
-        ({"min_duration": 0}, "min_duration must be"),
-        ({"filter_order": 3}, "filter_order must be"),
-        ({"filter_cutoff": 100.0}, "filter_cutoff must lie in"),
+        ({"rules": AlarmRule(threshold="quantile")}, "'threshold' parameter of AlarmRule"),
+        ({"rules": AlarmRule(contamination=0.7)}, "'contamination' parameter of AlarmRule"),
+        ({"rules": AlarmRule(min_duration=0)}, "'min_duration' parameter of AlarmRule"),
+        ({"rules": AlarmRule(filter_order=3)}, "'filter_order' parameter of AlarmRule"),
+        ({"rules": AlarmRule(filter_cutoff=100.0)}, "filter_cutoff must lie in"),
+        ({"rules": "fast"}, "'rules' parameter of CollisionDetector"),
         ({"normalize": "std"}, "return_std"),
         ({"sigma_v": 0.1}, "no sigma_v parameter"),
+        ({"sigma_v": -0.1}, "'sigma_v' parameter of CollisionDetector"),
         ({"n_joints": 2}, "at least 3 columns"),
     ],
 )
@@ -209,10 +212,10 @@ def _stream_matches_batch(det, Z, groups=None):
 @pytest.mark.parametrize("filter_order", [1, 2])
 def test_streaming_equals_batch_with_sp_p(filter_order, rng):
     X, current = augmented_run(800, 2, rng)
-    det = CollisionDetector(
-        small_sp_p(2), n_joints=2, contamination=0.01,
-        filter_cutoff=8.0, filter_order=filter_order, min_duration=3,
-    ).fit(stack_currents(X[::2], current[::2]))
+    rule = AlarmRule(contamination=0.01, filter_cutoff=8.0, filter_order=filter_order,
+                     min_duration=3)
+    det = CollisionDetector(small_sp_p(2), n_joints=2, rules=rule).fit(
+        stack_currents(X[::2], current[::2]))
     test_current = current + 0.01 * rng.normal(size=current.shape)
     test_current[100:140, 0] += 1.5  # contact while moving
     test_current[300:340, 1] -= 1.5  # contact at rest
@@ -235,7 +238,8 @@ def test_streaming_equals_batch_with_sp_p(filter_order, rng):
 )
 def test_streaming_equals_batch_for_other_regressors(regressor, kind, rng):
     X, current = augmented_run(300, 1, rng)
-    det = CollisionDetector(regressor, contamination=0.05, filter_cutoff=5.0, min_duration=2)
+    det = CollisionDetector(regressor,
+                            rules=AlarmRule(contamination=0.05, filter_cutoff=5.0, min_duration=2))
     det.fit(stack_currents(X, current))
     monitor, _ = _stream_matches_batch(det, stack_currents(X, current + 0.05))
     assert monitor.predictor_kind == kind
@@ -244,7 +248,7 @@ def test_streaming_equals_batch_for_other_regressors(regressor, kind, rng):
 def test_streaming_with_std_normalisation(rng):
     X, current = augmented_run(200, 1, rng)
     gp = GaussianProcessRegressor(C(1.0) * RBF([3.0] * 6) + WhiteKernel(0.01), optimizer=None)
-    det = CollisionDetector(gp, normalize="std", threshold="std", k=3.0).fit(
+    det = CollisionDetector(gp, normalize="std", rules=AlarmRule(threshold="std", k=3.0)).fit(
         stack_currents(X, current)
     )
     _stream_matches_batch(det, stack_currents(X, current + 0.03))
@@ -252,9 +256,9 @@ def test_streaming_with_std_normalisation(rng):
 
 def test_sensor_fault_is_reported_and_skipped(rng):
     X, current = augmented_run(400, 2, rng)
-    det = CollisionDetector(
-        Ridge(), n_joints=2, contamination=0.02, filter_cutoff=5.0, min_duration=3
-    ).fit(stack_currents(X, current))
+    det = CollisionDetector(Ridge(), n_joints=2,
+                            rules=AlarmRule(contamination=0.02, filter_cutoff=5.0,
+                                            min_duration=3)).fit(stack_currents(X, current))
     Z = stack_currents(X, current)
     bad = [50, 51, 200]
     Z_faulty = Z.copy()
@@ -448,9 +452,11 @@ class _RecordingFolds(GroupKFold):
 
 def test_threshold_cv_scores_candidates_and_applies_the_rule(rng):
     Z, labels, groups = _labelled_recordings(rng)
-    grid = {"contamination": [0.001, 0.2], "filter_cutoff": [None, 4.0], "min_duration": [1, 3]}
+    grid = {"rules__contamination": [0.001, 0.2], "rules__filter_cutoff": [None, 4.0],
+            "rules__min_duration": [1, 3]}
     search = CollisionThresholdCV(
-        CollisionDetector(LinearRegression()), grid, cv=_RecordingFolds(3), max_delay=0.2
+        CollisionDetector(LinearRegression(), rules=AlarmRule()), grid, cv=_RecordingFolds(3),
+        max_delay=0.2,
     ).fit(Z, labels, groups=groups)
     assert sorted(sum(_RecordingFolds.seen, [])) == [0, 1, 2]
     res = search.cv_results_
@@ -462,10 +468,11 @@ def test_threshold_cv_scores_candidates_and_applies_the_rule(rng):
     best = search.best_index_
     assert res["mean_test_recall"][best] == 1.0
     assert res["mean_test_delay"][best] <= 0.2
-    assert search.best_params_["contamination"] == 0.001  # 0.2 floods with alarms
+    assert search.best_params_["rules__contamination"] == 0.001  # 0.2 floods with alarms
     # one candidate re-scored by hand on fold 0
     train, test = next(GroupKFold(3).split(Z, labels, groups))
-    det = CollisionDetector(LinearRegression(), **res["params"][best])
+    det = CollisionDetector(LinearRegression(), rules=AlarmRule()).set_params(
+        **res["params"][best])
     det.fit(Z[train], labels=labels[train], groups=groups[train])
     alarms = det.predict(Z[test], groups=groups[test]) == -1
     recall = event_recall(labels[test], alarms, max_delay=0.2, sample_time=0.008,
@@ -482,8 +489,8 @@ def test_threshold_cv_refits_the_regressor_for_sigma_v(rng):
     current[170:190, 0] += 1.0
     labels[170:190] = 2
     search = CollisionThresholdCV(
-        CollisionDetector(make_sp_p(None, 1, n_support=40, optimizer=None)),
-        {"sigma_v": [0.01, 0.1], "min_duration": [1, 2]}, cv=2,
+        CollisionDetector(make_sp_p(None, 1, n_support=40, optimizer=None), rules=AlarmRule()),
+        {"sigma_v": [0.01, 0.1], "rules__min_duration": [1, 2]}, cv=2,
     ).fit(stack_currents(X, current), labels, groups=np.repeat([0, 1], 120))
     assert search.best_estimator_.regressor_.sigma_v == search.best_params_["sigma_v"]
     assert np.all(np.isfinite(search.cv_results_["mean_test_recall"]))
@@ -492,7 +499,7 @@ def test_threshold_cv_refits_the_regressor_for_sigma_v(rng):
 def test_threshold_cv_needs_several_recordings(rng):
     Z, labels, _ = _labelled_recordings(rng, 1)
     with pytest.raises(ValueError, match="at least 2 recordings"):
-        CollisionThresholdCV(CollisionDetector(Ridge()), {"k": [1.0]}).fit(
+        CollisionThresholdCV(CollisionDetector(Ridge()), {"sigma_v": [None]}).fit(
             Z, labels, groups=np.zeros(len(Z))
         )
 
@@ -500,13 +507,13 @@ def test_threshold_cv_needs_several_recordings(rng):
 def test_grid_search_with_detection_scorers(rng):
     Z, labels, groups = _labelled_recordings(rng)
     search = GridSearchCV(
-        CollisionDetector(LinearRegression()),
-        {"contamination": [0.001, 0.2]},
+        CollisionDetector(LinearRegression(), rules=AlarmRule()),
+        {"rules__contamination": [0.001, 0.2]},
         scoring=detection_scorers(max_delay=0.2),
         refit=DetectionRefit(max_delay=0.2),
         cv=GroupKFold(3),
     ).fit(Z, labels, groups=groups, labels=labels)
-    assert search.best_params_ == {"contamination": 0.001}
+    assert search.best_params_ == {"rules__contamination": 0.001}
     assert search.cv_results_["mean_test_recall"][search.best_index_] == 1.0
 
 
@@ -531,10 +538,10 @@ def interaction_runs():
 def test_interaction_test_on_the_simulator(interaction_runs):
     """Paper Sec. V-B: four pushes on link 1, two moving and two at rest."""
     Z_train, groups, Z_test, test, rest_start = interaction_runs
-    det = CollisionDetector(
-        make_sp_p(None, 6, n_support=120, random_state=0, n_jobs=2), n_joints=6,
-        threshold="false_alarm_rate", false_alarm_rate=1.0, filter_cutoff=2.0, min_duration=3,
-    ).fit(Z_train, groups=groups)
+    rule = AlarmRule("false_alarm_rate", false_alarm_rate=1.0, filter_cutoff=2.0,
+                     min_duration=3)
+    det = CollisionDetector(make_sp_p(None, 6, n_support=120, random_state=0, n_jobs=2),
+                            n_joints=6, rules=rule).fit(Z_train, groups=groups)
     fired = det.predict_joints(Z_test)
     alarms = fired.any(axis=1)
     labels = test.labels
@@ -610,9 +617,10 @@ def test_frozen_sp_p_gets_the_compiled_path(rng):
 
     X, current = augmented_run(600, 2, rng)
     sp_p = small_sp_p(2).fit(X[::2], current[::2])
-    det = CollisionDetector(
-        FrozenEstimator(sp_p), n_joints=2, contamination=0.01, filter_cutoff=8.0, min_duration=3
-    ).fit(stack_currents(X[1::2], current[1::2]))
+    det = CollisionDetector(FrozenEstimator(sp_p), n_joints=2,
+                            rules=AlarmRule(contamination=0.01, filter_cutoff=8.0,
+                                            min_duration=3)).fit(stack_currents(X[1::2],
+                                                                                current[1::2]))
     assert det.regressor_.estimator is sp_p  # frozen: not refitted
     test_current = current.copy()
     test_current[100:140, 0] += 1.5

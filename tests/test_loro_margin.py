@@ -13,8 +13,10 @@ from sklearn.linear_model import LinearRegression
 from sklearn.model_selection import LeaveOneGroupOut
 
 from sklearn_gpcd.detection import (
+    AlarmRule,
     CollisionDetector,
     CollisionThresholdCV,
+    Regimes,
     calibrate_across_recordings,
     loro_margin,
     nested_alarms,
@@ -44,10 +46,11 @@ def _recordings(n_recordings=4, n=600, seed=0):
 
 
 def _template(regressor=None, **params):
+    """The detector under test; ``params`` set its rule (``regimes__...`` its regimes)."""
     regressor = LinearRegression() if regressor is None else regressor
-    return CollisionDetector(regressor, threshold="per_joint", false_alarm_rate=0.0,
-                             sample_time=DT, filter_cutoff=5.0, min_duration=3,
-                             regimes=True, velocity_columns=[0], **params)
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=5.0, min_duration=3,
+                     regimes=Regimes()).set_params(**params)
+    return CollisionDetector(regressor, sample_time=DT, velocity_columns=[0], rules=rule)
 
 
 def _stacked(blocks):
@@ -82,7 +85,7 @@ def test_the_operating_point_is_the_template_fitted_with_the_chosen_margin():
     fitted = _template(margin=result.margin).fit(Z, groups=groups, time=time)
     det = result.detector
     assert det is not None and sorted(det.get_params()) == sorted(fitted.get_params())
-    np.testing.assert_array_equal(det.margin, fitted.margin)
+    np.testing.assert_array_equal(det.rules.margin, fitted.rules.margin)
     for name in ("scale_", "margin_", "thresholds_", "offset_", "sample_time_"):
         np.testing.assert_allclose(getattr(det, name), getattr(fitted, name), rtol=1e-12)
     np.testing.assert_allclose(det.decision_function(Z), fitted.decision_function(Z),
@@ -112,9 +115,9 @@ def test_loro_margin_needs_the_per_joint_rule():
     blocks, _ = _recordings(n_recordings=2)
     Z, groups = _stacked(blocks)
     with pytest.raises(ValueError, match="'loro' \\(with threshold='per_joint'\\)"):
-        CollisionDetector(LinearRegression(), margin="loro", sample_time=DT).fit(
+        CollisionDetector(LinearRegression(), sample_time=DT, rules=AlarmRule(margin="loro")).fit(
             Z, groups=groups)
-    with pytest.raises(ValueError, match="margin must be"):
+    with pytest.raises(ValueError, match="'margin' parameter of AlarmRule must be"):
         _template(margin="global").fit(Z, groups=groups)
 
 
@@ -123,7 +126,7 @@ def test_threshold_cv_scores_the_loro_margin_like_the_nested_calibration():
     blocks, times = _recordings(n_recordings=5, seed=3)
     Z, groups = _stacked(blocks)
     labels = np.zeros(len(Z), dtype=int)
-    search = CollisionThresholdCV(_template(), {"margin": ["loro", 1.0]},
+    search = CollisionThresholdCV(_template(), {"rules__margin": ["loro", 1.0]},
                                   cv=LeaveOneGroupOut()).fit(Z, labels, groups=groups)
     assert search.best_estimator_.margin_.min() >= 1.0
     base = _template().fit(Z, groups=groups)
@@ -144,7 +147,7 @@ def test_threshold_cv_takes_the_sampling_period_from_time_stamps():
     labels[700:730] = 1                             # a labelled stretch in recording 1
     Z[700:730, -1] += 3.0
     time = np.concatenate([times[k] for k in blocks])
-    grid = {"margin": ["loro", 1.0]}
+    grid = {"rules__margin": ["loro", 1.0]}
     given = CollisionThresholdCV(_template(), grid, cv=LeaveOneGroupOut(), max_delay=0.3)
     given.fit(Z, labels, groups=groups)
     auto = CollisionThresholdCV(_template().set_params(sample_time="auto"), grid,
@@ -198,15 +201,15 @@ def test_nested_alarms_are_the_samples_behind_the_nested_onsets():
         assert folds[key]["onsets"] == pytest.approx(times[key][starts].tolist())
 
 
-GRID = {"settle_time": [0.1, 0.5], "rest_reference": [None, 1.0]}
+GRID = {"regimes__settle_time": [0.1, 0.5], "regimes__rest_reference": [None, 1.0]}
 
 
 def test_a_one_candidate_grid_is_the_plain_calibration():
     blocks, times = _recordings()
-    plain = calibrate_across_recordings(_template(settle_time=0.5), blocks, times)
+    plain = calibrate_across_recordings(_template(regimes__settle_time=0.5), blocks, times)
     grid = calibrate_across_recordings(_template(), blocks, times,
-                                       param_grid={"settle_time": [0.5]})
-    assert grid.settings == {"settle_time": 0.5} and plain.settings == {}
+                                       param_grid={"regimes__settle_time": [0.5]})
+    assert grid.settings == {"regimes__settle_time": 0.5} and plain.settings == {}
     np.testing.assert_array_equal(grid.detector.thresholds_, plain.detector.thresholds_)
     assert grid.folds == plain.folds
 
@@ -263,7 +266,7 @@ def test_the_candidate_that_transfers_between_recordings_is_chosen_first():
     result = calibrate_across_recordings(_template(_frozen(blocks)), blocks, times,
                                          param_grid=GRID)
     tightest = min(result.candidates, key=lambda row: row["score"])
-    assert tightest["params"] == {"rest_reference": None, "settle_time": 0.5}
+    assert tightest["params"] == {"regimes__rest_reference": None, "regimes__settle_time": 0.5}
     assert tightest["n_false_alarms"] == 2
     chosen = next(row for row in result.candidates if row["params"] == result.settings)
     assert chosen["n_false_alarms"] == 0
@@ -273,9 +276,11 @@ def test_the_candidate_that_transfers_between_recordings_is_chosen_first():
 
 def test_param_grid_names_what_can_be_chosen():
     blocks, times = _recordings(n_recordings=3)
-    with pytest.raises(ValueError, match="'k' cannot be chosen across recordings.*settle_time"):
-        calibrate_across_recordings(_template(), blocks, times, param_grid={"k": [1.0, 2.0]})
-    no_regimes = _template().set_params(regimes=False, velocity_columns=None)
-    with pytest.raises(ValueError, match="rest_reference"):
+    with pytest.raises(ValueError, match="'cutoff' is not a setting of the last alarm rule"):
+        calibrate_across_recordings(_template(), blocks, times, param_grid={"cutoff": [1.0]})
+    with pytest.raises(ValueError, match="the margin is chosen across recordings"):
+        calibrate_across_recordings(_template(), blocks, times, param_grid={"margin": [1.0]})
+    no_regimes = _template(regimes=None)
+    with pytest.raises(ValueError, match="'regimes__rest_reference' is not a setting"):
         calibrate_across_recordings(no_regimes, blocks, times,
-                                    param_grid={"rest_reference": [None, 1.0]})
+                                    param_grid={"regimes__rest_reference": [None, 1.0]})

@@ -1,18 +1,20 @@
-"""MultiBandMonitor.replay / replay_recording: a loop of updates, and the batch detector."""
+"""StreamingMonitor.replay / replay_recording with several bands: a loop of updates,
+and the batch detector."""
 
 import numpy as np
 import pytest
 
 from sklearn_gpcd.detection import (
+    AlarmRule,
     CollisionDetector,
-    MultiBandDetector,
-    MultiBandMonitor,
+    Regimes,
+    StreamingMonitor,
     stack_currents,
 )
 from sklearn_gpcd.features import CausalFeatures
 from sklearn_gpcd.gp import make_sp_p
 
-from _synthetic import augmented_run, controller_detector, simulated_interaction
+from _synthetic import augmented_run, banded, controller_detector, simulated_interaction
 
 BAND_FIELDS = ("signal", "ratio", "alarms", "regime")
 
@@ -41,7 +43,7 @@ def _loop(monitor, ticks):
     for tick in ticks:
         status = tick(monitor)
         rows.append((status.value, monitor.alarms.copy(),
-                     [[np.copy(getattr(m, f)) for f in BAND_FIELDS] for m in monitor.monitors]))
+                     [[np.copy(getattr(m, f)) for f in BAND_FIELDS] for m in monitor.bands]))
     return rows
 
 
@@ -56,10 +58,10 @@ def _assert_loop(out, rows):
 def test_replay_equals_a_loop_of_updates_and_the_batch_detector(rng):
     X, current = augmented_run(800, 2, rng)
     model = make_sp_p(None, 2, sigma_v=1e-2, n_support=60, random_state=0, optimizer=None)
-    template = CollisionDetector(model, n_joints=2, regimes=True, threshold="per_joint",
-                                 margin=1.5, filter_cutoff=2.0, min_duration=5,
-                                 sample_time=0.008)
-    det = MultiBandDetector(template).fit(stack_currents(X[::2], current[::2]))
+    rule = AlarmRule("per_joint", margin=1.5, filter_cutoff=2.0, min_duration=5,
+                     regimes=Regimes())
+    template = CollisionDetector(model, n_joints=2, sample_time=0.008, rules=rule)
+    det = banded(template).fit(stack_currents(X[::2], current[::2]))
     test = current + 0.01 * rng.normal(size=current.shape)
     test[100:110, 0] += 1.0  # a 80 ms tap
     test[300:380, 1] -= 1.0  # a push
@@ -70,7 +72,7 @@ def test_replay_equals_a_loop_of_updates_and_the_batch_detector(rng):
     faulty = Z.copy()
     faulty[[50, 600], 3] = np.nan  # missing values: sensor faults
 
-    out = MultiBandMonitor(det).replay(faulty, groups=groups, time=time)
+    out = StreamingMonitor(det).replay(faulty, groups=groups, time=time)
     bad = [50, 600, 650]
     assert np.flatnonzero(out.prediction == 0).tolist() == bad
     assert not out.alarms[bad].any() and np.isnan(out.score[bad]).all()
@@ -83,12 +85,12 @@ def test_replay_equals_a_loop_of_updates_and_the_batch_detector(rng):
             return monitor.update(faulty[t], time=time[t])
         return tick
 
-    _assert_loop(out, _loop(MultiBandMonitor(det), [update(t) for t in range(800)]))
+    _assert_loop(out, _loop(StreamingMonitor(det), [update(t) for t in range(800)]))
     kept = np.setdiff1d(np.arange(800), bad)
     _assert_batch(_rows(out, kept), det, Z[kept], groups[kept])
     assert out.bands[1].alarms[100:110].any() and out.alarms[300:390].any()
     with pytest.raises(ValueError, match=r"time must have shape \(800,\)"):
-        MultiBandMonitor(det).replay(Z, time=time[:5])
+        StreamingMonitor(det).replay(Z, time=time[:5])
 
 
 def _rows(out, rows):
@@ -105,8 +107,8 @@ def test_replay_recording_equals_update_raw_and_the_batch_detector():
     rec, free = simulated_interaction()
     features = CausalFeatures().fit(free)
     Z = stack_currents(features.transform(free), free.current)
-    det = MultiBandDetector(controller_detector()).fit(Z, time=free.time)
-    out = MultiBandMonitor(det, features=features).replay_recording(rec)
+    det = banded(controller_detector()).fit(Z, time=free.time)
+    out = StreamingMonitor(det, features=features).replay_recording(rec)
     signals = {s: getattr(rec, s) for s in features.signals_}
 
     def raw(k):
@@ -114,9 +116,9 @@ def test_replay_recording_equals_update_raw_and_the_batch_detector():
                                                   rec.current[k],
                                                   **{s: v[k] for s, v in signals.items()})
 
-    _assert_loop(out, _loop(MultiBandMonitor(det, features=features),
+    _assert_loop(out, _loop(StreamingMonitor(det, features=features),
                             [raw(k) for k in range(rec.n_samples)]))
     _assert_batch(out, det, stack_currents(features.transform(rec), rec.current))
     assert out.alarms.any() and len(np.unique(out.bands[0].regime)) > 1
     with pytest.raises(ValueError, match="replay_recording needs"):
-        MultiBandMonitor(det).replay_recording(rec)
+        StreamingMonitor(det).replay_recording(rec)

@@ -20,7 +20,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel as C
 from sklearn.linear_model import Ridge
 
 from sklearn_gpcd.layout import block_columns
-from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor, stack_currents
+from sklearn_gpcd.detection import AlarmRule, CollisionDetector, StreamingMonitor, stack_currents
 from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor, make_sp_p, make_sp_s
 from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate
 
@@ -324,7 +324,7 @@ def test_detector_on_constant_currents(threshold):
     X, _ = augmented_inputs(80, rng)
     current = np.full((80, N_JOINTS), 1.5)
     regressor = make_sp_p(None, N_JOINTS, n_support=40, random_state=0)
-    det = CollisionDetector(regressor, n_joints=N_JOINTS, threshold=threshold)
+    det = CollisionDetector(regressor, n_joints=N_JOINTS, rules=AlarmRule(threshold=threshold))
     fit_quietly(det, stack_currents(X, current))
     assert np.all(np.isfinite(det.scale_)) and np.all(det.scale_ > 0)
     assert np.isfinite(det.offset_)
@@ -341,10 +341,9 @@ def test_detector_on_constant_currents(threshold):
 def test_detector_on_a_tiny_training_set(n_rows, threshold):
     rng = np.random.default_rng(0)
     X, Y = augmented_inputs(60, rng)
-    det = CollisionDetector(
-        make_sp_p(None, N_JOINTS, random_state=0), n_joints=N_JOINTS, threshold=threshold,
-        filter_cutoff=5.0, min_duration=2,
-    )
+    det = CollisionDetector(make_sp_p(None, N_JOINTS, random_state=0), n_joints=N_JOINTS,
+                            rules=AlarmRule(threshold=threshold, filter_cutoff=5.0,
+                                            min_duration=2))
     fit_quietly(det, stack_currents(X[:n_rows], Y[:n_rows]))
     assert np.all(np.isfinite(det.scale_)) and np.isfinite(det.offset_)
     Z = stack_currents(X[n_rows:], Y[n_rows:])  # rows the fit has not seen
@@ -357,7 +356,8 @@ def test_no_training_sample_sits_exactly_on_the_false_alarm_level():
     rng = np.random.default_rng(0)
     X, Y = augmented_inputs(10, rng)
     det = CollisionDetector(make_sp_p(None, N_JOINTS, random_state=0), n_joints=N_JOINTS,
-                            threshold="false_alarm_rate", filter_cutoff=5.0, min_duration=2)
+                            rules=AlarmRule(threshold="false_alarm_rate", filter_cutoff=5.0,
+                                            min_duration=2))
     Z = stack_currents(X, Y)
     fit_quietly(det, Z)
     assert not np.any(-det.score_samples(Z) == -det.offset_)
@@ -365,7 +365,9 @@ def test_no_training_sample_sits_exactly_on_the_false_alarm_level():
 
 def test_detector_with_a_linear_model_on_constant_currents():
     X = np.linspace(-1, 1, 50)[:, None]
-    det = CollisionDetector(Ridge(), contamination=0.01).fit(stack_currents(X, np.ones(50)))
+    det = CollisionDetector(Ridge(),
+                            rules=AlarmRule(contamination=0.01)).fit(stack_currents(X,
+                                                                                    np.ones(50)))
     assert np.isfinite(det.scale_[0]) and det.scale_[0] > 0
     assert np.all(det.predict(stack_currents(X, np.ones(50))) == 1)
     assert det.predict(stack_currents(X[:1], [1.5]))[0] == -1

@@ -28,7 +28,7 @@ from sklearn.linear_model import Ridge
 from sklearn.preprocessing import PolynomialFeatures
 
 from sklearn_gpcd.layout import block_columns, column_names
-from sklearn_gpcd.detection import CollisionDetector, StreamingMonitor
+from sklearn_gpcd.detection import AlarmRule, CollisionDetector, StreamingMonitor
 from sklearn_gpcd.features import (
     InverseDynamicsFeatures,
     MissingSignalWarning,
@@ -779,16 +779,15 @@ def detectors(draw):
     use_gp = draw(st.booleans())
     regressor = (SemiParametricGPRegressor(optimizer=None, normalize_y=True) if use_gp
                  else Ridge())
-    detector = CollisionDetector(
-        regressor, n_joints=n_joints,
-        threshold=draw(st.sampled_from(["contamination", "false_alarm_rate"]
-                                       + (["std"] if use_gp else []))),
-        contamination=draw(st.floats(0.01, 0.5)),
-        normalize=draw(st.sampled_from([None, "std"] if use_gp else [None])),
-        filter_cutoff=draw(st.sampled_from([None, 5.0])),
-        filter_order=draw(st.sampled_from([1, 2])),
-        min_duration=draw(st.integers(1, 3)),
-    )
+    threshold = draw(st.sampled_from(["contamination", "false_alarm_rate"]
+                                     + (["std"] if use_gp else [])))
+    contamination = draw(st.floats(0.01, 0.5))
+    normalize = draw(st.sampled_from([None, "std"] if use_gp else [None]))
+    rule = AlarmRule(threshold, contamination=contamination,
+                     filter_cutoff=draw(st.sampled_from([None, 5.0])),
+                     filter_order=draw(st.sampled_from([1, 2])),
+                     min_duration=draw(st.integers(1, 3)))
+    detector = CollisionDetector(regressor, n_joints=n_joints, normalize=normalize, rules=rule)
     return detector, Z
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sklearn_gpcd.detection import CollisionDetector, stack_currents
+from sklearn_gpcd.detection import AlarmRule, CollisionDetector, Regimes, stack_currents
 from sklearn_gpcd.dynamics import ControllerCurrent
 from sklearn_gpcd.features import CausalFeatures
 from sklearn_gpcd.io import load_recording
@@ -84,14 +84,14 @@ def _load(path):
         return load_recording(path)
 
 
-def _peer_on_ptp(ur10e_dir, **params):
+def _peer_on_ptp(ur10e_dir, **regimes):
     """Causal features and the robot's residual as a detector (the benchmark's rule
-    with ``params``), both fitted on ptp_10_points."""
+    with ``regimes``), both fitted on ptp_10_points."""
     free = _load(ur10e_dir / "validation_data" / "ur-20_01_17-ptp_10_points.csv")
     features = CausalFeatures().fit(free)
-    det = CollisionDetector(ControllerCurrent(6), n_joints=6, threshold="per_joint",
-                            false_alarm_rate=0.0, margin=1.5, filter_cutoff=2.0,
-                            min_duration=5, sample_time="auto", regimes=True, **params)
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.5, filter_cutoff=2.0,
+                     min_duration=5, regimes=Regimes(**regimes))
+    det = CollisionDetector(ControllerCurrent(6), n_joints=6, sample_time="auto", rules=rule)
     det.fit(stack_currents(features.transform(free), free.current), time=free.time)
     return features, det
 

@@ -21,6 +21,7 @@ from sklearn.linear_model import Ridge
 
 from sklearn_gpcd.layout import column_index
 from sklearn_gpcd.detection import (
+    AlarmRule,
     CollisionDetector,
     MonitorStatus,
     StreamingMonitor,
@@ -48,19 +49,18 @@ def data():
 @pytest.fixture(scope="module")
 def ridge_detector(data):
     """Linear regressor, 2nd-order low-pass filter and a 3-sample debounce."""
-    return CollisionDetector(
-        Ridge(), n_joints=N_JOINTS, contamination=0.01, filter_cutoff=5.0, filter_order=2,
-        min_duration=3,
-    ).fit(data[0])
+    return CollisionDetector(Ridge(), n_joints=N_JOINTS,
+                             rules=AlarmRule(contamination=0.01, filter_cutoff=5.0, filter_order=2,
+                                             min_duration=3)).fit(data[0])
 
 
 @pytest.fixture(scope="module")
 def gp_detector(data):
     """SP_P on the compiled GP path, filtered and debounced."""
     sp_p = make_sp_p(None, N_JOINTS, n_support=60, random_state=0)
-    return CollisionDetector(
-        sp_p, n_joints=N_JOINTS, contamination=0.01, filter_cutoff=8.0, min_duration=3
-    ).fit(data[0])
+    return CollisionDetector(sp_p, n_joints=N_JOINTS,
+                             rules=AlarmRule(contamination=0.01, filter_cutoff=8.0,
+                                             min_duration=3)).fit(data[0])
 
 
 def assert_same_state(a, b):
@@ -304,10 +304,9 @@ class _Overflowing(RegressorMixin, BaseEstimator):
 
 def test_non_finite_prediction_is_a_fault_and_does_not_poison_the_filter(data):
     Z_train, Z = data
-    det = CollisionDetector(
-        _Overflowing(), n_joints=N_JOINTS, contamination=0.01, filter_cutoff=5.0,
-        filter_order=2, min_duration=3,
-    ).fit(Z_train)
+    det = CollisionDetector(_Overflowing(), n_joints=N_JOINTS,
+                            rules=AlarmRule(contamination=0.01, filter_cutoff=5.0, filter_order=2,
+                                            min_duration=3)).fit(Z_train)
     monitor, twin = StreamingMonitor(det), StreamingMonitor(det)
     assert monitor.predictor_kind == "generic"
     feed_both(monitor, twin, Z[:50])
@@ -320,9 +319,8 @@ def test_non_finite_prediction_is_a_fault_and_does_not_poison_the_filter(data):
 def test_fault_on_the_first_tick_leaves_the_filter_fresh(data):
     """The filter starts in steady state on the first VALID sample, as batch."""
     Z_train, Z = data
-    det = CollisionDetector(
-        _Overflowing(), n_joints=N_JOINTS, filter_cutoff=5.0, min_duration=1
-    ).fit(Z_train)
+    det = CollisionDetector(_Overflowing(), n_joints=N_JOINTS,
+                            rules=AlarmRule(filter_cutoff=5.0, min_duration=1)).fit(Z_train)
     monitor, twin = StreamingMonitor(det), StreamingMonitor(det)
     assert monitor.update(faulty(Z[0], Q0, 1e3)) == "sensor_fault"
     feed_both(monitor, twin, Z[1:40])
@@ -344,8 +342,9 @@ def test_filter_overflow_is_a_fault_that_leaves_the_filter_state(data, ridge_det
 def test_std_normalisation_recovers_after_a_fault(rng):
     X, current = augmented_run(200, N_JOINTS, rng)
     gp = GaussianProcessRegressor(C(1.0) * RBF([3.0] * 12) + WhiteKernel(0.01), optimizer=None)
-    det = CollisionDetector(gp, n_joints=N_JOINTS, normalize="std", threshold="std", k=3.0,
-                            filter_cutoff=5.0).fit(stack_currents(X, current))
+    det = CollisionDetector(gp, n_joints=N_JOINTS, normalize="std",
+                            rules=AlarmRule(threshold="std", k=3.0,
+                                            filter_cutoff=5.0)).fit(stack_currents(X, current))
     Z = stack_currents(X, current + 0.03)
     monitor, twin = StreamingMonitor(det), StreamingMonitor(det)
     feed_both(monitor, twin, Z[:30])

@@ -155,7 +155,7 @@ def n_support_arg(value):
 
 
 # ---------------------------------------------------------------- progress
-class Progress:
+class ProgressBar:
     """A progress bar with an ETA on stderr.
 
     On a terminal the bar is redrawn in place; otherwise (a log, a pipe) one
@@ -212,7 +212,7 @@ def read_recordings(paths, args, what="recordings", progress=True):
     kwargs = {}
     if getattr(args, "robot", None) is not None:
         kwargs["n_joints"] = args.robot.n_joints
-    bar = Progress(f"reading {what}", len(sources),
+    bar = ProgressBar(f"reading {what}", len(sources),
                     enabled=progress and not getattr(args, "quiet", False))
     recordings = []
     for path in sources:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from ..workflow.calibration import band_label
 from ._args import (
-    Progress,
+    ProgressBar,
     add_recording_options,
     existing_file,
     model_file_arg,
@@ -172,7 +172,7 @@ def run(args):
     robot = _optional_robot(args, recordings)
     calibrated = calibrate_detector(
         trained, recordings, keys=recording_keys(recordings), split=args.split, robot=robot,
-        progress=lambda label, total: Progress(label, total, enabled=not args.quiet),
+        progress=lambda label, total: ProgressBar(label, total, enabled=not args.quiet),
         **options)
     save_detector(calibrated, args.output)
     _print_calibration(calibrated.calibration, len(calibrated.calibration["recordings"]))

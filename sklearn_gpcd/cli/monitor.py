@@ -6,9 +6,9 @@ runs on the robot) and reports the alarm events. Recordings are processed as
 fast as possible, ``--replay`` paces one recording to its time stamps
 (``--speed``), ``--rtde`` receives a live UR controller's stream (RTDE
 protocol 2, :mod:`sklearn_gpcd.io._rtde_live`). All three go through the
-same per-sample loop (:class:`_Session`), a
-:class:`~sklearn_gpcd.detection.MultiBandMonitor` for a multi-band file (an
-event: samples where any band alarms; the report names the bands).
+same per-sample loop (:class:`_Session`); with several bands (alarm rules)
+an event is a run of samples where any band alarms, and the report names
+the bands.
 """
 
 import json
@@ -90,8 +90,7 @@ def add_parser(sub):
 class _Session:
     """The per-sample loop every ``gpcd monitor`` source goes through.
 
-    :meth:`tick` feeds one raw sample to :meth:`StreamingMonitor.update_raw`
-    (:meth:`MultiBandMonitor.update_raw` for a multi-band detector), then
+    :meth:`tick` feeds one raw sample to :meth:`StreamingMonitor.update_raw`, then
     tracks threshold crossings and alarm events; :meth:`start` begins a new
     recording (monitor reset). With several bands an event is a run of
     samples where any band alarms, and it records which bands did
@@ -101,18 +100,17 @@ class _Session:
     def __init__(self, detector, features, hook=None, keep_series=False, echo=False):
         import numpy as np
 
-        from ..detection import MultiBandDetector, MultiBandMonitor, StreamingMonitor
+        from ..detection import StreamingMonitor
 
         self.np = np
-        self.multiband = isinstance(detector, MultiBandDetector)
-        kind = MultiBandMonitor if self.multiband else StreamingMonitor
-        self.monitor = kind(detector, features=features)
-        #: one StreamingMonitor per band (the monitor itself with one band)
-        self.bands = self.monitor.monitors if self.multiband else [self.monitor]
-        self.band_labels = [band_label(band_settings(b.detector)) for b in self.bands]
+        self.monitor = StreamingMonitor(detector, features=features)
+        #: one BandState per alarm rule
+        self.bands = self.monitor.bands
+        self.multiband = len(self.bands) > 1
+        self.band_labels = [band_label(band_settings(b.rule)) for b in self.bands]
         self.signals = tuple(features.signals_)
-        self.thresholds = [np.atleast_2d(b.detector.thresholds_) for b in self.bands]
-        self.regime_names = tuple(self.bands[0].detector.regime_names_)
+        self.thresholds = [b.thresholds for b in self.bands]
+        self.regime_names = tuple(self.bands[0].rule.regime_names_)
         self.hook, self.keep_series, self.echo = hook, keep_series, echo
         self.events, self.recordings = [], []
         self.latency, self.stamps, self.decided = [], [], []
@@ -283,7 +281,7 @@ def run(args):
         if session.monitor.n_joints != 6:
             raise ValueError(f"RTDE streams 6 joints; the detector has "
                              f"{session.monitor.n_joints}")
-        sample_time = session.bands[0].detector.sample_time_
+        sample_time = session.monitor.detector.sample_time_
         frequency = args.frequency or round(1.0 / float(sample_time), 6)
         client = RTDEClient(args.rtde, args.port, frequency)
         try:

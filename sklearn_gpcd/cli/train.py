@@ -6,7 +6,7 @@ import time
 
 from ..workflow.training import INPUTS, MODELS, OPTIMIZERS, TRAIN_RULE
 from ._args import (
-    Progress,
+    ProgressBar,
     add_recording_options,
     model_file_arg,
     n_support_arg,
@@ -92,7 +92,7 @@ def run(args):
     trained = train_model(
         recordings, robot, args.model, inputs=args.inputs, n_support=args.n_support,
         optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed, n_jobs=n_jobs,
-        progress=lambda label, total: Progress(label, total, enabled=not quiet),
+        progress=lambda label, total: ProgressBar(label, total, enabled=not quiet),
         coulomb_width=args.coulomb_width)
     fit_seconds = time.perf_counter() - start
     save_model(trained, args.output)

@@ -33,24 +33,19 @@ from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
 
 from ..metrics import alarm_onsets
-from ._signal import debounce_segments, recording_index, segment_starts
+from ._signal import segment_starts
 from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
-from .detector import _post_processing_settings
+from .rules import AlarmRule
 
 __all__ = [
     "MARGIN_RULES",
-    "SELECTABLE_PARAMS",
     "calibrate_across_recordings",
     "loro_margin",
+    "nested_alarms",
     "nested_false_alarms",
     "regime_excursions",
     "regime_levels",
 ]
-
-#: CollisionDetector parameters ``calibrate_across_recordings(param_grid=...)``
-#: may vary: they act after the regressor, so its predictions are computed once.
-SELECTABLE_PARAMS = ("settle_time", "rest_reference", "filter_cutoff", "filter_order",
-                     "min_duration")
 
 
 def regime_excursions(detector, blocks):
@@ -59,7 +54,7 @@ def regime_excursions(detector, blocks):
     Parameters
     ----------
     detector : CollisionDetector
-        A fitted detector with ``threshold="per_joint"``.
+        A fitted detector whose (first) rule has ``threshold="per_joint"``.
     blocks : dict of str -> ndarray of shape (n_samples, n_inputs + n_joints)
         Detector input (:func:`~sklearn_gpcd.detection.stack_currents`) of
         each recording.
@@ -76,29 +71,29 @@ def regime_excursions(detector, blocks):
     --------
     >>> import numpy as np
     >>> from sklearn.linear_model import LinearRegression
-    >>> from sklearn_gpcd.detection import CollisionDetector, stack_currents
+    >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
     >>> rng = np.random.default_rng(0)
     >>> qd = rng.normal(size=(200, 1))
     >>> Z = stack_currents(qd, 2 * qd[:, 0] + 0.1 * rng.normal(size=200))
-    >>> det = CollisionDetector(LinearRegression(), threshold="per_joint",
-    ...                         false_alarm_rate=0.0, sample_time=0.01).fit(Z)
+    >>> det = CollisionDetector(LinearRegression(), sample_time=0.01,
+    ...                         rules=AlarmRule("per_joint", false_alarm_rate=0.0)).fit(Z)
     >>> debounced, regime, peaks = regime_excursions(det, {"a": Z})["a"]
     >>> debounced.shape, peaks.shape
     ((200, 1), (1, 1))
     """
+    rule = detector.rules_[0]
     out = {}
     for key, block in blocks.items():
-        mon = detector.monitoring_signal(block)
-        out[key] = _excursion(detector, mon.signal, mon.regime)
+        band = detector.monitoring_signal(block).bands[0]
+        out[key] = _excursion(rule, band.signal, band.regime)
     return out
 
 
-def _excursion(detector, signal, regime):
+def _excursion(rule, signal, regime):
     """``(debounced, regime, peaks)`` of one recording's monitoring signal."""
-    starts = segment_starts(len(signal))
-    debounced = debounce_segments(np.abs(signal), detector.min_duration, starts)
+    debounced = rule.debounced(signal)
     recording = np.zeros(len(signal), dtype=np.intp)
-    peaks = recording_peaks(debounced, regime, recording, len(detector.regime_names_))[0]
+    peaks = recording_peaks(debounced, regime, recording, len(rule.regime_names_))[0]
     return debounced, regime, peaks
 
 
@@ -256,8 +251,13 @@ def _folds(alarms, times):
 def calibrate_across_recordings(detector, blocks, times, rule="global", param_grid=None):
     """Fit a detector with a leave-one-recording-out margin; count nested false alarms.
 
-    With ``param_grid``, the detector's post-processing settings are chosen
-    too. Each candidate is calibrated by the rule above and scored by the
+    Each alarm rule (band) of ``detector`` is calibrated by the rule above on
+    one prediction of the recordings; a recording alarms where some band
+    does, and the nested false alarms count the alarm onsets of that union
+    (each band with margin and levels chosen without the recording).
+
+    With ``param_grid``, the settings of the **last** rule are chosen too.
+    Each candidate is calibrated by the rule above and scored by the
     time-weighted mean log threshold at its own operating point,
 
     .. math::
@@ -271,22 +271,22 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     scale adds the same constant to every candidate). By construction of the
     margin every candidate raises no alarm on the recordings it is calibrated
     on, so :math:`J` alone rewards a candidate that fits them tightly and
-    transfers badly. The candidates are therefore ranked first by their
-    nested false alarms on the calibration recordings (each recording scored
-    with margin and levels from the others, step 3 above), then by
+    transfers badly. The candidates are therefore ranked first by the nested
+    false alarms of the union on the calibration recordings (each recording
+    scored with margins and levels from the others, step 3 above), then by
     :math:`J`: the operating point is the most sensitive candidate among those
     that transferred best between the calibration recordings. The nested
     false alarms of each recording are counted at the candidate chosen
     without it (ranked on the other recordings alone, its margin and levels
     also chosen without it), so the figure never saw the recording even
     through the choice of settings. The regressor predicts each recording
-    once for all candidates.
+    once for every band and candidate.
 
     Parameters
     ----------
     detector : CollisionDetector
-        Unfitted template with ``threshold="per_joint"`` and
-        ``false_alarm_rate=0`` (its ``margin`` is replaced); wrap a trained
+        Unfitted template whose rules have ``threshold="per_joint"`` and
+        ``false_alarm_rate=0`` (their ``margin`` is replaced); wrap a trained
         regressor in :class:`sklearn.frozen.FrozenEstimator` so it is not
         refitted.
     blocks : dict of str -> ndarray of shape (n_samples, n_inputs + n_joints)
@@ -296,188 +296,199 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     rule : {"global", "joint", "regime", "cell"}, default="global"
         As :func:`loro_margin`.
     param_grid : dict or list of dicts, default=None
-        Candidate settings, as for :class:`sklearn.model_selection.ParameterGrid`,
-        with keys in :data:`SELECTABLE_PARAMS`, e.g. ``{"settle_time": [0.5,
-        1, 2, 3], "rest_reference": [None, 2, 5]}``. None calibrates the
-        template's own settings.
+        Candidate settings of the last rule, as for
+        :class:`sklearn.model_selection.ParameterGrid`, with
+        :class:`~sklearn_gpcd.detection.AlarmRule` parameter names (nested
+        for its regimes), e.g. ``{"regimes__settle_time": [0.5, 1, 2, 3],
+        "regimes__rest_reference": [None, 2, 5]}`` or ``{"filter_cutoff":
+        [8, 10, 20], "min_duration": [2, 3]}``. None calibrates the rules
+        as given.
 
     Returns
     -------
     result : Bunch
         ``detector`` (fitted on all recordings at the operating point),
-        ``margin`` and ``levels`` (n_regime_rows, n_joints), ``folds`` (from
-        :func:`nested_false_alarms`, empty with 2 recordings), ``n_false_alarms``
-        (their total), ``hours`` and ``false_alarms_per_hour`` (None with
-        fewer than 3 recordings), ``series`` (from :func:`regime_excursions`
-        at a unit margin, e.g. to compare rules with
-        :func:`nested_false_alarms`), ``settings`` (the chosen candidate,
-        ``{}`` without ``param_grid``), ``candidates`` (per candidate:
-        ``params``, ``score`` :math:`J`, ``margin``, ``n_false_alarms``,
-        nested at that fixed candidate, and ``rank``: 0 for the operating
-        point, which has the fewest ``n_false_alarms``, then the smallest
-        ``score``) and ``fold_settings`` (the candidate chosen without each
-        recording).
+        ``folds`` (:func:`nested_false_alarms` of the union of the bands,
+        each recording at the candidate chosen without it; empty with 2
+        recordings), ``n_false_alarms`` (their total), ``hours`` and
+        ``false_alarms_per_hour`` (None with fewer than 3 recordings),
+        ``settings`` (the chosen candidate, ``{}`` without ``param_grid``),
+        ``candidates`` (per candidate: ``params``, ``score`` :math:`J`,
+        ``margin``, ``n_false_alarms`` of the union, nested at that fixed
+        candidate, and ``rank``: 0 for the operating point, which has the
+        fewest ``n_false_alarms``, then the smallest ``score``),
+        ``fold_settings`` (the candidate chosen without each recording, with
+        more than one candidate) and ``bands``: per rule, ``rule`` (fitted),
+        ``margin`` and ``levels`` (n_regime_rows, n_joints), ``series``
+        (:func:`regime_excursions` at a unit margin), ``folds``,
+        ``n_false_alarms`` and ``false_alarms_per_hour`` of the band alone
+        (the last band at the chosen candidate) and ``regime_names``. The
+        first band's ``margin``, ``levels``, ``series`` and ``regime_names``
+        are also at the top level.
 
     Examples
     --------
     >>> import numpy as np
     >>> from sklearn.linear_model import LinearRegression
-    >>> from sklearn_gpcd.detection import CollisionDetector, stack_currents
+    >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
     >>> rng = np.random.default_rng(0)
     >>> blocks, times = {}, {}
     >>> for name in "abc":
     ...     qd = rng.normal(size=(300, 1))
     ...     blocks[name] = stack_currents(qd, 2 * qd[:, 0] + 0.1 * rng.normal(size=300))
     ...     times[name] = np.arange(300) * 0.01
-    >>> template = CollisionDetector(LinearRegression(), threshold="per_joint",
-    ...                              false_alarm_rate=0.0, sample_time=0.01)
+    >>> template = CollisionDetector(LinearRegression(), sample_time=0.01,
+    ...                              rules=AlarmRule("per_joint", false_alarm_rate=0.0))
     >>> result = calibrate_across_recordings(template, blocks, times)
     >>> bool(result.margin.min() >= 1.0), sorted(result.folds)
     (True, ['a', 'b', 'c'])
     >>> result = calibrate_across_recordings(template, blocks, times,
     ...                                      param_grid={"filter_cutoff": [None, 2.0]})
-    >>> result.settings, result.detector.filter_cutoff   # filtering narrows the band
+    >>> result.settings, result.detector.rules_[0].filter_cutoff   # filtering narrows
     ({'filter_cutoff': 2.0}, 2.0)
+
+    A second, faster band whose cut-off is chosen across the recordings:
+
+    >>> slow = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5)
+    >>> fast = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=10.0, min_duration=2)
+    >>> result = calibrate_across_recordings(
+    ...     template.set_params(rules=[slow, fast]), blocks, times,
+    ...     param_grid={"filter_cutoff": [5.0, 10.0]})
+    >>> len(result.bands), len(result.candidates), sorted(result.fold_settings)
+    (2, 2, ['a', 'b', 'c'])
     """
-    runs = _CandidateRuns(detector, blocks, times, rule, _candidates(param_grid))
-    return _calibration_result(runs, rule)
+    keys = list(blocks)
+    if len(keys) < 2:
+        raise ValueError("calibration across recordings needs at least 2 collision-free "
+                         f"recordings, got {len(keys)}")
+    base = clone(detector)
+    rules = [r.set_params(margin=1.0) for r in base.alarm_rules()]
+    candidates = _candidates(param_grid, rules[-1])
+    base.set_params(rules=rules)
+    Z = np.concatenate([blocks[k] for k in keys])
+    groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
+    time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
+    residuals = base.fit_residuals(Z, groups=groups, time=time)
+    u = _recording_residuals(base, keys, groups, residuals)
+    prepared = [_prepared(base, rule) for rule in rules]
+    fixed = [_band_run(r, u, times, rule) for r in prepared[:-1]]
+    runs = [_band_run(_prepared(base, clone(rules[-1]).set_params(**params)), u, times, rule)
+            for params in candidates]
+    fixed_series = [run.series for run in fixed]
 
+    def union_onsets(subset):
+        """Nested onsets of the union on ``subset``, per candidate (the fixed
+        bands' held-out alarms computed once for all candidates)."""
+        if len(subset) < 3:  # no margin without two other recordings
+            return [0] * len(runs)
+        held_out = {r: _held_out_union(fixed_series, subset, r, rule) for r in subset}
+        return [sum(len(alarm_onsets(held_out[r] | _held_out_alarm(run.series, subset, r,
+                                                                      rule)))
+                    for r in subset) for run in runs]
 
-def _calibration_result(runs, rule):
-    """The Bunch of :func:`calibrate_across_recordings` from its candidate runs:
-    the candidates ranked, the operating point, and the nested folds (each
-    recording at the candidate chosen without it)."""
-    keys = runs.keys
-    # ranked on all recordings from what the runs already hold: the nested onsets
-    # of each run's folds and its score (as _best_candidate computes them on a subset)
-    table = [{"params": params, "score": _selection_score(series, keys, rule),
-              "margin": float(margin.max()),
-              "n_false_alarms": sum(len(f["onsets"]) for f in folds.values())}
-             for params, (series, margin, folds) in zip(runs.candidates, runs.runs)]
-    order = sorted(range(len(table)), key=lambda c: (table[c]["n_false_alarms"],
-                                                     table[c]["score"]))
-    for rank, c in enumerate(order):
-        table[c]["rank"] = rank
+    def ranks(subset):
+        return list(zip(union_onsets(subset),
+                        (_selection_score(run.series, subset, rule) for run in runs)))
+
+    table_ranks = ranks(keys)
+    order = sorted(range(len(runs)), key=table_ranks.__getitem__)
     best = order[0]
-    folds = runs.runs[best][2]
-    fold_settings = {}
-    if len(keys) >= 3 and len(runs.candidates) > 1:  # the settings, too, chosen without r
-        chosen = {r: _best_candidate(runs.runs, [k for k in keys if k != r], rule)
-                  for r in keys}
-        folds = {r: runs.runs[c][2][r] for r, c in chosen.items()}
-        fold_settings = {r: runs.candidates[c] for r, c in chosen.items()}
-    return runs.result(best, folds, fold_settings, table)
+    table = [{"params": params, "score": table_ranks[c][1],
+              "margin": float(runs[c].margin.max()), "n_false_alarms": table_ranks[c][0],
+              "rank": order.index(c)} for c, params in enumerate(candidates)]
+    alarms, fold_settings = {}, {}
+    if len(keys) >= 3:
+        for r in keys:
+            c = best
+            if len(runs) > 1:
+                subset = [k for k in keys if k != r]
+                scored = ranks(subset)
+                c = min(range(len(runs)), key=scored.__getitem__)
+                fold_settings[r] = candidates[c]
+            alarms[r] = _held_out_union(fixed_series + [runs[c].series], keys, r, rule)
+    bands = fixed + [runs[best]]
+    chosen = [clone(run.rule).set_params(margin=run.margin if run.rule.uses_regimes
+                                         else run.margin.reshape(-1))  # its scale_'s shape
+              for run in bands]
+    single = detector.rules is None or isinstance(detector.rules, AlarmRule)
+    fitted = copy.copy(base).set_params(rules=chosen[0] if single else chosen)
+    fitted.calibrate(residuals)
+    hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
+    folds = _folds(alarms, times) if alarms else {}
+    n_false = sum(len(f["onsets"]) for f in folds.values())
+    for band, fitted_rule in zip(bands, fitted.rules_):
+        band.rule = fitted_rule
+        band.false_alarms_per_hour = (band.n_false_alarms / hours
+                                      if band.folds and hours > 0 else None)
+    first = bands[0]
+    return Bunch(detector=fitted, bands=bands, folds=folds, n_false_alarms=n_false,
+                 hours=hours,
+                 false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
+                 settings=dict(candidates[best]), candidates=table,
+                 fold_settings=fold_settings, margin=first.margin, levels=first.levels,
+                 series=first.series, regime_names=first.regime_names)
 
 
-class _CandidateRuns:
-    """Every candidate of a calibration across recordings, from one prediction.
-
-    ``clone(detector)`` is fitted on all recordings at a unit margin and its
-    residuals kept: the regressor predicts each calibration row once, for
-    every candidate setting and for the operating point. ``runs[c]`` is
-    ``(series, margin, folds)`` of candidate ``c``: its
-    :func:`regime_excursions`, its :func:`loro_margin` and its
-    :func:`nested_false_alarms` (empty with fewer than 3 recordings).
-
-    With ``shared`` (the runs of another detector on the same recordings,
-    e.g. another band of one model), its prediction is reused when
-    ``detector`` differs from that detector only in settings applied after
-    the regressor (``POST_PROCESSING_PARAMS`` of the detector module; the
-    margin is replaced anyway) and the prediction holds the std where
-    ``detector`` reads it: the regressor then predicts nothing again.
-    Otherwise ``detector`` predicts on its own.
-    """
-
-    def __init__(self, detector, blocks, times, rule, candidates, shared=None):
-        keys = list(blocks)
-        if len(keys) < 2:
-            raise ValueError("calibration across recordings needs at least 2 collision-free "
-                             f"recordings, got {len(keys)}")
-        self.keys, self.times, self.candidates = keys, times, candidates
-        self.detector = detector
-        settings = None
-        if shared is not None and (shared.residuals[1] is not None
-                                   or not detector._needs_std(fitting=True)):
-            settings = _post_processing_settings(shared.detector, detector)
-        if settings is None:
-            Z = np.concatenate([blocks[k] for k in keys])
-            self.groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
-            time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
-            base = clone(detector).set_params(margin=1.0)
-            self.residuals = base._fit_residuals(Z, None, self.groups, time,
-                                                 base._needs_std(fitting=True))
-        else:
-            self.groups, self.residuals = shared.groups, shared.residuals
-            base = copy.copy(shared.base).set_params(regressor=detector.regressor, **settings)
-            base._validate_params()
-        base._calibrate(*self.residuals, recording_index(self.groups))
-        self.base = base
-        per_recording = _recording_residuals(base, keys, self.groups, *self.residuals[:2],
-                                             self.residuals[3])
-        self.runs = []
-        for params in candidates:
-            series = _candidate_series(base, params, per_recording)
-            peaks = {k: v[2] for k, v in series.items()}
-            folds = nested_false_alarms(series, times, rule) if len(keys) >= 3 else {}
-            self.runs.append((series, loro_margin(peaks, keys, rule), folds))
-
-    def result(self, c, folds, fold_settings, table):
-        """The Bunch of :func:`calibrate_across_recordings` at candidate ``c``,
-        its detector refitted at that candidate's margin (from the residuals
-        already predicted), with the nested ``folds`` given."""
-        series, margin = self.runs[c][:2]
-        keys = self.keys
-        peaks = {k: v[2] for k, v in series.items()}
-        shaped = margin.reshape(np.shape(self.base.scale_))  # (n_joints,) without regimes
-        fitted = copy.copy(self.base).set_params(**self.candidates[c], margin=shaped)
-        fitted._validate_params()
-        fitted._calibrate(*self.residuals, recording_index(self.groups))
-        times = self.times
-        hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
-        n_false = sum(len(f["onsets"]) for f in folds.values())
-        return Bunch(detector=fitted, margin=margin, levels=regime_levels(peaks, keys),
-                     folds=folds, n_false_alarms=n_false, hours=hours,
-                     false_alarms_per_hour=(n_false / hours if folds and hours > 0 else None),
-                     regime_names=tuple(fitted.regime_names_), series=series,
-                     settings=dict(self.candidates[c]), candidates=table,
-                     fold_settings=fold_settings)
-
-
-def _candidates(param_grid):
-    """The candidate settings of ``param_grid`` (``[{}]`` for None), checked."""
+def _candidates(param_grid, rule):
+    """The candidate settings of ``param_grid`` (``[{}]`` for None), checked
+    against the parameters of ``rule``."""
     if param_grid is None:
         return [{}]
     candidates = list(ParameterGrid(param_grid))
-    unknown = sorted({k for c in candidates for k in c} - set(SELECTABLE_PARAMS))
-    if unknown:
-        raise ValueError(f"param_grid: {unknown[0]!r} cannot be chosen across recordings; "
-                         f"the settings that can are {SELECTABLE_PARAMS}")
     if not candidates:
         raise ValueError("param_grid has no candidate")
+    for params in candidates:
+        if "margin" in params:
+            raise ValueError("param_grid: the margin is chosen across recordings; it "
+                             "cannot be a candidate setting")
+        for key, value in params.items():
+            try:
+                clone(rule).set_params(**{key: value})
+            except (ValueError, AttributeError):
+                raise ValueError(
+                    f"param_grid: {key!r} is not a setting of the last alarm rule {rule!r} "
+                    "(AlarmRule parameters, regimes__settle_time and the like for its "
+                    "regimes)") from None
     return candidates
 
 
-def _recording_residuals(detector, keys, groups, residual, std, motion):
-    """``(residual, std, motion)`` of each recording, cut from the stacked
-    rows (recording ``keys[g]`` in the rows where ``groups == g``); ``std``
-    only where the detector's monitoring signal reads it."""
-    std = std if detector._needs_std() else None
-    return {key: (residual[rows], None if std is None else std[rows],
-                  None if motion is None else motion[rows])
+def _prepared(detector, rule):
+    """``rule`` with what its signal stages need (the fitted detector's timing)."""
+    return rule.prepare(detector.sample_time_, detector.sigma_v)
+
+
+def _recording_residuals(detector, keys, groups, residuals):
+    """``(u, motion)`` of each recording, cut from the stacked rows (recording
+    ``keys[g]`` in the rows where ``groups == g``); ``u`` the residual over the
+    std where the detector normalises."""
+    u = residuals.residual
+    if detector.normalize == "std":
+        u = u / residuals.std
+    motion = residuals.motion
+    return {key: (u[rows], None if motion is None else motion[rows])
             for key, rows in ((k, groups == g) for g, k in enumerate(keys))}
 
 
-def _candidate_series(base, params, residuals):
-    """:func:`regime_excursions` of ``base`` with the post-processing ``params``,
-    from residuals already predicted."""
-    det = copy.copy(base).set_params(**params)
-    det._validate_params()
-    det._set_signal_stages()
-    out = {}
-    for key, (residual, std, motion) in residuals.items():
-        signal, regime, _ = det._signal(residual, std, segment_starts(len(residual)), motion)
-        out[key] = _excursion(det, signal, regime)
-    return out
+def _band_run(rule, residuals, times, margin_rule):
+    """One band at its settings: series, LORO margin, levels and its own nested folds."""
+    series = {}
+    for key, (u, motion) in residuals.items():
+        signal, regime, _ = rule.signal(u, segment_starts(len(u)), motion)
+        series[key] = _excursion(rule, signal, regime)
+    keys = list(series)
+    peaks = {k: v[2] for k, v in series.items()}
+    folds = nested_false_alarms(series, times, margin_rule) if len(keys) >= 3 else {}
+    return Bunch(rule=rule, series=series, margin=loro_margin(peaks, keys, margin_rule),
+                 levels=regime_levels(peaks, keys), folds=folds,
+                 n_false_alarms=sum(len(f["onsets"]) for f in folds.values()),
+                 regime_names=tuple(rule.regime_names_))
+
+
+def _held_out_union(bands, keys, r, rule):
+    """Alarms of recording ``r`` where any band alarms (``bands``: each band's
+    :func:`regime_excursions`), each band with margin and levels from the other
+    recordings of ``keys`` (:func:`nested_alarms` of the union)."""
+    return np.logical_or.reduce([_held_out_alarm(series, keys, r, rule) for series in bands])
 
 
 def _loro_thresholds(series, keys, rule):
@@ -502,19 +513,3 @@ def _held_out_alarm(series, keys, r, rule):
     thresholds = _loro_thresholds(series, [k for k in keys if k != r], rule)
     debounced, regimes, _ = series[r]
     return (debounced > thresholds[regimes]).any(axis=1)
-
-
-def _nested_onset_count(series, keys, rule):
-    """Nested alarm onsets on the recordings ``keys``, each recording scored with
-    margin and levels from the other ``keys`` (0 with fewer than 3)."""
-    if len(keys) < 3:
-        return 0
-    return sum(len(alarm_onsets(_held_out_alarm(series, keys, r, rule))) for r in keys)
-
-
-def _best_candidate(runs, keys, rule):
-    """Index of the run with the fewest nested onsets on ``keys``, then the
-    smallest score on ``keys`` (the first on ties)."""
-    ranks = [(_nested_onset_count(run[0], keys, rule), _selection_score(run[0], keys, rule))
-             for run in runs]
-    return min(range(len(runs)), key=ranks.__getitem__)

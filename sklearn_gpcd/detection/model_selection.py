@@ -11,8 +11,6 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._persistence import VersionedStateMixin
 from ..metrics import event_recall, false_alarms_per_hour, mean_detection_delay
-from ._signal import recording_index, segment_starts
-from .detector import POST_PROCESSING_PARAMS, _same_param
 
 METRICS = ("recall", "false_alarms_per_hour", "delay")
 
@@ -117,9 +115,10 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
     false alarms per hour, among the candidates with mean delay <=
     max_delay**.
 
-    Candidates that differ only in post-processing parameters (threshold
-    rule and level, normalisation, filter, debounce) share one regressor fit
-    per fold; others, e.g. ``sigma_v`` or ``regressor__...``, refit it.
+    Candidates that differ only in their alarm rules (``rules`` or
+    ``rules__...``: threshold rule and level, filter, debounce, regimes)
+    share one regressor fit per fold; others, e.g. ``sigma_v`` or
+    ``regressor__...``, refit it.
 
     Parameters
     ----------
@@ -161,7 +160,7 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
     --------
     >>> import numpy as np
     >>> from sklearn.linear_model import LinearRegression
-    >>> from sklearn_gpcd.detection import (CollisionDetector,
+    >>> from sklearn_gpcd.detection import (AlarmRule, CollisionDetector,
     ...                                     CollisionThresholdCV, stack_currents)
     >>> rng = np.random.default_rng(0)
     >>> qd = rng.normal(size=(3000, 1))
@@ -172,11 +171,11 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
     ...     labels[start:start + 30] = k + 1
     >>> groups = np.repeat([0, 1, 2], 1000)             # three recordings
     >>> search = CollisionThresholdCV(
-    ...     CollisionDetector(LinearRegression()),
-    ...     {"contamination": [0.001, 0.05], "min_duration": [1, 3]},
+    ...     CollisionDetector(LinearRegression(), rules=AlarmRule()),
+    ...     {"rules__contamination": [0.001, 0.05], "rules__min_duration": [1, 3]},
     ...     cv=3, max_delay=0.1)
     >>> search.fit(stack_currents(qd, current), labels, groups=groups).best_params_
-    {'contamination': 0.001, 'min_duration': 3}
+    {'rules__contamination': 0.001, 'rules__min_duration': 3}
     >>> res = search.cv_results_
     >>> res["mean_test_recall"].tolist()     # every candidate finds all contacts
     [1.0, 1.0, 1.0, 1.0]
@@ -320,11 +319,16 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
         return self._best().predict(X, groups)
 
 
+def _is_rule_param(name):
+    """Whether a parameter acts after the regressor (an alarm rule's)."""
+    return name == "rules" or name.startswith("rules__")
+
+
 def _group_by_fit(candidates):
     """Blocks ``(heavy params, candidate indices)`` sharing a regressor fit."""
     blocks = []
     for i, params in enumerate(candidates):
-        heavy = {k: v for k, v in params.items() if k not in POST_PROCESSING_PARAMS}
+        heavy = {k: v for k, v in params.items() if not _is_rule_param(k)}
         for block_heavy, members in blocks:
             if block_heavy.keys() == heavy.keys() and all(
                 _same_param(block_heavy[k], heavy[k]) for k in heavy
@@ -336,35 +340,38 @@ def _group_by_fit(candidates):
     return blocks
 
 
+def _same_param(a, b):
+    """Parameter values equal: the same object, equal arrays, or ``a == b``.
+
+    >>> _same_param([1, 2], [1, 2]), _same_param(np.zeros(2), np.zeros(3))
+    (True, False)
+    """
+    if a is b:
+        return True
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.shape(a) == np.shape(b) and np.array_equal(a, b))
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):
+        return False
+
+
 def _evaluate_fold(detector, heavy, lights, X, labels, groups, train, test, max_delay,
                    time=None):
     """Metrics of the candidates ``heavy | light`` for one train/test split."""
     base = clone(detector).set_params(**heavy)
     variants = [clone(base).set_params(**light) for light in lights]
-    needs_std = any(v._needs_std(fitting=True) for v in variants)
     train_time = None if time is None else time[train]
-    residual, std, train_starts, _ = base._fit_residuals(
-        X[train], labels[train], groups[train], train_time, needs_std
-    )
-    X_train, X_test = X[train][labels[train] == 0], X[test]
-    _, test_std, test_residual = base._residual(X_test, any(v._needs_std() for v in variants))
-    test_starts = segment_starts(len(test), groups[test])
-    train_recordings = recording_index(groups[train], labels[train])
+    residuals = base.fit_residuals(
+        X[train], labels=labels[train], groups=groups[train], time=train_time,
+        return_std=any(v.needs_std(fitting=True) for v in variants))
+    test_residuals = base.residuals(X[test], groups[test],
+                                    return_std=any(v.needs_std() for v in variants))
     results = []
-    for variant in variants:
-        variant._validate_params()
-        variant.sample_time_ = variant._check_sample_time(train_time, groups[train],
-                                                          len(train))
-        variant.regressor_ = base.regressor_
-        variant.velocity_columns_ = variant._velocity_columns(X.shape[1] - variant.n_joints)
-        variant.acceleration_columns_ = variant._acceleration_columns(
-            X.shape[1] - variant.n_joints)
-        variant._calibrate(residual, std, train_starts, variant._motion(X_train),
-                           train_recordings)
-        signal, regimes, _ = variant._signal(
-            test_residual, test_std, test_starts, variant._motion(X_test)
-        )
-        alarms = variant._ratio(signal, regimes, test_starts).max(axis=1) > -variant.offset_
+    for light in lights:
+        variant = base.recalibrated(residuals, **{k: v for k, v in light.items()
+                                                  if _is_rule_param(k)})
+        alarms = variant.stages(test_residuals).alarms.any(axis=1)
         kwargs = dict(max_delay=max_delay, groups=groups[test])
         if time is None:
             kwargs["sample_time"] = variant.sample_time_

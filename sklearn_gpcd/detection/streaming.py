@@ -138,16 +138,174 @@ def _frame_maker(detector):
     return lambda block: pd.DataFrame(block, columns=columns)
 
 
+class BandState:
+    """One alarm rule's causal state in a :class:`StreamingMonitor`.
+
+    The low-pass filter as a state-space step, the arm's regime and rest
+    reference (:class:`~sklearn_gpcd.detection._regimes.RegimeState`) and
+    the debounce window (a ring buffer of ``min_duration`` rows), all in
+    preallocated arrays: a tick allocates nothing.
+
+    Parameters
+    ----------
+    rule : AlarmRule
+        Fitted (a detector's ``rules_[b]``).
+    n_joints : int
+
+    Attributes
+    ----------
+    signal : ndarray of shape (n_joints,)
+        Monitoring signal ``m`` of the last valid tick.
+    ratio : ndarray of shape (n_joints,)
+        Debounced ``|m|`` over the scale of the current regime.
+    alarms : ndarray of bool, shape (n_joints,)
+        Joints that fired in this band.
+    regime : int
+        Regime code of the last valid tick (0 without regimes).
+    level : float
+        The rule's :math:`\\gamma`: the band fires where ``ratio > level``.
+    thresholds : ndarray of shape (n_regimes, n_joints)
+        The rule's thresholds, one row per regime.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.detection import AlarmRule
+    >>> rule = AlarmRule("false_alarm_rate", false_alarm_rate=0.0).calibrate(
+    ...     np.random.default_rng(0).normal(size=(500, 1)), sample_time=0.01)
+    >>> band = BandState(rule, 1)
+    >>> band.filter_step(np.array([10.0])) and band.commit(None) > band.level
+    True
+    """
+
+    #: Views rebuilt on load (see :meth:`_bind`).
+    _REBUILT = ("_filter_flat", "_filter_in", "_filter_out", "_u", "_z", "signal", "_z_next",
+                "_window_rows", "_scale_rows")
+
+    def __init__(self, rule, n_joints):
+        self.rule = rule
+        self.level = -float(rule.offset_)
+        self.thresholds = np.atleast_2d(np.asarray(rule.thresholds_, dtype=float))
+        self._scales = np.atleast_2d(np.asarray(rule.scale_, dtype=float))
+        settings = rule.regime_settings()
+        self._regime_state = (None if settings is None
+                              else RegimeState(n_joints=n_joints, **settings))
+        self.regime = 0
+        self._transition, self._zi_unit = _filter_transition(rule.filter_coefficients_)
+        order = self._transition.shape[0] - 1
+        # [u; z] -> [y; z']: filter input and state, output and next state
+        self._filter = np.full((2, order + 1, n_joints), np.nan)
+        self._filter_finite = np.empty(self._filter.size, dtype=bool)
+        self._window = np.zeros((rule.min_duration, n_joints))
+        self.ratio = np.full(n_joints, np.nan)
+        self.alarms = np.zeros(n_joints, dtype=bool)
+        self.alarmed = False  # some entry of alarms is True
+        self._bind()
+        self.reset()
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        for name in self._REBUILT:
+            state.pop(name, None)
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._bind()
+
+    def _bind(self):
+        """The views a tick reads and writes through (after construction or load).
+
+        ``_filter[0]`` holds the filter input ``u`` and the state ``z``,
+        ``_filter[1]`` the output ``y`` (``signal``) and the next state
+        ``z'``: one product with ``_transition`` is one filter step, and
+        ``z'`` is copied into ``z`` only when the tick is accepted.
+        """
+        self._filter_flat = self._filter.reshape(-1)
+        self._filter_in, self._filter_out = self._filter
+        self._u, self._z = self._filter_in[0], self._filter_in[1:]
+        self.signal, self._z_next = self._filter_out[0], self._filter_out[1:]
+        self._window_rows = list(self._window)
+        self._scale_rows = list(self._scales)
+
+    def reset(self):
+        """Forget the filter, regime and debounce history."""
+        self._fresh = True
+        self._window[:] = 0.0
+        self._position = 0
+        if self._regime_state is not None:
+            self._regime_state.reset()
+
+    def filter_step(self, u):
+        """Filter ``u`` (not yet accepted); whether input, output and state are finite.
+
+        Parameters
+        ----------
+        u : ndarray of shape (n_joints,)
+            The residual (over the std with ``normalize="std"``).
+
+        Returns
+        -------
+        finite : bool
+        """
+        np.copyto(self._u, u)
+        if self._fresh:  # steady state of the first sample, as in batch
+            np.multiply(self._zi_unit, self._u, out=self._z)
+        np.matmul(self._transition, self._filter_in, out=self._filter_out)
+        finite = np.isfinite(self._filter_flat, out=self._filter_finite)
+        return np.count_nonzero(finite) == finite.size
+
+    def commit(self, motion):
+        """Accept the tick filtered last: regime, debounce, ratio and alarms.
+
+        Parameters
+        ----------
+        motion : ndarray or None
+            What the regimes read (velocities, then accelerations).
+
+        Returns
+        -------
+        top : float
+            The largest ratio over the joints.
+        """
+        np.copyto(self._z, self._z_next)
+        self._fresh = False
+        if self._regime_state is not None:
+            self.regime = self._regime_state.step(motion, self.signal)
+        np.abs(self.signal, out=self._window_rows[self._position])
+        self._position = (self._position + 1) % len(self._window_rows)
+        np.minimum.reduce(self._window, axis=0, out=self.ratio)
+        self.ratio /= self._scale_rows[self.regime]
+        top = max(self.ratio.tolist())
+        if top > self.level or self.alarmed:  # else alarms is all False already
+            np.greater(self.ratio, self.level, out=self.alarms)
+            self.alarmed = top > self.level
+        return top
+
+    def fault(self):
+        """A rejected tick: no signal, no decision (the state is kept)."""
+        self.signal[:] = np.nan
+        self.ratio[:] = np.nan
+        self.alarms[:] = False
+        self.alarmed = False
+
+    def non_finite_joints(self):
+        """Joints whose filter input, output or state was not finite in the last step."""
+        return np.flatnonzero(~np.all(np.isfinite(self._filter), axis=(0, 1)))
+
+
 class StreamingMonitor(VersionedStateMixin):
     """Run a fitted :class:`CollisionDetector` one sample at a time.
 
     Each :meth:`update` takes one input row and the measured currents and
     makes the same decision as the detector's batch ``predict`` on the same
     rows (in order, with ``groups`` restarts mapped to :meth:`reset`): the
-    residual ``s = i - i_hat``, the optional normalisation and causal
-    low-pass filter, the debounce and the threshold test are all carried
-    forward in preallocated state. Memory is bounded (the debounce window is
-    a ring buffer of ``min_duration`` rows) and a tick allocates no array.
+    residual ``s = i - i_hat``, the optional normalisation, and for every
+    alarm rule (band) the causal low-pass filter, the regimes, the debounce
+    and the threshold test are all carried forward in preallocated state
+    (one :class:`BandState` per rule; one prediction per tick for all).
+    Memory is bounded (the debounce window is a ring buffer of
+    ``min_duration`` rows) and a tick allocates no array.
 
     The regressor's prediction is compiled once into a single-sample path
     (see :func:`~sklearn_gpcd.detection._compiled.compile_predictor`): for a
@@ -194,10 +352,10 @@ class StreamingMonitor(VersionedStateMixin):
     that does not advance is a sensor fault that leaves the feature state
     untouched too.
 
-    **Regimes and rest reference** (``CollisionDetector(regimes=True,
-    rest_reference=...)``) run in the same
-    :class:`~sklearn_gpcd.detection._regimes.RegimeState` as the batch
-    detector; ``regime`` holds the last tick's regime code.
+    **Regimes and rest reference** (``AlarmRule(regimes=Regimes(...))``) run
+    in the same :class:`~sklearn_gpcd.detection._regimes.RegimeState` as the
+    batch detector; ``regime`` holds the last tick's regime code (of the
+    first band).
 
     Parameters
     ----------
@@ -214,18 +372,20 @@ class StreamingMonitor(VersionedStateMixin):
         Predicted currents ``i_hat`` of the last valid tick.
     residual : ndarray of shape (n_joints,)
         ``s = i - i_hat``.
-    signal : ndarray of shape (n_joints,)
+    bands : list of BandState
+        One per alarm rule: its ``signal``, ``ratio``, ``alarms``,
+        ``regime``, ``level`` and ``thresholds``.
+    signal, ratio : ndarray of shape (n_joints,)
         Monitoring signal ``m`` (normalised, filtered, re-referenced at
-        rest).
-    ratio : ndarray of shape (n_joints,)
-        Debounced ``|m|`` over the scale of the current regime.
+        rest) and debounced ``|m|`` over the scale of the current regime,
+        of the first band.
     regime : int
-        Regime code of the last valid tick (index into the detector's
-        ``regime_names_``; always 0 without regimes).
+        Regime code of the last valid tick in the first band (index into
+        its ``regime_names_``; always 0 without regimes).
     alarms : ndarray of bool, shape (n_joints,)
-        Joints that fired.
+        Joints that fired (in some band).
     score : float
-        ``-max(ratio)``, the batch ``score_samples`` value.
+        The batch ``score_samples`` value (``-max(ratio)`` with one band).
     n_ticks, n_faults : int
         Ticks seen and ticks rejected as sensor faults since construction.
     n_consecutive_faults : int
@@ -273,7 +433,6 @@ class StreamingMonitor(VersionedStateMixin):
         self.n_inputs = detector.n_features_in_ - n
         self._row = np.empty(detector.n_features_in_)
         self._finite = np.empty(detector.n_features_in_, dtype=bool)
-        self._finite_signal = np.empty(n, dtype=bool)
         self._wrap = _frame_maker(detector)
         self._predictor = compile_predictor(
             detector.regressor_, self.n_inputs, n, wrap=self._wrap
@@ -282,17 +441,12 @@ class StreamingMonitor(VersionedStateMixin):
         self._use_std = detector.normalize == "std"
         self._std_row = np.empty((1, self.n_inputs))
         self.std = np.ones(n)
-        if self._use_std:  # else the residual is the filter input itself
-            self.residual = np.full(n, np.nan)
-        self._scales = np.atleast_2d(np.asarray(detector.scale_, dtype=float))
-        self._level = -float(detector.offset_)
-        self._regime_state = None
-        self.regime = 0
-        if getattr(detector, "velocity_columns_", None) is not None:
-            self._regime_state = RegimeState(
-                n_joints=n, **detector._regime_settings()
-            )
-            self._motion_columns = np.asarray(detector._motion_columns(), dtype=np.intp)
+        self._u = np.full(n, np.nan)
+        self.residual = np.full(n, np.nan) if self._use_std else self._u
+        self.bands = [BandState(rule, n) for rule in detector.rules_]
+        self._motion = None
+        if detector.motion_columns_ is not None:
+            self._motion_columns = np.asarray(detector.motion_columns_, dtype=np.intp)
             self._motion = np.empty(self._motion_columns.size)
         self._online = None
         if features is not None:
@@ -303,16 +457,9 @@ class StreamingMonitor(VersionedStateMixin):
                     f"detector's regressor takes {self.n_inputs}"
                 )
             self._dt_sum, self._dt_count = 0.0, 0
-        self._transition, self._zi_unit = _filter_transition(detector.filter_coefficients_)
-        order = self._transition.shape[0] - 1
-        # [u; z] -> [y; z']: filter input and state, output and next state
-        self._filter = np.full((2, order + 1, n), np.nan)
-        self._filter_finite = np.empty(self._filter.size, dtype=bool)
-        self._window = np.zeros((detector.min_duration, n))
         self.predicted = np.full(n, np.nan)
-        self.ratio = np.full(n, np.nan)
-        self.alarms = np.zeros(n, dtype=bool)
-        self._alarmed = False  # some entry of alarms is True
+        self.alarms = (self.bands[0].alarms if len(self.bands) == 1
+                       else np.zeros(n, dtype=bool))
         self._bind()
         self.score = np.nan
         self.status = None
@@ -322,16 +469,15 @@ class StreamingMonitor(VersionedStateMixin):
         self.fault_reason = None
         self.reset()
 
-    #: Attributes rebuilt on load rather than stored: views into ``_row``,
-    #: ``_filter``, ``_window`` and ``_scales`` (a pickle would turn them into
-    #: copies; see :meth:`_bind`) and the compiled predictor.
-    _REBUILT = ("_inputs", "_current", "_filter_flat", "_filter_in", "_filter_out", "_u", "_z",
-                "signal", "_z_next", "_window_rows", "_scale_rows", "_wrap", "_predictor")
+    #: Attributes rebuilt on load rather than stored: views into ``_row`` (a
+    #: pickle would turn them into copies; see :meth:`_bind`), the compiled
+    #: predictor and the first band's arrays.
+    _REBUILT = ("_inputs", "_current", "signal", "ratio", "_wrap", "_predictor")
     #: Ticks after which update_raw compares the mean time step with sample_time_.
     _DT_CHECK_TICKS = 100
 
     def __getstate__(self):
-        """State to pickle: filter, debounce and counters, without derived objects.
+        """State to pickle: filters, debounce and counters, without derived objects.
 
         The compiled predictor is rebuilt from ``detector`` on load, and
         ``status`` is stored as its string value (so that :mod:`skops.io`
@@ -341,7 +487,9 @@ class StreamingMonitor(VersionedStateMixin):
         for name in self._REBUILT:
             state.pop(name, None)
         if not self._use_std:
-            state.pop("residual")  # a view of _filter too
+            state.pop("residual")  # the same array as _u
+        if len(self.bands) == 1:
+            state.pop("alarms")  # the first band's
         state["status"] = None if self.status is None else self.status.value
         return state
 
@@ -350,6 +498,10 @@ class StreamingMonitor(VersionedStateMixin):
         super().__setstate__(state)
         if self.status is not None:
             self.status = MonitorStatus(self.status)
+        if not self._use_std:
+            self.residual = self._u
+        if len(self.bands) == 1:
+            self.alarms = self.bands[0].alarms
         self._bind()
         self._wrap = _frame_maker(self.detector)
         self._predictor = compile_predictor(
@@ -357,24 +509,14 @@ class StreamingMonitor(VersionedStateMixin):
         )
 
     def _bind(self):
-        """The views a tick reads and writes through (after construction or load).
-
-        ``_filter[0]`` holds the filter input ``u`` (the residual, or the
-        residual over the std) and the filter state ``z``, ``_filter[1]`` the
-        output ``y`` (``signal``) and the next state ``z'``: one product with
-        ``_transition`` is one filter step, and ``z'`` is copied into ``z``
-        only when the tick is accepted.
-        """
+        """The views a tick reads and writes through (after construction or load)."""
         self._inputs = self._row[: self.n_inputs]
         self._current = self._row[self.n_inputs :]
-        self._filter_flat = self._filter.reshape(-1)
-        self._filter_in, self._filter_out = self._filter
-        self._u, self._z = self._filter_in[0], self._filter_in[1:]
-        self.signal, self._z_next = self._filter_out[0], self._filter_out[1:]
-        if not self._use_std:
-            self.residual = self._u
-        self._window_rows = list(self._window)
-        self._scale_rows = list(self._scales)
+        self.signal, self.ratio = self.bands[0].signal, self.bands[0].ratio
+
+    @property
+    def regime(self):
+        return self.bands[0].regime
 
     def reset(self):
         """Forget the filter and debounce history and the last time stamp.
@@ -383,12 +525,9 @@ class StreamingMonitor(VersionedStateMixin):
         ``groups``) or after a long outage. The counters (``n_ticks``,
         ``n_faults``, ``n_consecutive_faults``) keep running.
         """
-        self._fresh = True
-        self._window[:] = 0.0
-        self._position = 0
         self.last_time = None
-        if self._regime_state is not None:
-            self._regime_state.reset()
+        for band in self.bands:
+            band.reset()
         if self._online is not None:
             self._online.reset()
 
@@ -444,31 +583,23 @@ class StreamingMonitor(VersionedStateMixin):
             np.divide(self.residual, self.std, out=self._u)
         else:
             np.subtract(self._current, self.predicted, out=self._u)  # the residual
-        if self._fresh:  # steady state of the first sample, as in batch
-            np.multiply(self._zi_unit, self._u, out=self._z)
-        np.matmul(self._transition, self._filter_in, out=self._filter_out)
-        # u, z, y and z' finite (u holds the residual: the prediction too)
-        finite = np.isfinite(self._filter_flat, out=self._filter_finite)
-        if np.count_nonzero(finite) < finite.size:
-            return self._fault(self._signal_reason())  # z is left as it was
-        np.copyto(self._z, self._z_next)
-        self._fresh = False
-        if self._regime_state is not None:
+        # u, z, y and z' finite in every band (u holds the residual: the prediction too)
+        if not all([band.filter_step(self._u) for band in self.bands]):
+            return self._fault(self._signal_reason())  # no band's state moves
+        if self._motion is not None:
             np.take(self._inputs, self._motion_columns, out=self._motion, mode="clip")
-            self.regime = self._regime_state.step(self._motion, self.signal)
-        np.abs(self.signal, out=self._window_rows[self._position])
-        self._position = (self._position + 1) % len(self._window_rows)
-        np.minimum.reduce(self._window, axis=0, out=self.ratio)
-        self.ratio /= self._scale_rows[self.regime]
-        top = max(self.ratio.tolist())
-        if top > self._level or self._alarmed:  # else alarms is all False already
-            np.greater(self.ratio, self._level, out=self.alarms)
-            self._alarmed = top > self._level
-        self.score = -top
+        if len(self.bands) == 1:
+            band = self.bands[0]
+            self.score = -band.commit(self._motion)
+            alarmed = band.alarmed
+        else:
+            self.score = min([band.level - band.commit(self._motion) for band in self.bands])
+            np.logical_or.reduce([band.alarms for band in self.bands], out=self.alarms)
+            alarmed = any(band.alarmed for band in self.bands)
         self.last_time = stamp
         self.n_consecutive_faults = 0
         self.fault_reason = None
-        self.status = MonitorStatus.COLLISION if self._alarmed else MonitorStatus.OK
+        self.status = MonitorStatus.COLLISION if alarmed else MonitorStatus.OK
         return self.status
 
     def update_raw(self, time, q, qd, current, target_q=None, target_qd=None,
@@ -557,34 +688,26 @@ class StreamingMonitor(VersionedStateMixin):
         Returns
         -------
         result : Bunch
-            As :meth:`replay`, plus ``regime`` (int, (n_samples,)).
+            As :meth:`replay`.
         """
         from ..features.inputs import _as_recordings
 
+        if self._online is None:
+            raise ValueError("replay_recording needs StreamingMonitor(detector, "
+                             "features=CausalFeatures(...).fit(recordings)); use replay() "
+                             "for ready-made input rows")
         recordings = _as_recordings(recordings)
-        names = ("predicted", "residual", "signal", "ratio")
-        n = sum(rec.n_samples for rec in recordings)
-        out = Bunch(status=np.empty(n, dtype=object),
-                    **{name: np.empty((n, self.n_joints)) for name in names},
-                    alarms=np.zeros((n, self.n_joints), dtype=bool),
-                    regime=np.zeros(n, dtype=np.intp))
-        row = 0
-        for rec in recordings:
-            self.reset()
-            targets = {s: getattr(rec, s) for s in self._online.signals}
-            for k in range(rec.n_samples):
-                status = self.update_raw(rec.time[k], rec.q[k], rec.qd[k], rec.current[k],
-                                         **{s: v[k] for s, v in targets.items()})
-                out.status[row] = status.value
-                for name in (*names, "alarms"):
-                    out[name][row] = getattr(self, name)
-                out.regime[row] = self.regime
-                row += 1
-        out.status = out.status.astype(str)
-        out.prediction = np.select(
-            [out.status == "collision", out.status == "ok"], [-1, 1], default=0
-        )
-        return out
+        signals = self._online.signals
+
+        def ticks():
+            for rec in recordings:
+                self.reset()
+                targets = {s: getattr(rec, s) for s in signals}
+                for k in range(rec.n_samples):
+                    yield self.update_raw(rec.time[k], rec.q[k], rec.qd[k], rec.current[k],
+                                          **{s: v[k] for s, v in targets.items()})
+
+        return self._record(ticks(), sum(rec.n_samples for rec in recordings))
 
     def _load(self, x, current):
         """Copy one sample into the preallocated row; ValueError on a wiring error."""
@@ -638,30 +761,29 @@ class StreamingMonitor(VersionedStateMixin):
     def _signal_reason(self):
         """Why a tick with finite inputs gave a non-finite value: the first stage
         that did (prediction, std, residual, filter input ``u``, filter output
-        or state)."""
+        or state of some band)."""
         stages = (
             ("predicted", "predicted current"),
             ("std", "predictive std"),
             ("residual", "residual"),
+            ("_u", "monitoring signal"),
         )
         for name, label in stages:
             bad = np.flatnonzero(~np.isfinite(getattr(self, name)))
             if bad.size:
                 return f"non-finite {label} of joint(s) {bad.tolist()}"
-        np.isfinite(self._u, out=self._finite_signal)
-        if self._finite_signal.all():  # the filter overflowed
-            np.all(np.isfinite(self._filter_out), axis=0, out=self._finite_signal)
-        bad = np.flatnonzero(~self._finite_signal)
+        bad = np.unique(np.concatenate([band.non_finite_joints() for band in self.bands]))
         return f"non-finite monitoring signal of joint(s) {bad.tolist()}"
 
     def _fault(self, reason):
         self.n_faults += 1
         self.n_consecutive_faults += 1
         self.fault_reason = reason
-        for array in (self.predicted, self.residual, self.signal, self.ratio):
+        for array in (self.predicted, self.residual):
             array[:] = np.nan
+        for band in self.bands:
+            band.fault()
         self.alarms[:] = False
-        self._alarmed = False
         self.score = np.nan
         self.status = MonitorStatus.SENSOR_FAULT
         return self.status
@@ -683,37 +805,52 @@ class StreamingMonitor(VersionedStateMixin):
         Returns
         -------
         result : Bunch
-            ``status`` (ndarray of str), ``predicted``, ``residual``,
-            ``signal``, ``ratio`` (float, (n_samples, n_joints)), ``alarms``
-            (bool, (n_samples, n_joints)), ``regime`` (int, (n_samples,):
-            index into the detector's ``regime_names_``) and ``prediction``
-            (+1 / -1 as ``predict``, 0 for sensor faults).
+            ``status`` (ndarray of str), ``prediction`` (+1 / -1 as
+            ``predict``, 0 for sensor faults), ``alarms`` (bool, (n_samples,
+            n_joints): joints that fired in some band), ``score`` (the batch
+            ``score_samples``, NaN for faults), ``predicted`` and
+            ``residual`` (float, (n_samples, n_joints)); ``bands``, one Bunch
+            per rule with its ``signal``, ``ratio``, ``alarms``, ``regime``
+            (int, (n_samples,): index into the rule's ``regime_names_``) and
+            ``level``; and the first band's ``signal``, ``ratio`` and
+            ``regime`` at the top level. After a sensor fault the float rows
+            are NaN and the alarms False.
         """
         X = np.asarray(X, dtype=float)
         n = X.shape[0]
-        out = Bunch(
-            status=np.empty(n, dtype=object),
-            **{
-                name: np.empty((n, self.n_joints))
-                for name in ("predicted", "residual", "signal", "ratio")
-            },
-            alarms=np.zeros((n, self.n_joints), dtype=bool),
-            regime=np.zeros(n, dtype=np.intp),
-        )
         groups = None if groups is None else np.asarray(groups)
         if time is not None:
             time = np.asarray(time, dtype=float)
             if time.shape != (n,):
                 raise ValueError(f"time must have shape ({n},), got {time.shape}")
-        for t in range(n):
-            if groups is not None and t and groups[t] != groups[t - 1]:
-                self.reset()
-            stamp = None if time is None else time[t]
-            out.status[t] = self.update(X[t], time=stamp).value
-            for name in ("predicted", "residual", "signal", "ratio", "alarms", "regime"):
-                out[name][t] = getattr(self, name)
+
+        def ticks():
+            for t in range(n):
+                if groups is not None and t and groups[t] != groups[t - 1]:
+                    self.reset()
+                yield self.update(X[t], time=None if time is None else time[t])
+
+        return self._record(ticks(), n)
+
+    def _record(self, statuses, n):
+        """Run the ticks of ``statuses`` (an iterator of n statuses); the replay Bunch."""
+        shape = (n, self.n_joints)
+        out = Bunch(status=np.empty(n, dtype=object), alarms=np.zeros(shape, dtype=bool),
+                    score=np.empty(n), predicted=np.empty(shape), residual=np.empty(shape),
+                    bands=[Bunch(signal=np.empty(shape), ratio=np.empty(shape),
+                                 alarms=np.zeros(shape, dtype=bool),
+                                 regime=np.zeros(n, dtype=np.intp), level=band.level)
+                           for band in self.bands])
+        for t, status in enumerate(statuses):
+            out.status[t] = status.value
+            out.alarms[t], out.score[t] = self.alarms, self.score
+            out.predicted[t], out.residual[t] = self.predicted, self.residual
+            for record, band in zip(out.bands, self.bands):
+                record.signal[t], record.ratio[t] = band.signal, band.ratio
+                record.alarms[t], record.regime[t] = band.alarms, band.regime
         out.status = out.status.astype(str)
-        out.prediction = np.select(
-            [out.status == "collision", out.status == "ok"], [-1, 1], default=0
-        )
+        out.prediction = np.select([out.status == "collision", out.status == "ok"], [-1, 1],
+                                   default=0)
+        first = out.bands[0]
+        out.signal, out.ratio, out.regime = first.signal, first.ratio, first.regime
         return out

@@ -26,7 +26,7 @@ from .._gate import quasi_static
 from ..layout import block_columns
 from sklearn.frozen import FrozenEstimator
 
-from ..detection import CollisionDetector, stack_currents
+from ..detection import AlarmRule, CollisionDetector, stack_currents
 from ..dynamics import RigidBodyRegressor
 from ..features import CausalFeatures, contiguous_segments, make_inputs
 from ..gp import make_p_f, make_sp_p, make_sp_s
@@ -222,10 +222,9 @@ def make_detector(model, n_joints):
     high-frequency, Sec. V-B) and a joint must stay out of its band for 5
     samples (40 ms at 125 Hz) before it fires.
     """
-    return CollisionDetector(
-        FrozenEstimator(model), n_joints=n_joints, threshold="contamination",
-        contamination=1e-3, filter_cutoff=2.0, min_duration=5, sample_time=1 / 125,
-    )
+    rule = AlarmRule("contamination", contamination=1e-3, filter_cutoff=2.0, min_duration=5)
+    return CollisionDetector(FrozenEstimator(model), n_joints=n_joints, sample_time=1 / 125,
+                             rules=rule)
 
 
 def _commanded_rest(recording, sigma_v):

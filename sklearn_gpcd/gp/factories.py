@@ -198,8 +198,8 @@ def make_sp_c(n_joints, **gp_params):
     model of the current, logged as the target current (UR ``i_des``),
     replaces the rigid-body regressor, and the GP on :math:`x = [q, \dot q,
     \ddot q]` learns what it misses. Our extension of the paper, for logs
-    that have :math:`i_c`; pair it with ``CollisionDetector(regimes=True,
-    rest_reference=...)`` for the history-dependent current at rest.
+    that have :math:`i_c`; pair it with an alarm rule with
+    ``Regimes(rest_reference=...)`` for the history-dependent current at rest.
 
     Parameters
     ----------

@@ -35,14 +35,17 @@ __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "SELECT_GRID", "CalibratedDetector"
 
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
 DETECTOR_KIND = "gpcd-detector"
-#: The detection rule :func:`calibrate_detector` applies: a 2 Hz causal
+#: The alarm rule :func:`calibrate_detector` applies
+#: (:class:`~sklearn_gpcd.detection.AlarmRule` parameters): a 2 Hz causal
 #: low-pass, a 5-sample debounce, one threshold per joint (and regime) with no
-#: false alarm on the calibration recordings, the sample time of the data.
+#: false alarm on the calibration recordings. The detector takes the sample
+#: time of the data.
 DETECTOR_RULE = dict(threshold="per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
-                     min_duration=5, sample_time="auto", sigma_v=None, settle_time=0.5)
-#: The settings ``select=True`` chooses among: settle time [s] x rest
-#: reference time constant [s].
-SELECT_GRID = {"settle_time": [0.5, 1.0, 2.0, 3.0], "rest_reference": [None, 2.0, 5.0]}
+                     min_duration=5)
+#: The settings ``select=True`` chooses among (the rule's regimes): settle
+#: time [s] x rest reference time constant [s].
+SELECT_GRID = {"regimes__settle_time": [0.5, 1.0, 2.0, 3.0],
+               "regimes__rest_reference": [None, 2.0, 5.0]}
 #: Rest reference time constant [s] when none is given.
 DEFAULT_REST_REFERENCE = 5.0
 
@@ -52,10 +55,9 @@ class CalibratedDetector(NamedTuple):
 
     Attributes
     ----------
-    detector : CollisionDetector or MultiBandDetector
-        Fitted on a frozen model; a
-        :class:`~sklearn_gpcd.detection.MultiBandDetector` with ``bands`` or
-        ``band_candidates``.
+    detector : CollisionDetector
+        Fitted on a frozen model; one alarm rule per band (several with
+        ``bands`` or ``band_candidates``).
     features : CausalFeatures
         Computes the detector's inputs from raw samples (the model's own).
     calibration : dict
@@ -153,12 +155,12 @@ def split_recordings(keys, recordings, seconds):
     return out_keys, pieces
 
 
-def band_settings(detector):
+def band_settings(rule):
     """What sets a band apart: its low-pass filter and debounce.
 
     Parameters
     ----------
-    detector : CollisionDetector
+    rule : AlarmRule
 
     Returns
     -------
@@ -167,12 +169,12 @@ def band_settings(detector):
 
     Examples
     --------
-    >>> from sklearn_gpcd.detection import CollisionDetector
-    >>> band_settings(CollisionDetector(filter_cutoff=10.0, min_duration=2))
+    >>> from sklearn_gpcd.detection import AlarmRule
+    >>> band_settings(AlarmRule(filter_cutoff=10.0, min_duration=2))
     {'filter_cutoff_hz': 10.0, 'filter_order': 1, 'debounce_samples': 2}
     """
-    return {"filter_cutoff_hz": detector.filter_cutoff, "filter_order": detector.filter_order,
-            "debounce_samples": detector.min_duration}
+    return {"filter_cutoff_hz": rule.filter_cutoff, "filter_order": rule.filter_order,
+            "debounce_samples": rule.min_duration}
 
 
 def band_label(settings):
@@ -277,13 +279,14 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     >>> np.shape(calibrated.detector.thresholds_)
     (3, 1)
     """
+    from sklearn.base import clone
     from sklearn.frozen import FrozenEstimator
 
     from ..detection import (
+        AlarmRule,
         CollisionDetector,
-        MultiBandDetector,
+        Regimes,
         calibrate_across_recordings,
-        calibrate_bands_across_recordings,
         stack_currents,
     )
 
@@ -312,27 +315,23 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
         if bar is not None:
             bar.update()
     tau = DEFAULT_REST_REFERENCE if rest_reference is None else rest_reference
-    template = CollisionDetector(
-        FrozenEstimator(model), n_joints=features.n_joints_, regimes=regimes,
-        rest_reference=tau if (regimes and tau > 0) else None,
-        brake_limit=_brake_limit(braking, trained.training), **DETECTOR_RULE)
-    if settle_time is not None:
-        template.set_params(settle_time=settle_time)
-    if bands or band_candidates:
-        grid = [{k: [v] for k, v in c.items()} for c in band_candidates] or None
-        # the chosen band is the last; its overrides stand in until the grid's replace them
-        overrides = [{}, *bands] + band_candidates[:1]
-        result = calibrate_bands_across_recordings(
-            MultiBandDetector(template, bands=overrides), blocks, times, band_grid=grid)
-        per_band = result.bands
-    else:
-        result = calibrate_across_recordings(template, blocks, times,
-                                             param_grid=SELECT_GRID if select else None)
-        per_band = [result]
-    summary = _summary(result, per_band, trained, features, robot,
+    regime_params = {} if settle_time is None else {"settle_time": settle_time}
+    main = AlarmRule(**DETECTOR_RULE, regimes=Regimes(
+        rest_reference=tau if tau > 0 else None,
+        brake_limit=_brake_limit(braking, trained.training), **regime_params)
+        if regimes else None)
+    # the chosen band is the last; its settings stand in until the grid's replace them
+    rules = [main] + [clone(main).set_params(**band) for band in [*bands, *band_candidates[:1]]]
+    grid = SELECT_GRID if select else None
+    if band_candidates:
+        grid = [{k: [v] for k, v in c.items()} for c in band_candidates]
+    template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
+                                 sample_time="auto", rules=rules)
+    result = calibrate_across_recordings(template, blocks, times, param_grid=grid)
+    several = bool(bands or band_candidates)
+    summary = _summary(result, result.bands if several else [result], trained, features, robot,
                        keys=keys, split=split, n_files=n_files, select=select,
-                       several=bool(bands or band_candidates),
-                       chosen_band=bool(band_candidates))
+                       several=several, chosen_band=bool(band_candidates))
     return CalibratedDetector(result.detector, features, summary)
 
 
@@ -359,7 +358,7 @@ def check_calibration_options(*, regimes=True, rest_reference=None, settle_time=
     >>> check_calibration_options(select=True, settle_time=2.0)
     Traceback (most recent call last):
     ...
-    ValueError: --select chooses the settle time and the rest reference of the regimes: drop --settle-time
+    ValueError: --select chooses the settle time and the rest reference of the regimes: ...
     """
     if select and (not regimes or rest_reference is not None or settle_time is not None):
         raise ValueError("--select chooses the settle time and the rest reference of the "
@@ -397,13 +396,16 @@ def _summary(result, per_band, trained, features, robot, *, keys, split, n_files
     """The calibration summary: what ``gpcd calibrate`` prints and the file keeps."""
     torque_constants = None if robot is None else getattr(robot, "torque_constants", None)
     entries = [_band_entry(band, torque_constants) for band in per_band]
-    det = per_band[0].detector  # the main band
+    det = result.detector
+    regimes = det.rules_[0].regimes
     summary = {
         "recordings": keys, "split_s": split, "n_files": n_files,
         "hours": result.hours, "margin": entries[0]["margin"],
         "margin_rule": "global", "regimes": list(per_band[0].regime_names),
-        "settle_time_s": det.settle_time, "rest_reference_s": det.rest_reference,
-        "brake_limit": det.brake_limit, "selected": bool(select),
+        "settle_time_s": 0.5 if regimes is None else regimes.settle_time,
+        "rest_reference_s": None if regimes is None else regimes.rest_reference,
+        "brake_limit": None if regimes is None else regimes.brake_limit,
+        "selected": bool(select),
         "candidates": [dict(c, params=_json_params(c["params"])) for c in result.candidates]
         if select else [],
         "thresholds_A": entries[0]["thresholds_A"],
@@ -419,21 +421,23 @@ def _summary(result, per_band, trained, features, robot, *, keys, split, n_files
     if several:
         summary["bands"] = entries
     if chosen_band:
-        from ..detection import CollisionDetector
+        from ..detection import AlarmRule
 
         summary["band_candidates"] = [
-            dict(c, params=band_settings(CollisionDetector(**c["params"])))
-            for c in result.band_candidates]
+            {"params": band_settings(AlarmRule(**c["params"])),
+             "n_false_alarms": c["n_false_alarms"], "score": c["score"], "rank": c["rank"]}
+            for c in result.candidates]
         summary["fold_band_settings"] = {
-            k: band_settings(CollisionDetector(**p)) for k, p in
-            result.fold_band_settings.items()}
+            k: band_settings(AlarmRule(**p)) for k, p in result.fold_settings.items()}
     return summary
 
 
 def _band_entry(result, torque_constants):
-    """One band's calibration (a calibrate_across_recordings result) for the summary."""
-    thresholds = np.atleast_2d(result.detector.thresholds_)
-    entry = {**band_settings(result.detector), "margin": float(result.margin.max()),
+    """One band's calibration (a band of a calibrate_across_recordings result, or the
+    result itself with one band) for the summary."""
+    rule = result.bands[0].rule if "detector" in result else result.rule
+    thresholds = np.atleast_2d(rule.thresholds_)
+    entry = {**band_settings(rule), "margin": float(result.margin.max()),
              "thresholds_A": thresholds.tolist(),
              "n_false_alarms_nested": result.n_false_alarms,
              "false_alarms_per_hour": result.false_alarms_per_hour}
@@ -443,9 +447,12 @@ def _band_entry(result, torque_constants):
 
 
 def _json_params(params):
-    """Candidate settings with JSON keys: ``settle_time`` -> ``settle_time_s``."""
-    return {f"{k}_s" if k in ("settle_time", "rest_reference") else k: v
-            for k, v in params.items()}
+    """Candidate settings with JSON keys: ``regimes__settle_time`` -> ``settle_time_s``."""
+    out = {}
+    for key, value in params.items():
+        key = key.removeprefix("regimes__")
+        out[f"{key}_s" if key in ("settle_time", "rest_reference") else key] = value
+    return out
 
 
 def save_detector(calibrated, path):

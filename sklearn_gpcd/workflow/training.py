@@ -271,7 +271,7 @@ def acceleration_limit(data):
     Beyond it the model extrapolates: hard stops ring the current for about
     half a second and no training row shows how. ``gpcd calibrate
     --braking`` gives those samples a regime of their own
-    (``CollisionDetector(brake_limit=...)``).
+    (``Regimes(brake_limit=...)`` of an alarm rule).
 
     Parameters
     ----------

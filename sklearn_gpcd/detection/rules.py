@@ -1,0 +1,553 @@
+"""Alarm rules: from the current residual to alarms (paper Sec. II-III).
+
+A :class:`~sklearn_gpcd.detection.CollisionDetector` is made of two parts:
+the *residual model* (the regressor of the collision-free currents, paper
+Eq. 17, and the scale of its residual) and an :class:`AlarmRule`, which
+turns the residual :math:`s_l = i_l - \\hat i_l` into alarms:
+
+1. **signal** -- the residual, normalised by the detector when it asks so,
+   low-pass filtered (``filter_cutoff``, ``filter_order``; the moving-phase
+   residual is high-frequency, Sec. IV-C) and, with :class:`Regimes`,
+   re-referenced at rest: the monitoring signal :math:`m_l`;
+2. **ratio** -- :math:`r_l = \\tilde m_l / \\text{scale}_{g l}` with
+   :math:`\\tilde m_l` the smallest :math:`|m_l|` over the last
+   ``min_duration`` samples (the debounce) and :math:`g` the regime of the
+   sample;
+3. **alarm** -- joint :math:`l` fires when :math:`r_l > \\gamma` (the
+   paper's :math:`f_{CD}`, Sec. II, with :math:`\\sigma_{CD,l} =
+   \\gamma\\,\\text{scale}_l`), and a sample is a collision when one joint
+   fires.
+
+:meth:`AlarmRule.calibrate` sets ``scale_`` and :math:`\\gamma` from the
+collision-free residuals by the rule's ``threshold``. Several rules on one
+residual model are several *bands* (e.g. a 2 Hz band for pushes and a 10 Hz
+one for short taps); the detector alarms when any does.
+"""
+
+from numbers import Integral, Real
+
+import numpy as np
+from sklearn.base import BaseEstimator
+from sklearn.utils._param_validation import Interval, Options, StrOptions
+
+from ._regimes import regime_names, regime_pass
+from ._signal import debounce_segments, filter_segments, lowpass_coefficients, segment_starts
+from ._thresholds import (
+    contamination_level,
+    false_alarm_level,
+    fill_absent_regimes,
+    loro_factors,
+    recording_peaks,
+    rms_scale,
+)
+
+__all__ = ["THRESHOLD_RULES", "AlarmRule", "Regimes"]
+
+#: The rules that set the thresholds (``AlarmRule(threshold=...)``).
+THRESHOLD_RULES = ("contamination", "false_alarm_rate", "per_joint", "std")
+#: Velocity threshold [rad/s] of the regimes when the detector gives none
+#: (the paper's :math:`\sigma_v`).
+DEFAULT_SIGMA_V = 1e-2
+
+
+def _positive_or_inf():
+    return [Interval(Real, 0, None, closed="neither"), Options(Real, {np.inf})]
+
+
+class Regimes(BaseEstimator):
+    """Separate thresholds for the arm's motion regimes, and the rest re-reference.
+
+    The residual of a still arm is small and slow, that of a moving one
+    large and fast, so one band for both is either blind at rest or noisy in
+    motion. Per sample the arm is ``moving``, ``settling`` (still for less
+    than ``settle_time``) or at ``rest``, read from the joint velocities with
+    the detector's :math:`\\sigma_v`; with ``brake_limit``, ``braking`` for
+    ``brake_hold`` seconds after some joint's acceleration exceeds it (see
+    :mod:`sklearn_gpcd.detection._regimes`). Our extension of the paper.
+
+    Parameters
+    ----------
+    settle_time : float, default=0.5
+        Seconds the arm must be still after a motion before it is at rest.
+    rest_reference : float or None, default=None
+        Re-reference the monitoring signal at rest entry and let the
+        reference follow it with this time constant in seconds
+        (``numpy.inf``: a fixed reference). The held current of a still
+        joint depends on its history (stiction); the re-reference removes
+        that offset, which no pose feature predicts.
+    brake_limit : float or None, default=None
+        A fourth regime, ``braking``, with its own thresholds, from a sample
+        where some joint's acceleration exceeds ``brake_limit`` [rad/s^2]:
+        hard stops ring the current for about half a second. Set it to the
+        largest acceleration the model was trained on
+        (``training["acceleration_limit"]`` of
+        :func:`~sklearn_gpcd.workflow.train_model`). Needs the ``qdd`` block
+        of the paper's layout among the inputs.
+    brake_hold : float, default=0.5
+        Seconds the braking regime lasts after the last sample above
+        ``brake_limit``.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The regimes in use, indexed by their codes.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.detection import Regimes
+    >>> Regimes(brake_limit=5.0).names
+    ('moving', 'settling', 'rest', 'braking')
+    >>> Regimes(rest_reference=2.0).settings(sample_time=0.01)["settle"]
+    50
+    """
+
+    _parameter_constraints = {
+        "settle_time": [Interval(Real, 0, None, closed="left")],
+        "rest_reference": [None, *_positive_or_inf()],
+        "brake_limit": [None, Interval(Real, 0, None, closed="neither")],
+        "brake_hold": [Interval(Real, 0, None, closed="left")],
+    }
+
+    def __init__(self, settle_time=0.5, rest_reference=None, brake_limit=None, brake_hold=0.5):
+        self.settle_time = settle_time
+        self.rest_reference = rest_reference
+        self.brake_limit = brake_limit
+        self.brake_hold = brake_hold
+
+    @property
+    def names(self):
+        return regime_names(self.brake_limit is not None)
+
+    def settings(self, sample_time, sigma_v=None):
+        """Keyword arguments of the regime pass at ``sample_time`` [s].
+
+        Parameters
+        ----------
+        sample_time : float
+            Sampling period [s].
+        sigma_v : float or None, default=None
+            Velocity threshold [rad/s] (None: 1e-2, the paper's).
+
+        Returns
+        -------
+        settings : dict
+            ``sigma_v``, ``settle`` and ``brake_hold`` in samples, ``beta``
+            (the rest reference's smoothing factor, None without it) and
+            ``brake_limit``.
+        """
+        beta = None
+        if self.rest_reference is not None:
+            beta = float(-np.expm1(-sample_time / self.rest_reference))
+        return {
+            "sigma_v": DEFAULT_SIGMA_V if sigma_v is None else float(sigma_v),
+            "settle": int(round(self.settle_time / sample_time)),
+            "beta": beta,
+            "brake_limit": self.brake_limit,
+            "brake_hold": int(round(self.brake_hold / sample_time)),
+        }
+
+
+class AlarmRule(BaseEstimator):
+    """Filter, debounce, regimes and thresholds: how a residual becomes alarms.
+
+    Joint ``l`` fires when its monitoring signal :math:`m_l` leaves the
+    band (the paper's :math:`f_{CD}`, Sec. II)
+
+    .. math:: |m_l| > \\sigma_{CD,l} \\quad \\text{for ``min_duration``
+              consecutive samples.}
+
+    Fitted by :meth:`calibrate` on the residuals of collision-free rows (a
+    :class:`~sklearn_gpcd.detection.CollisionDetector` does it in ``fit``).
+
+    Parameters
+    ----------
+    threshold : {"contamination", "false_alarm_rate", "per_joint", "std"}, \
+            default="contamination"
+        Rule that sets :math:`\\sigma_{CD}` from the calibration residuals:
+
+        - ``"contamination"``: ``scale_`` is the RMS of each joint's signal
+          and the level flags the fraction ``contamination`` of the
+          calibration samples (IsolationForest convention);
+        - ``"false_alarm_rate"``: same scale, smallest level whose alarm
+          onsets on the calibration data stay within ``false_alarm_rate`` per
+          hour;
+        - ``"per_joint"``: a level per joint (and per regime): the budget
+          ``false_alarm_rate`` is split equally across joints and regimes,
+          each level is the smallest whose onsets stay within its share;
+          ``margin`` multiplies every level;
+        - ``"std"``: ``k`` predictive standard deviations (with the
+          detector's ``normalize="std"`` the band follows
+          :math:`\\sigma_l(x)` sample by sample).
+    contamination : float in (0, 0.5], default=0.001
+        Fraction of calibration samples flagged by ``"contamination"``.
+    false_alarm_rate : float >= 0, default=1.0
+        Alarm onsets per hour allowed on the calibration data.
+    k : float > 0, default=3.0
+        Band width in predictive standard deviations, for ``"std"``.
+    margin : float >= 1, array-like or "loro", default=1.0
+        Factor on the levels of ``"per_joint"``: a scalar, one value per
+        joint or per regime and joint; ``"loro"`` learns it by leaving one
+        recording out (the largest factor by which a recording's peak
+        exceeds the level of the others, :func:`~sklearn_gpcd.detection.loro_margin`).
+    filter_cutoff : float or None, default=None
+        Cut-off frequency [Hz] of the causal low-pass filter (None: none).
+    filter_order : {1, 2}, default=1
+        First-order lag or second-order Butterworth filter.
+    min_duration : int, default=1
+        Samples the band must be exceeded in a row before a joint fires.
+    regimes : Regimes or None, default=None
+        Separate thresholds per motion regime of the arm (and the rest
+        re-reference); None: one threshold per joint.
+
+    Attributes
+    ----------
+    sample_time_ : float
+        Sampling period [s] the rule was calibrated at.
+    sigma_v_ : float or None
+        Velocity threshold the regimes use (None: the default 1e-2).
+    filter_coefficients_ : tuple of ndarray or None
+        ``(b, a)`` of the low-pass filter.
+    regime_names_ : tuple of str
+        Rows of ``scale_`` / ``thresholds_``: the regimes' names, or
+        ``("all",)`` without regimes.
+    scale_ : ndarray of shape (n_joints,) or (n_regimes, n_joints)
+        Per-joint scale of the monitoring signal.
+    margin_ : ndarray of the shape of ``scale_``
+        Margin applied to the levels (1 for rules other than ``"per_joint"``).
+    offset_ : float
+        :math:`-\\gamma`: a joint fires when ``ratio > -offset_``.
+    thresholds_ : ndarray of the shape of ``scale_``
+        :math:`\\sigma_{CD}` per joint (and regime) in units of the signal.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.detection import AlarmRule
+    >>> rng = np.random.default_rng(0)
+    >>> residual = 0.1 * rng.normal(size=(1000, 2))
+    >>> rule = AlarmRule("false_alarm_rate", false_alarm_rate=0.0, min_duration=3)
+    >>> rule = rule.calibrate(residual, sample_time=0.01)
+    >>> bool(rule.stages(residual)["alarms"].any())     # no alarm on its own data
+    False
+    >>> residual[500:520, 1] += 1.0                       # a push on joint 2
+    >>> rule.stages(residual)["alarms"][:, 1].nonzero()[0][:1].tolist()
+    [502]
+    """
+
+    _parameter_constraints = {
+        "threshold": [StrOptions(set(THRESHOLD_RULES))],
+        "contamination": [Interval(Real, 0, 0.5, closed="right")],
+        "false_alarm_rate": [Interval(Real, 0, None, closed="left")],
+        "k": [Interval(Real, 0, None, closed="neither")],
+        "margin": [StrOptions({"loro"}), Interval(Real, 1, None, closed="left"), "array-like"],
+        "filter_cutoff": [None, Interval(Real, 0, None, closed="neither")],
+        "filter_order": [Options(Integral, {1, 2})],
+        "min_duration": [Interval(Integral, 1, None, closed="left")],
+        "regimes": [None, Regimes],
+    }
+
+    def __init__(self, threshold="contamination", *, contamination=0.001, false_alarm_rate=1.0,
+                 k=3.0, margin=1.0, filter_cutoff=None, filter_order=1, min_duration=1,
+                 regimes=None):
+        self.threshold = threshold
+        self.contamination = contamination
+        self.false_alarm_rate = false_alarm_rate
+        self.k = k
+        self.margin = margin
+        self.filter_cutoff = filter_cutoff
+        self.filter_order = filter_order
+        self.min_duration = min_duration
+        self.regimes = regimes
+
+    # ------------------------------------------------------------ checks
+    def check(self):
+        """Check the parameters (and those of ``regimes``); return self.
+
+        Raises
+        ------
+        ValueError
+            A parameter out of its range, ``margin="loro"`` without
+            ``threshold="per_joint"``, or regimes with ``threshold="std"``.
+        """
+        self._validate_params()
+        if self.regimes is not None:
+            self.regimes._validate_params()
+            if self.threshold == "std":
+                raise ValueError("AlarmRule: regimes cannot be combined with threshold='std'")
+        if _is_loro(self.margin):
+            if self.threshold != "per_joint":
+                raise ValueError("AlarmRule: margin must be a float >= 1, an array of floats "
+                                 ">= 1 or 'loro' (with threshold='per_joint'), got 'loro'")
+        elif not _valid_margin(self.margin):
+            raise ValueError("AlarmRule: margin must be a float >= 1, an array of floats >= 1 "
+                             f"or 'loro' (with threshold='per_joint'), got {self.margin!r}")
+        return self
+
+    @property
+    def uses_regimes(self):
+        """Whether the rule has regimes (and reads the arm's motion)."""
+        return self.regimes is not None
+
+    @property
+    def needs_std(self):
+        """Whether :meth:`calibrate` reads the predictive std (``threshold="std"``)."""
+        return self.threshold == "std"
+
+    # ------------------------------------------------------------ stages
+    def prepare(self, sample_time, sigma_v=None):
+        """Set what the signal stages need before calibration; return self.
+
+        ``sample_time_``, ``sigma_v_``, ``filter_coefficients_`` and
+        ``regime_names_``: enough for :meth:`signal` (e.g. to compare
+        candidate settings on residuals already predicted).
+
+        Parameters
+        ----------
+        sample_time : float
+            Sampling period [s].
+        sigma_v : float or None, default=None
+            Velocity threshold of the regimes [rad/s] (None: 1e-2).
+
+        Returns
+        -------
+        self : AlarmRule
+        """
+        self.check()
+        self.sample_time_ = float(sample_time)
+        self.sigma_v_ = sigma_v
+        self.filter_coefficients_ = None
+        if self.filter_cutoff is not None:
+            self.filter_coefficients_ = lowpass_coefficients(
+                self.filter_cutoff, self.sample_time_, self.filter_order)
+        self.regime_names_ = self.regimes.names if self.regimes is not None else ("all",)
+        return self
+
+    def regime_settings(self):
+        """Keyword arguments of the regime pass (None without regimes).
+
+        Returns
+        -------
+        settings : dict or None
+            See :meth:`Regimes.settings`.
+        """
+        if self.regimes is None:
+            return None
+        return self.regimes.settings(self.sample_time_, self.sigma_v_)
+
+    def signal(self, u, starts=None, motion=None):
+        """Monitoring signal :math:`m`, regime codes and rest reference.
+
+        Parameters
+        ----------
+        u : ndarray of shape (n_samples, n_joints)
+            The residual, normalised by the detector where it asks so.
+        starts : ndarray of int, default=None
+            Rows where a new recording begins (filter and regimes restart);
+            None: one recording.
+        motion : ndarray of shape (n_samples, n_motion), default=None
+            Joint velocities (then accelerations with ``brake_limit``), for
+            the regimes.
+
+        Returns
+        -------
+        signal : ndarray of shape (n_samples, n_joints)
+        regime : ndarray of int of shape (n_samples,)
+            All 0 without regimes.
+        reference : ndarray or None
+            Rest reference subtracted (None without ``rest_reference``).
+        """
+        starts = _starts(u, starts)
+        if self.filter_coefficients_ is not None:
+            u = filter_segments(u, *self.filter_coefficients_, starts)
+        if self.regimes is None:
+            return u, np.zeros(u.shape[0], dtype=np.intp), None
+        if motion is None:
+            raise ValueError("an AlarmRule with regimes needs the joint velocities (motion)")
+        return regime_pass(u, motion, starts, **self.regime_settings())
+
+    def debounced(self, signal, starts=None):
+        """:math:`\\tilde m`: the smallest ``|m|`` over the last ``min_duration`` samples.
+
+        Parameters
+        ----------
+        signal : ndarray of shape (n_samples, n_joints)
+        starts : ndarray of int, default=None
+
+        Returns
+        -------
+        debounced : ndarray of shape (n_samples, n_joints)
+        """
+        return debounce_segments(np.abs(signal), self.min_duration, _starts(signal, starts))
+
+    def ratio(self, signal, regime, starts=None):
+        """Debounced ``|m|`` over the scale of each sample's regime.
+
+        Parameters
+        ----------
+        signal : ndarray of shape (n_samples, n_joints)
+        regime : ndarray of int of shape (n_samples,)
+        starts : ndarray of int, default=None
+
+        Returns
+        -------
+        ratio : ndarray of shape (n_samples, n_joints)
+        """
+        return self.debounced(signal, starts) / np.atleast_2d(self.scale_)[regime]
+
+    def stages(self, u, starts=None, motion=None):
+        """Every stage from the residual to the alarms.
+
+        Parameters
+        ----------
+        u, starts, motion
+            As for :meth:`signal`.
+
+        Returns
+        -------
+        stages : dict
+            ``signal``, ``regime``, ``reference``, ``ratio`` and ``alarms``
+            (bool, joints that fired).
+        """
+        starts = _starts(u, starts)
+        signal, regime, reference = self.signal(u, starts, motion)
+        ratio = self.ratio(signal, regime, starts)
+        return {"signal": signal, "regime": regime, "reference": reference, "ratio": ratio,
+                "alarms": ratio > -self.offset_}
+
+    # ------------------------------------------------------- calibration
+    def calibrate(self, u, starts=None, motion=None, *, sample_time, sigma_v=None, std=None,
+                  normalized=False, recordings=None):
+        """Set the scale, margin and level from collision-free residuals.
+
+        Parameters
+        ----------
+        u : ndarray of shape (n_samples, n_joints)
+            Residual of the collision-free calibration rows (normalised by
+            the detector where it asks so).
+        starts, motion
+            As for :meth:`signal`.
+        sample_time : float
+            Sampling period [s].
+        sigma_v : float or None, default=None
+            Velocity threshold of the regimes [rad/s].
+        std : ndarray of shape (n_samples, n_joints), default=None
+            Predictive std, for ``threshold="std"``.
+        normalized : bool, default=False
+            Whether ``u`` is the residual over the predictive std (then the
+            ``"std"`` rule's scale is 1).
+        recordings : ndarray of int of shape (n_samples,), default=None
+            Recording index of each row, for ``margin="loro"``.
+
+        Returns
+        -------
+        self : AlarmRule
+        """
+        self.prepare(sample_time, sigma_v)
+        starts = _starts(u, starts)
+        n_joints = u.shape[1]
+        signal, regimes, _ = self.signal(u, starts, motion)
+        margin = 1.0
+        if self.threshold == "std":
+            if std is None and not normalized:
+                raise ValueError("threshold='std' needs the predictive std")
+            self.scale_ = np.ones(n_joints) if normalized else rms_scale(std)
+            gamma = float(self.k)
+        elif self.threshold == "per_joint":
+            debounced = self.debounced(signal, starts)
+            levels = self._joint_levels(debounced, regimes, starts)
+            margin = self._margin(debounced, regimes, recordings, levels.shape)
+            self.scale_ = margin * levels
+            gamma = 1.0
+        else:
+            self.scale_ = self._regime_rows(lambda rows: rms_scale(signal[rows]), regimes,
+                                            n_joints)
+            peak = self.ratio(signal, regimes, starts).max(axis=1)
+            if self.threshold == "contamination":
+                gamma = contamination_level(peak, self.contamination)
+            else:
+                gamma = false_alarm_level(peak, starts, self.sample_time_, self.false_alarm_rate)
+        self.margin_ = np.broadcast_to(margin, np.shape(self.scale_)).copy()
+        self.offset_ = -gamma
+        self.thresholds_ = gamma * self.scale_
+        return self
+
+    def _margin(self, debounced, regimes, recordings, shape):
+        """The given margin, checked against the levels' shape, or the LORO one."""
+        n_joints = debounced.shape[1]
+        if not _is_loro(self.margin):
+            margin = np.asarray(self.margin, dtype=float)
+            if margin.shape not in ((), (n_joints,), shape):
+                raise ValueError(
+                    f"margin has shape {margin.shape}; expected a scalar, ({n_joints},) "
+                    f"or {shape} (regimes x joints)"
+                )
+            return margin
+        n_recordings = 0 if recordings is None else int(recordings.max()) + 1
+        if n_recordings < 2:
+            raise ValueError(
+                "margin='loro' leaves one recording out: pass groups= naming at least 2 "
+                f"recordings to fit, got {n_recordings}"
+            )
+        peaks = recording_peaks(debounced, regimes, recordings, len(self.regime_names_))
+        return loro_factors(peaks, "global").reshape(shape)
+
+    def _regime_rows(self, per_regime, regimes, n_joints):
+        """``per_regime(rows)`` for each regime, stacked (one row without regimes).
+
+        A regime absent from the calibration data takes the largest value of
+        the others (no data, no tighter band).
+        """
+        if self.regimes is None:
+            return per_regime(slice(None))
+        n_rows = len(self.regime_names_)
+        table = np.zeros((n_rows, n_joints))
+        present = np.zeros(n_rows, dtype=bool)
+        for code in range(n_rows):
+            rows = regimes == code
+            if rows.any():
+                table[code], present[code] = per_regime(rows), True
+        return fill_absent_regimes(table, present)
+
+    def _joint_levels(self, debounced, regimes, starts):
+        """Per joint (and regime) false-alarm levels of the debounced |m|.
+
+        The budget ``false_alarm_rate`` is split equally over the joints and
+        the regimes present; joint ``l``'s level in regime ``g`` is the
+        false-alarm level of its debounced ``|m_l|``, set to zero outside
+        ``g``, with that share.
+        """
+        n_joints = debounced.shape[1]
+        n_regimes = len(np.unique(regimes)) if self.regimes is not None else 1
+        share = self.false_alarm_rate / (n_joints * n_regimes)
+        tiny = np.finfo(float).tiny
+
+        def levels(rows):
+            out = np.empty(n_joints)
+            for joint in range(n_joints):
+                peak = np.where(rows, debounced[:, joint], 0.0)
+                out[joint] = false_alarm_level(peak, starts, self.sample_time_, share)
+            return np.maximum(out, tiny)
+
+        if self.regimes is None:
+            return levels(np.ones(debounced.shape[0], dtype=bool))
+        return self._regime_rows(levels, regimes, n_joints)
+
+
+def _starts(u, starts):
+    """Segment starts (row indices): the given ones, or one segment."""
+    return segment_starts(len(u)) if starts is None else starts
+
+
+def _is_loro(margin):
+    return isinstance(margin, str) and margin == "loro"
+
+
+def _valid_margin(margin):
+    """A number or an array of numbers, all finite and >= 1."""
+    if isinstance(margin, str):
+        return False
+    try:
+        values = np.asarray(margin, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return values.size > 0 and bool(np.all(np.isfinite(values) & (values >= 1.0)))
