@@ -23,7 +23,7 @@ from sklearn_gpcd.detection import (
     select_candidate,
     stack_currents,
 )
-from sklearn_gpcd.detection._compiled import compile_predictor
+from sklearn_gpcd.gp import compile_predictor
 from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor, make_sp_p
 from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate
 from sklearn_gpcd.metrics import contact_events, detection_scorers, event_recall
@@ -359,7 +359,7 @@ def test_support_term_is_folded_into_the_weights_only_when_safe(rng, monkeypatch
     """exp(-1/2 s^T W s) goes into the weights while it cannot over- or underflow
     (long length scales); with short ones it is added each tick. Both equal
     predict, and the two forms agree where both are safe."""
-    from sklearn_gpcd.detection import _compiled
+    from sklearn_gpcd.gp import compiled as _compiled
 
     X, current = augmented_run(150, 2, rng)
     columns = [0, 1, 2, 3, 6, 7, 8, 9] if folded else list(range(12))  # a take, a slice
@@ -390,7 +390,7 @@ def test_exponents_are_floored_before_exp(rng, selection, layout):
     compiled path floors them at _EXP_FLOOR, so exp stays normal (> 0), and
     the prediction still equals predict (the floor changes a summand by at
     most |a| exp(-700))."""
-    from sklearn_gpcd.detection import _compiled
+    from sklearn_gpcd.gp import compiled as _compiled
 
     X, current = augmented_run(150, 2, rng)
     kernels = [C(1.0) * ARDRBF(np.full(6, scale), columns=list(range(6)))

@@ -23,7 +23,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from test_properties import SETTINGS, ard_kernels, kernel_trees
 
 import sklearn_gpcd.kernels as gpcd_kernels
-from sklearn_gpcd.detection._compiled import compile_predictor
+from sklearn_gpcd.gp import compile_predictor
 from sklearn_gpcd.gp import SemiParametricGPRegressor
 from sklearn_gpcd.gp._likelihood import _log_marginal_likelihood
 from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate, contract_gradient

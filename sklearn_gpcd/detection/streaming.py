@@ -9,7 +9,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from ..layout import column_names
 from .._persistence import VersionedStateMixin
-from ._compiled import compile_predictor
+from ..gp import compile_predictor
 from ._regimes import RegimeState
 
 
@@ -308,7 +308,7 @@ class StreamingMonitor(VersionedStateMixin):
     ``min_duration`` rows) and a tick allocates no array.
 
     The regressor's prediction is compiled once into a single-sample path
-    (see :func:`~sklearn_gpcd.detection._compiled.compile_predictor`): for a
+    (see :func:`~sklearn_gpcd.gp.compile_predictor`): for a
     GP, the support points are pre-scaled per ARD block, the weights and
     parametric-mean coefficients are cached and the gated (quasi-static)
     block is skipped while every gate is closed. ``normalize="std"`` needs

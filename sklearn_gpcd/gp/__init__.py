@@ -9,9 +9,12 @@
 * :func:`make_sp_c` -- our extension: the controller's target current as the
   parametric mean, a GP correction on top;
 * :func:`resolve_n_support` -- how many support rows ``n_support`` (an int,
-  ``"auto"`` or None) stands for on a given number of training rows.
+  ``"auto"`` or None) stands for on a given number of training rows;
+* :func:`compile_predictor` -- one input row at a time, in preallocated
+  buffers (the streaming monitor's prediction).
 """
 
+from .compiled import compile_predictor
 from .factories import make_p_f, make_sp_c, make_sp_p, make_sp_s
 from ._posterior import GPPosterior
 from .mean import ParametricMean
@@ -27,4 +30,5 @@ __all__ = [
     "make_sp_p",
     "make_sp_c",
     "resolve_n_support",
+    "compile_predictor",
 ]

@@ -1,4 +1,4 @@
-"""Single-sample prediction paths for the streaming monitor.
+"""Single-sample prediction of a fitted regressor (the streaming monitor's path).
 
 ``regressor.predict(x[None])`` costs a validation pass, a kernel object call
 per summand and fresh arrays every tick. :func:`compile_predictor` turns a
@@ -49,6 +49,11 @@ import warnings
 import numpy as np
 
 from .._gate import quasi_static
+from ..dynamics import ControllerFeatures, RigidBodyRegressor
+from ..kernels.plan import compile_kernel, flatten
+from ._posterior import GPPosterior
+from .mean import ParametricMean
+from .regressor import SemiParametricGPRegressor
 
 __all__ = ["compile_predictor"]
 
@@ -341,7 +346,6 @@ class _GaussianProcessPredictor:
     """Fast mean of a GP with per-output supports, weights and parametric means."""
 
     def __init__(self, posteriors, n_features, wrap):
-        from ..kernels.plan import compile_kernel, flatten  # layer 4, lazily
 
         n_outputs = len(posteriors)
         self.n_outputs = n_outputs
@@ -432,8 +436,6 @@ def _compile_mean(mean, wrap, states):
     """
     if mean is None:
         return None
-    from ..dynamics import ControllerFeatures, RigidBodyRegressor  # layer 2, lazily
-    from ..gp import ParametricMean  # layer 4, lazily
 
     coef = getattr(mean, "coef_", None)
     plain = type(mean) is ParametricMean and np.ndim(coef) == 1
@@ -506,7 +508,6 @@ def _gp_posteriors(regressor):
     """The per-output :class:`~sklearn_gpcd.gp.GPPosterior` of a fitted GP, or None."""
     from sklearn.gaussian_process import GaussianProcessRegressor
 
-    from ..gp import GPPosterior, SemiParametricGPRegressor  # layer 4, lazily
 
     if isinstance(regressor, SemiParametricGPRegressor):
         return regressor.posteriors_
