@@ -7,6 +7,7 @@ import pytest
 from sklearn_gpcd.contact import (
     LINK_GROUPS,
     contact_point,
+    describe_alarms,
     estimate_force,
     isolate_contact,
     link_group,
@@ -118,3 +119,31 @@ def test_force_is_exact_without_noise_and_flags_ill_conditioning():
     np.testing.assert_allclose(contact_point(robot, 3), model.frames[
         model.getFrameId("forearm_link")].placement.translation)
     assert estimate_force(robot, q, [10.0, 0, 0, 0, 0, 0], link=1).rank == 0
+
+
+def test_describe_alarms_on_the_simulated_pushes(simulated):
+    """The alarms of the thresholds themselves, as a monitor would raise them:
+    one event per push, each on its link, with a force."""
+    obs, pushes, contacts, r, thresholds = simulated
+    alarms = np.abs(r) > thresholds
+    events = describe_alarms(alarms, r, thresholds, time=pushes.time, merge_gap=0.3,
+                             robot=obs.robot_, q=pushes.q, torque=r,
+                             torque_std=obs.residual_std_ * obs.torque_constants_,
+                             points={c.link: c.point for c in contacts[:6]})
+    found = set()
+    for event in events:  # every event lies in one push and names its link
+        k = pushes.labels[event["start"]:event["stop"]].max()
+        assert k > 0 and k not in found, event
+        found.add(k)
+        assert event["link"] == contacts[k - 1].link
+        assert event["force_N"] > 0 and event["force_sample"] in range(event["start"],
+                                                                        event["stop"])
+    assert len(found) >= 0.9 * len(contacts)  # raw thresholds: no filter, no debounce
+    # a sample-index run without time, merged runs
+    fired = np.zeros((8, 6), dtype=bool)
+    fired[[1, 2, 4], 1] = True
+    signal = np.where(fired, 2.0, 0.0)
+    assert [(e["start"], e["stop"]) for e in describe_alarms(fired, signal, 1.0)] == [(1, 3),
+                                                                                        (4, 5)]
+    assert [(e["start"], e["stop"]) for e in describe_alarms(fired, signal, 1.0,
+                                                             merge_gap=2)] == [(1, 5)]

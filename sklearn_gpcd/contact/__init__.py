@@ -7,7 +7,9 @@
 * :func:`estimate_force` -- the external force at a contact point on that
   link from the joint residual torques through the Jacobian, with its
   uncertainty from the residual's standard deviation and a conditioning
-  measure; :func:`contact_point` -- the default point (the link's frame).
+  measure; :func:`contact_point` -- the default point (the link's frame);
+* :func:`describe_alarms` -- one row per alarm event of a monitor's output:
+  start, stop, link, confidence and force (the table a monitor prints).
 
 This layer reads robots and dynamics only; the residuals come from any
 monitor (a GP detector, ``i - i_des`` or the
@@ -18,7 +20,9 @@ monitor (a GP detector, ``i - i_des`` or the
 'wrist'
 """
 
+from .events import describe_alarms
 from .force import contact_point, estimate_force
 from .isolation import LINK_GROUPS, isolate_contact, link_group
 
-__all__ = ["LINK_GROUPS", "contact_point", "estimate_force", "isolate_contact", "link_group"]
+__all__ = ["LINK_GROUPS", "contact_point", "describe_alarms", "estimate_force", "isolate_contact",
+           "link_group"]
