@@ -33,6 +33,7 @@ PUBLIC_MODULES = {
     "kernels": "Kernels",
     "gp": "Semi-parametric GP regression",
     "detection": "Collision detection",
+    "contact": "After the alarm: isolation and force",
     "metrics": "Metrics",
     "plotting": "Plotting",
     "datasets": "Simulator and data sets",

@@ -1,4 +1,5 @@
-"""Physical torque model features: regressor, base parameters, sklearn transformer.
+"""Physical torque model features: regressor, base parameters, sklearn transformer;
+the generalized-momentum observer.
 
 >>> from sklearn_gpcd.dynamics import parameter_names
 >>> parameter_names(6)[-1]
@@ -17,12 +18,16 @@ from .regressor import (
     parameter_names,
     parameter_vector,
 )
+from .observer import UR_OBSERVER_GAINS, MomentumObserver, MomentumObserverStream
 from .rigid_body import RigidBodyRegressor
 
 __all__ = [
     "ControllerCurrent",
     "ControllerFeatures",
     "RigidBodyRegressor",
+    "MomentumObserver",
+    "MomentumObserverStream",
+    "UR_OBSERVER_GAINS",
     "parameter_vector",
     "parameter_names",
     "full_regressor",
