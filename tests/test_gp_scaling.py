@@ -183,11 +183,11 @@ def test_auto_picks_each_path_in_fit():
 def test_bad_adam_parameters():
     X, y = smooth(30)
     for params, match in [
-        (dict(batch_size=0), "batch_size must be an int >= 1"),
-        (dict(max_iter=1.5), "max_iter must be an int >= 1"),
-        (dict(learning_rate=0.0), "learning_rate must be a finite float > 0"),
-        (dict(tol=-1.0), "tol must be a finite float >= 0"),
-        (dict(n_iter_no_change=0), "n_iter_no_change must be an int >= 1"),
+        (dict(batch_size=0), "'batch_size' parameter of SemiParametricGPRegressor must be"),
+        (dict(max_iter=1.5), "'max_iter' parameter of SemiParametricGPRegressor must be"),
+        (dict(learning_rate=0.0), "'learning_rate' parameter of"),
+        (dict(tol=-1.0), "'tol' parameter of SemiParametricGPRegressor must be"),
+        (dict(n_iter_no_change=0), "'n_iter_no_change' parameter of"),
     ]:
         with pytest.raises(ValueError, match=match):
             SemiParametricGPRegressor(**params).fit(X, y)

@@ -22,7 +22,6 @@ Two paths:
 :data:`EXACT_MAX_SAMPLES` rows, else the stochastic path.
 """
 
-import numbers
 import warnings
 
 import numpy as np
@@ -55,18 +54,6 @@ LBFGS_MEMORY = 50
 _VALIDATION_INTERVAL = 10
 # Adam's moment decay rates and epsilon (Kingma & Ba's defaults)
 _BETA1, _BETA2, _EPS = 0.9, 0.999, 1e-8
-
-
-def _check_optimizer(optimizer):
-    """Raise a ValueError naming ``optimizer`` unless it is supported."""
-    if optimizer is None or callable(optimizer):
-        return
-    if isinstance(optimizer, str) and optimizer in OPTIMIZERS:
-        return
-    raise ValueError(
-        f"Unknown optimizer {optimizer!r}; expected one of {OPTIMIZERS}, None "
-        "or a callable(obj_func, initial_theta, bounds) -> (theta, f)."
-    )
 
 
 def resolve_optimizer(optimizer, n_exact, n_theta):
@@ -172,7 +159,7 @@ def _minimize(obj_func, initial_theta, bounds, optimizer, max_iter=None):
     if callable(optimizer):
         theta_opt, f_min = optimizer(obj_func, initial_theta, bounds=bounds)
         return theta_opt, f_min, 0
-    _check_optimizer(optimizer)  # pragma: no cover - validated in fit
+    raise ValueError(f"unknown optimizer {optimizer!r}")  # pragma: no cover - fit checks
 
 
 def _restart_thetas(kernel, n_restarts, rng):
@@ -430,8 +417,3 @@ def data_driven_init(kernel, X, rng, max_rows=1000):
     # each node sets its kernel's initial hyperparameters (kernels/plan.py)
     compile_kernel(kernel).init_hyperparameters(X, rng, max_rows)
     return kernel
-
-
-def _check_positive_int(value, name):
-    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
-        raise ValueError(f"{name} must be an int >= 1, got {value!r}.")

@@ -5,6 +5,7 @@ import numbers
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._gate import check_sigma_v, quasi_static
@@ -92,6 +93,15 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
            [1., 1.]])
     """
 
+    _parameter_constraints = {
+        "features": [None, callable, HasMethods(["fit", "transform"])],
+        "friction_columns": [None, StrOptions({"auto"}), "array-like"],
+        "velocity_column": [None, numbers.Integral, str, "array-like"],
+        "sigma_v": [None, numbers.Real],
+        "alpha": [Interval(numbers.Real, 0, None, closed="left")],
+        "fit_intercept": ["boolean"],
+    }
+
     def __init__(
         self,
         features=None,
@@ -127,9 +137,8 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
 
     def _fit(self, X, y):
         """Fit; return the design matrix of ``X`` (reused by :meth:`_fit_predict`)."""
+        self._validate_params()
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, dtype=np.float64)
-        if not (isinstance(self.alpha, numbers.Real) and self.alpha >= 0):
-            raise ValueError(f"alpha must be a float >= 0, got {self.alpha!r}.")
         self.features_ = _fit_features(self.features, X)
         Phi = _apply_features(self.features_, X)
         self.friction_columns_, self.velocity_column_ = self._check_friction(Phi.shape[1])

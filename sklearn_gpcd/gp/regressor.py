@@ -7,13 +7,13 @@ from contextlib import nullcontext
 
 import numpy as np
 from joblib import Parallel, delayed
-from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._gate import check_sigma_v
 from .._persistence import VersionedStateMixin
 from ..kernels import resolve_columns
 from ._likelihood import _log_marginal_likelihood, single_threaded_blas
@@ -21,8 +21,7 @@ from ._optimize import (
     REFINE_MAX_ITER,
     REFINE_MAX_SAMPLES,
     AdamSettings,
-    _check_optimizer,
-    _check_positive_int,
+    OPTIMIZERS,
     _fit_hyperparameters,
     _fit_hyperparameters_adam,
     data_driven_init,
@@ -192,6 +191,27 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
     True
     """
 
+    _parameter_constraints = {
+        "kernel": [None, HasMethods(["__call__", "diag"]), list, tuple],
+        "mean": [None, HasMethods(["fit", "predict"]), callable, list, tuple],
+        "alpha": [Interval(numbers.Real, 0, None, closed="left"), "array-like"],
+        "optimizer": [None, StrOptions(set(OPTIMIZERS)), callable],
+        "n_restarts_optimizer": [Interval(numbers.Integral, 0, None, closed="left")],
+        "batch_size": [Interval(numbers.Integral, 1, None, closed="left")],
+        "max_iter": [Interval(numbers.Integral, 1, None, closed="left")],
+        "learning_rate": [Interval(numbers.Real, 0, None, closed="neither")],
+        "tol": [Interval(numbers.Real, 0, None, closed="left")],
+        "n_iter_no_change": [Interval(numbers.Integral, 1, None, closed="left")],
+        "normalize_y": ["boolean"],
+        "n_support": [None, StrOptions({"auto"}), Interval(numbers.Integral, 1, None,
+                                                             closed="left")],
+        "support_selection": [StrOptions(set(SUPPORT_SELECTIONS))],
+        "sigma_v": [None, Interval(numbers.Real, 0, None, closed="neither")],
+        "n_jobs": [None, numbers.Integral],
+        "random_state": ["random_state"],
+        "verbose": ["verbose"],
+    }
+
     def __init__(
         self,
         kernel=None,
@@ -231,6 +251,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         self.random_state = random_state
         self.verbose = verbose
 
+    @_fit_context(prefer_skip_nested_validation=False)
     def fit(self, X, y):
         """Fit the parametric mean, then the GP hyperparameters and posterior.
 
@@ -247,7 +268,6 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         """
         X_raw = X
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, dtype=np.float64)
-        self._check_params()
         Y = y.reshape(len(y), -1)
         self.n_outputs_ = Y.shape[1]
         alpha = self._check_alpha(len(y))
@@ -431,38 +451,6 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         if not isinstance(seed, numbers.Integral):
             seed = int(check_random_state(seed).randint(np.iinfo(np.int32).max))
         return [seed] * self.n_outputs_
-
-    def _check_params(self):
-        _check_optimizer(self.optimizer)
-        _check_positive_int(self.batch_size, "batch_size")
-        _check_positive_int(self.max_iter, "max_iter")
-        _check_positive_int(self.n_iter_no_change, "n_iter_no_change")
-        for name in ("learning_rate", "tol"):
-            value = getattr(self, name)
-            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= 0
-                    and (value > 0 or name == "tol")):
-                raise ValueError(
-                    f"{name} must be a finite float {'>= 0' if name == 'tol' else '> 0'}, "
-                    f"got {value!r}."
-                )
-        if not (isinstance(self.n_restarts_optimizer, numbers.Integral)
-                and self.n_restarts_optimizer >= 0):
-            raise ValueError(
-                f"n_restarts_optimizer must be an int >= 0, got {self.n_restarts_optimizer!r}."
-            )
-        if self.n_support is not None and not (
-            (isinstance(self.n_support, numbers.Integral) and self.n_support >= 1)
-            or (isinstance(self.n_support, str) and self.n_support == "auto")
-        ):
-            raise ValueError(
-                f"n_support must be an int >= 1, 'auto' or None, got {self.n_support!r}."
-            )
-        if self.support_selection not in SUPPORT_SELECTIONS:
-            raise ValueError(
-                f"support_selection must be one of {SUPPORT_SELECTIONS}, "
-                f"got {self.support_selection!r}."
-            )
-        check_sigma_v(self.sigma_v, "SemiParametricGPRegressor", allow_none=True)
 
     def _check_alpha(self, n_samples):
         alpha = np.asarray(self.alpha, dtype=float)
