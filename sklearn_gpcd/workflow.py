@@ -426,7 +426,7 @@ def save_model(trained, path):
                  "features": trained.features, "training": trained.training}, path)
 
 
-def load_model(path):
+def load_model(path, trust_pickle=False):
     """Read a model file written by ``gpcd train`` (:func:`save_model`).
 
     A file holding a bare regressor (written by ``gpcd train`` before it
@@ -436,6 +436,9 @@ def load_model(path):
     ----------
     path : str or path-like
         A model file.
+    trust_pickle : bool, default=False
+        Load a ``.joblib`` / ``.pkl`` file (a pickle runs any code it
+        carries; see :func:`sklearn_gpcd.load`).
 
     Returns
     -------
@@ -454,12 +457,12 @@ def load_model(path):
     >>> trained = TrainedModel(LinearRegression().fit([[0.0], [1.0]], [0.0, 1.0]), None,
     ...                        {"inputs": "causal"})
     >>> _ = save_model(trained, path)
-    >>> load_model(path).training
+    >>> load_model(path, trust_pickle=True).training  # our own pickle
     {'inputs': 'causal'}
     """
     from .persistence import load
 
-    bundle = load(path)
+    bundle = load(path, trust_pickle=trust_pickle)
     if isinstance(bundle, dict):
         if bundle.get("kind") != MODEL_KIND:
             raise ValueError(f"{path}: not a model file written by gpcd train (kind "

@@ -93,7 +93,8 @@ def test_calibrate_reads_a_bare_regressor_with_a_warning(work, capsys):
 
     bare = save(load_model(work["model"]).regressor, work["folder"] / "bare.joblib")
     out = work["folder"] / "bare_detector.skops"
-    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out)]) == 0
+    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out),
+                 "--trust-pickle"]) == 0  # our own pickle
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "holds no input features" in err[0]
     assert load_detector(out)[2]["training"] == {}
