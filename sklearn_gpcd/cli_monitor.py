@@ -676,6 +676,7 @@ def _cmd_monitor(args):
                     plots.append(_plot(session, Path(args.plot), key))
     except BaseException as exc:  # the report on every exit path, then as before
         if session.recordings:
+            session.finish()  # the open event, the summary so far
             session.end("interrupted" if isinstance(exc, KeyboardInterrupt)
                         else f"error: {_one_line(exc)}", abnormal=True)
             _write_report(args, session, calibration, plots)

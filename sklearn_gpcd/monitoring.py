@@ -30,6 +30,7 @@ is available on every exit path, and :attr:`MonitorSession.exit_status` is
 non-zero when the session was ever blind or the stream ended abnormally.
 """
 
+import gc
 import math
 import os
 import shlex
@@ -215,8 +216,9 @@ class MonitorSession:
         at each fault (``GPCD_FAULT``, ``GPCD_FAULT_TIME``). One that cannot
         start or fails is reported (:class:`HookWarning`); monitoring goes on.
     keep_series : bool, default=False
-        Keep every tick's signal, regime and alarms in ``series`` (for
-        figures of recordings; grows with the stream).
+        Keep every valid tick's time from the start (``t``), time stamp,
+        signal, regime and alarms in ``series`` (for figures of recordings;
+        grows with the stream).
     echo : bool, default=False
         Print ``ALARM`` lines as they happen (``FAULT``, ``RECOVERING`` and
         ``MONITORING`` lines are always printed).
@@ -236,7 +238,9 @@ class MonitorSession:
         (1-based), ``peak_A``, ``delay_s``; ``bands`` with several bands).
     faults : list of dict
         Blind periods (``recording``, ``start_s``, ``kind``, ``reason``,
-        ``blind_s``, ``samples_lost``); the first ``MAX_FAULT_RECORDS``.
+        ``blind_s``, ``samples_lost``, ``recovered_s``: time of the first
+        valid sample after it, None while blind); the first
+        ``MAX_FAULT_RECORDS``.
     n_blind : int
         Times the session went blind.
     recordings : list of dict
@@ -321,7 +325,7 @@ class MonitorSession:
         self.monitor.reset()
         self.name, self.t0, self.cross_start, self.open = name, None, None, None
         self.n_samples = self.n_faults = 0
-        self.series = {"t": [], "signal": [], "regime": [], "alarms": []}
+        self.series = {"t": [], "stamp": [], "signal": [], "regime": [], "alarms": []}
         self.recordings.append({"name": name})
         self.state, self._warm = MONITORING, 0
         self._last_stamp = self._last_rel = None
@@ -392,6 +396,7 @@ class MonitorSession:
         if self.keep_series:
             s = self.series
             s["t"].append(rel)
+            s["stamp"].append(t)
             s["signal"].append([band.signal.copy() for band in self.bands])
             s["regime"].append([band.regime for band in self.bands])
             s["alarms"].append(mon.alarms.copy())
@@ -450,7 +455,8 @@ class MonitorSession:
             self._lost += 1
             return "sensor_fault"
         waited = received - self._last_ok if self._last_ok is not None else 0.0
-        if waited > self.stall_timeout or self._run * self.sample_time > self.stall_timeout:
+        bound = self.stall_timeout - 1e-9  # the bound itself included
+        if waited >= bound or self._run * self.sample_time >= bound:
             run = self._run
             self.fault(f"{run} rejected samples in a row ({reason})", kind="rejected",
                        received=received)
@@ -463,7 +469,7 @@ class MonitorSession:
             record = self._open_fault
             blind = (self._last_ok - self._blind_since) if self._last_ok is not None else 0.0
             if record is not None:
-                record.update(blind_s=blind, samples_lost=self._lost)
+                record.update(blind_s=blind, samples_lost=self._lost, recovered_s=rel)
             self.state, self._warm = RECOVERING, 0
             print(f"RECOVERING {self.name} t={rel:.3f} s: valid samples again after "
                   f"{blind:.3f} s blind; monitor restarted, full sensitivity after "
@@ -501,7 +507,8 @@ class MonitorSession:
         self._open_fault = None
         if len(self.faults) < MAX_FAULT_RECORDS:
             self._open_fault = {"recording": self.name, "start_s": rel, "kind": kind,
-                                "reason": reason, "blind_s": None, "samples_lost": None}
+                                "reason": reason, "blind_s": None, "samples_lost": None,
+                                "recovered_s": None}
             self.faults.append(self._open_fault)
         if self.open is not None:
             self._close()
@@ -701,6 +708,9 @@ class MonitorSession:
         end = math.inf if duration is None else begin + float(duration)
         connected, lost_at, backoff = True, None, 0.05
         self._last_ok = begin  # a connection that never sends data is a stall
+        # the objects of the setup (modules, model) leave the garbage collector's
+        # generations: a full collection then takes no longer than a tick's garbage
+        gc.freeze()
         try:
             while True:
                 now = time.perf_counter()
@@ -753,6 +763,7 @@ class MonitorSession:
                 self.tick(fields.pop("time"), fields, received)
         finally:
             client.close()
+            gc.unfreeze()
         return self.finish()
 
     def end(self, reason, abnormal=False):

@@ -339,6 +339,8 @@ class RTDEClient:
 FAULT_KINDS = {
     "drop": "reset the connection before this sample (value unused); the next client "
             "gets the stream from this sample on",
+    "kill": "reset the connection before this sample and stop serving (a controller "
+            "that died)",
     "stall": "send nothing for value seconds before this sample (no sample lost)",
     "gap": "skip value samples (lost: the time stamps jump forward)",
     "clock_jump": "add value seconds to this and every later time stamp",
@@ -459,6 +461,7 @@ class LoopbackRTDEServer:
                 return
             self.n_connections += 1
             if self._connection(conn, deadline):
+                self._listener.close()  # over: a client that reconnects is refused
                 return
 
     def _connection(self, conn, deadline):
@@ -471,10 +474,10 @@ class LoopbackRTDEServer:
                 data = self._handshake(conn, stream)
                 if data is None:
                     return False
-                done = self._stream_data(conn, data, deadline)
-                if done:
+                outcome = self._stream_data(conn, data, deadline)
+                if outcome == "sent":
                     conn.sendall(_package(PAUSE))
-                return done
+                return outcome != "dropped"
             except OSError:
                 return self._stop.is_set()
             finally:
@@ -534,7 +537,8 @@ class LoopbackRTDEServer:
         return row
 
     def _stream_data(self, conn, data, deadline):
-        """Send from sample ``_next`` on; True when the whole stream was sent."""
+        """Send from sample ``_next`` on: ``"sent"`` (all of it), ``"dropped"``
+        (the connection, by a fault) or ``"stopped"``."""
         if self._table is None:
             self._build_table()
         rec = self.recording
@@ -543,15 +547,15 @@ class LoopbackRTDEServer:
         while self._next < self._total:
             k = self._next
             if self._stop.is_set() or time.monotonic() > deadline:
-                return True
+                return "stopped"
             for kind, value in self.faults.pop(k, ()):
-                if kind == "drop":
+                if kind in ("drop", "kill"):
                     conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER,
                                     struct.pack("ii", 1, 0))  # close with a reset
-                    return False
+                    return "dropped" if kind == "drop" else "stopped"
                 if kind == "bad_size":
                     conn.sendall(_HEADER.pack(1, DATA_PACKAGE))
-                    return False
+                    return "dropped"
                 if kind == "stall":
                     self._stop.wait(float(value))
                     start += float(value) * (self.speed > 0)
@@ -586,4 +590,4 @@ class LoopbackRTDEServer:
                 self._last_stamp = row[0]
             self.n_sent += 1
             self._next = k + 1
-        return True
+        return "sent"
