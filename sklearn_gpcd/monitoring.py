@@ -43,7 +43,12 @@ import numpy as np
 __all__ = ["BLIND", "MONITORING", "RECOVERING", "HookWarning", "MonitorSession",
            "paced", "recording_samples", "stall_bound"]
 
-MONITORING, BLIND, RECOVERING = "monitoring", "blind", "recovering"
+#: State of a session whose decisions are those of the detector.
+MONITORING = "monitoring"
+#: State of a session without a valid decision for longer than the stall bound.
+BLIND = "blind"
+#: State of a session restarted after a blind period, during its warm-up.
+RECOVERING = "recovering"
 #: Control periods without a valid decision after which a session is blind.
 STALL_PERIODS = 3
 #: Shortest stall bound [s] (OS scheduling makes shorter bounds meaningless).
@@ -238,9 +243,10 @@ class MonitorSession:
         (1-based), ``peak_A``, ``delay_s``; ``bands`` with several bands).
     faults : list of dict
         Blind periods (``recording``, ``start_s``, ``kind``, ``reason``,
-        ``blind_s``, ``samples_lost``, ``recovered_s``: time of the first
-        valid sample after it, None while blind); the first
-        ``MAX_FAULT_RECORDS``.
+        ``last_stamp``: the controller time stamp of the last valid sample
+        before it, ``blind_s``, ``samples_lost``, ``recovered_s`` and
+        ``recovered_stamp``: the time and time stamp of the first valid
+        sample after it, None while blind); the first ``MAX_FAULT_RECORDS``.
     n_blind : int
         Times the session went blind.
     recordings : list of dict
@@ -329,7 +335,7 @@ class MonitorSession:
         self.recordings.append({"name": name})
         self.state, self._warm = MONITORING, 0
         self._last_stamp = self._last_rel = None
-        self._prev_stamp = self._prev_received = None
+        self._prev_stamp = self._prev_received = self._valid_stamp = None
         self._last_ok = None  # received of the last valid tick (live)
         self._last_received = None
         self._run = 0  # rejected samples in a row
@@ -382,7 +388,8 @@ class MonitorSession:
         rel = self._rel(t)
         if live:
             self._last_ok = received
-            self._valid_tick(rel)
+            self._valid_tick(rel, t)
+            self._valid_stamp = t
         if any((np.abs(band.signal) > thresholds[band.regime]).any()
                for band, thresholds in zip(self.bands, self.thresholds)):
             if self.cross_start is None:
@@ -463,13 +470,14 @@ class MonitorSession:
             self._lost = run
         return "sensor_fault"
 
-    def _valid_tick(self, rel):
+    def _valid_tick(self, rel, t):
         """State after a valid live tick: blind -> recovering -> monitoring."""
         if self.state == BLIND:
             record = self._open_fault
             blind = (self._last_ok - self._blind_since) if self._last_ok is not None else 0.0
             if record is not None:
-                record.update(blind_s=blind, samples_lost=self._lost, recovered_s=rel)
+                record.update(blind_s=blind, samples_lost=self._lost, recovered_s=rel,
+                              recovered_stamp=t)
             self.state, self._warm = RECOVERING, 0
             print(f"RECOVERING {self.name} t={rel:.3f} s: valid samples again after "
                   f"{blind:.3f} s blind; monitor restarted, full sensitivity after "
@@ -507,8 +515,9 @@ class MonitorSession:
         self._open_fault = None
         if len(self.faults) < MAX_FAULT_RECORDS:
             self._open_fault = {"recording": self.name, "start_s": rel, "kind": kind,
-                                "reason": reason, "blind_s": None, "samples_lost": None,
-                                "recovered_s": None}
+                                "reason": reason, "last_stamp": self._valid_stamp,
+                                "blind_s": None, "samples_lost": None,
+                                "recovered_s": None, "recovered_stamp": None}
             self.faults.append(self._open_fault)
         if self.open is not None:
             self._close()

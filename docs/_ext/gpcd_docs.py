@@ -40,6 +40,7 @@ PUBLIC_MODULES = {
     "experiments": "The paper's experiments",
     "persistence": "Saving and loading models",
     "workflow": "Training a detection model (gpcd train)",
+    "monitoring": "Live monitoring (gpcd monitor)",
     "cli": "The gpcd command",
     "cli_monitor": "gpcd calibrate and gpcd monitor",
 }

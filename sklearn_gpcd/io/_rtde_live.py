@@ -14,10 +14,20 @@ monitor needs:
    ``>d``, ``VECTOR6D`` = ``>6d``) until ``P`` (80) pause or the socket
    closes.
 
+The client never ends quietly: :meth:`RTDEClient.receive` waits for a data
+package up to a deadline (``TimeoutError``: a stall), a closed or reset
+link is a ``ConnectionError``, a package size outside ``3..MAX_PACKAGE``
+bytes, an unexpected answer or a malformed output recipe an
+:class:`RTDEProtocolError` (one line), a data package that does not match
+the recipe a :class:`MalformedPackage` (the stream goes on), and a pause
+package (``P``) :class:`StreamPaused`, the clean end.
+
 :class:`LoopbackRTDEServer` answers the same messages on 127.0.0.1 and
 streams a :class:`~sklearn_gpcd.io.Recording` at its own time stamps (real
-time): the seam tests and ``benchmarks/rtde_loopback.py`` drive to run
-``gpcd monitor --rtde`` end to end without a robot.
+time), then pauses; it serves a client that reconnects, and injects the
+link and stream faults of ``FAULT_KINDS`` on request: the seam tests,
+``tests/test_monitoring.py`` and ``benchmarks/rtde_loopback.py`` drive it
+to run ``gpcd monitor --rtde`` end to end without a robot.
 """
 
 import socket
