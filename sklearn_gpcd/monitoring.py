@@ -710,7 +710,7 @@ class MonitorSession:
         summary : dict
             What :meth:`finish` returns.
         """
-        from .io._rtde_live import MalformedPackage, StreamPaused
+        from .io import MalformedPackage, StreamPaused
 
         self.start(name)
         begin = time.perf_counter()
