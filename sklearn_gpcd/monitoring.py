@@ -313,6 +313,7 @@ class MonitorSession:
         self._n_ticks, self._behind_max = 0, -math.inf
         self._first_decided = self._first_rel = None
         self._steps, self._step, self._dropped = [], None, 0
+        self._stat_stamp = None
         self.state = MONITORING
         self.name = None
 
@@ -443,6 +444,7 @@ class MonitorSession:
                            received=received)
                 last_rel = self._last_rel if self._last_rel is not None else 0.0
                 self.t0 = t - (last_rel + max(wall, self.sample_time))  # rel goes on
+                self._stat_stamp = None  # a new clock: no samples dropped
             else:
                 lost = round(step / self.sample_time) - 1
                 self.fault(f"time stamps jump {step:+.3f} s: about {lost} samples lost",
@@ -607,8 +609,9 @@ class MonitorSession:
         self._latency.add(decided - received)
         if not math.isfinite(t):
             return
-        if self._last_stamp is not None and self.t0 is not None:
-            step = t - self._last_stamp
+        previous, self._stat_stamp = self._stat_stamp, t
+        if previous is not None:
+            step = t - previous
             if step > 0:
                 if self._step is None:
                     self._steps.append(step)
