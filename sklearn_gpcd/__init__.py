@@ -67,6 +67,7 @@ _EXPORTS = {
     "load": "persistence",
     "GPCDVersionWarning": "persistence",
     "UntrustedTypesError": "persistence",
+    "UntrustedPickleError": "persistence",
 }
 
 __all__ = ["__version__", *_EXPORTS]

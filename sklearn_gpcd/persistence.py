@@ -3,12 +3,14 @@
 The file extension picks the format:
 
 - ``.joblib`` or ``.pkl``: :func:`joblib.dump` / :func:`joblib.load`. Fast
-  and complete, but a pickle runs code when it is loaded: only load files
-  you trust.
+  and complete, but a pickle runs any code it carries when it is loaded:
+  :func:`load` refuses it (:class:`UntrustedPickleError`) unless told
+  ``trust_pickle=True`` (``gpcd ... --trust-pickle``).
 - ``.skops``: :func:`skops.io.dump` / :func:`skops.io.load` (optional
   dependency, ``pip install "sklearn-gpcd[persist]"``). The file is a zip
   archive of JSON and ``.npy`` entries; loading instantiates only the types
-  it is allowed to (see :func:`load`).
+  on an explicit allow-list (see :func:`load` and :func:`trusted_types`):
+  no function, and no module is imported to decide what is trusted.
 
 Every estimator of the package records the sklearn-gpcd and scikit-learn
 versions in its saved state and warns (:class:`GPCDVersionWarning`,
@@ -17,23 +19,65 @@ into other versions (see :class:`sklearn_gpcd._persistence.VersionedStateMixin`)
 """
 
 import importlib
+import pkgutil
+from functools import lru_cache
 from pathlib import Path
 from zipfile import BadZipFile
 
 import joblib
-import numpy as np
 
 from ._persistence import GPCDVersionWarning
 
-__all__ = ["GPCDVersionWarning", "UntrustedTypesError", "load", "save"]
+__all__ = ["GPCDVersionWarning", "UntrustedPickleError", "UntrustedTypesError", "load",
+           "save", "trusted_types"]
 
 #: Extensions saved and loaded with joblib (pickle).
 PICKLE_EXTENSIONS = (".joblib", ".pkl")
 #: Extension saved and loaded with skops.
 SKOPS_EXTENSION = ".skops"
-#: Packages whose classes :func:`load` trusts in a skops file (all of
-#: sklearn-gpcd's own classes and functions are trusted too).
-TRUSTED_PACKAGES = ("sklearn", "numpy", "scipy")
+#: Subpackages of sklearn-gpcd whose classes a skops file may hold (estimators,
+#: kernels, transformers, robots and the plain state objects they keep). Never
+#: the CLI, the readers / RTDE client of ``io`` or any ``__main__`` module.
+TRUSTED_SUBPACKAGES = ("gp", "kernels", "features", "dynamics", "detection", "robots",
+                       "diagnosis")
+#: scikit-learn / NumPy classes the package's estimators hold that skops does not
+#: trust by default: scikit-learn's GP kernels (the building blocks of ours).
+TRUSTED_NAMES = tuple(
+    f"sklearn.gaussian_process.kernels.{name}" for name in (
+        "CompoundKernel", "ConstantKernel", "DotProduct", "ExpSineSquared",
+        "Exponentiation", "Matern", "PairwiseKernel", "Product", "RBF",
+        "RationalQuadratic", "Sum", "WhiteKernel"))
+
+
+class UntrustedPickleError(ValueError):
+    """A ``.joblib`` / ``.pkl`` file was given to :func:`load` without ``trust_pickle``.
+
+    A pickle runs any code it carries while it is loaded, before anything can
+    check what it holds; it is loaded only when the caller vouches for its
+    source.
+
+    Parameters
+    ----------
+    path : str
+        The file.
+
+    Attributes
+    ----------
+    path : str
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.persistence import UntrustedPickleError
+    >>> print(UntrustedPickleError("detector.joblib"))  # doctest: +ELLIPSIS
+    detector.joblib is a pickle: loading it runs any code it carries, ...
+    """
+
+    def __init__(self, path):
+        self.path = str(path)
+        super().__init__(
+            f"{self.path} is a pickle: loading it runs any code it carries, so it is "
+            "loaded only from a source you trust: pass trust_pickle=True (gpcd: "
+            "--trust-pickle), or save it as .skops")
 
 
 class UntrustedTypesError(ValueError):
@@ -107,7 +151,7 @@ def save(estimator, path):
     >>> gp = SemiParametricGPRegressor(random_state=0).fit(X, np.sin(6 * X[:, 0]))
     >>> folder = pathlib.Path(tempfile.mkdtemp())
     >>> for name in ("gp.joblib", "gp.skops"):
-    ...     copy = load(save(gp, folder / name))
+    ...     copy = load(save(gp, folder / name), trust_pickle=True)  # our own pickle
     ...     print(name, np.array_equal(copy.predict(X), gp.predict(X)))
     gp.joblib True
     gp.skops True
@@ -120,25 +164,29 @@ def save(estimator, path):
     return path
 
 
-def load(path, trusted=None):
+def load(path, trusted=None, *, trust_pickle=False):
     """Load an estimator written by :func:`save` (or by joblib / skops).
 
-    A ``.joblib`` / ``.pkl`` file is unpickled: this can run arbitrary code,
-    so only load files from a source you trust (``trusted`` does not apply).
+    A ``.joblib`` / ``.pkl`` file is a pickle, which runs any code it carries
+    while it is loaded: it is refused with :class:`UntrustedPickleError`
+    unless ``trust_pickle=True`` says that you trust its source (``trusted``
+    does not apply to it).
 
-    A ``.skops`` file is first audited. These types are trusted:
+    A ``.skops`` file is first audited, by name only (no module named in the
+    file is imported to decide). These types are trusted:
 
     - those skops trusts by default (builtins, NumPy arrays and ufuncs,
       scikit-learn estimators, ...);
-    - every class and function of sklearn-gpcd;
-    - every class of scikit-learn, NumPy and SciPy (e.g. kernels, internal
-      classes); their *functions* are not trusted, as they can be called
-      with the estimator's data;
+    - the classes of :func:`trusted_types`: sklearn-gpcd's own estimators,
+      kernels, transformers, robots and the state objects they hold, and
+      scikit-learn's GP kernels. No function is trusted (a function can be
+      called with the estimator's data), nor any other class of NumPy,
+      SciPy or scikit-learn;
 
     anything else (e.g. your own feature function or transformer) must be
     listed in ``trusted``, or :class:`UntrustedTypesError` is raised listing
     it. Inspect that list before passing it: an untrusted type may run its
-    code when the estimator is used.
+    code when the estimator is loaded or used.
 
     Parameters
     ----------
@@ -148,6 +196,9 @@ def load(path, trusted=None):
         For skops files: further types to trust, by fully qualified name as
         listed by :class:`UntrustedTypesError` (or
         :func:`skops.io.get_untrusted_types`), or as the types themselves.
+    trust_pickle : bool, default=False
+        Load a ``.joblib`` / ``.pkl`` file (a pickle): only for a file from a
+        source you trust.
 
     Returns
     -------
@@ -160,6 +211,8 @@ def load(path, trusted=None):
     ValueError
         If the extension is none of ``.joblib``, ``.pkl``, ``.skops``, or a
         ``.skops`` file is not a skops archive.
+    UntrustedPickleError
+        If a ``.joblib`` / ``.pkl`` file is given without ``trust_pickle=True``.
     UntrustedTypesError
         If a skops file holds types that are not trusted.
     ImportError
@@ -184,9 +237,19 @@ def load(path, trusted=None):
     ['numpy.linalg.norm']
     >>> load(path, trusted=["numpy.linalg.norm"]).func is np.linalg.norm
     True
+    >>> pickled = save(FunctionTransformer(np.sin), path.with_suffix(".joblib"))
+    >>> try:
+    ...     load(pickled)
+    ... except UntrustedPickleError as error:
+    ...     print("refused")
+    refused
+    >>> load(pickled, trust_pickle=True).func is np.sin
+    True
     """
     path = Path(path)
     if _format(path) == "joblib":
+        if not trust_pickle:
+            raise UntrustedPickleError(path)
         return joblib.load(path)
     sio = _skops()
     extra = [_type_name(t) for t in (trusted or [])]
@@ -194,7 +257,8 @@ def load(path, trusted=None):
         untrusted = sio.get_untrusted_types(file=path)
     except BadZipFile as exc:
         raise ValueError(f"{path} is not a skops file (not a zip archive): {exc}") from exc
-    implied = [name for name in untrusted if _implicitly_trusted(name)]
+    allowed = trusted_types()
+    implied = [name for name in untrusted if name in allowed]
     refused = sorted(set(untrusted) - set(implied) - set(extra))
     if refused:
         raise UntrustedTypesError(path, refused)
@@ -235,31 +299,48 @@ def _type_name(item):
     raise TypeError(f"trusted must hold type names (str) or types, got {item!r}.")
 
 
-def _implicitly_trusted(name):
-    """Whether :func:`load` trusts ``name`` without being told.
+def trusted_types():
+    """Names of the classes :func:`load` trusts in a skops file beyond skops' own.
 
-    Anything in sklearn-gpcd; classes and NumPy ufuncs in the packages of
-    ``TRUSTED_PACKAGES``. Only modules of those packages are imported to
-    tell a class from a function.
+    The classes defined in sklearn-gpcd's subpackages ``TRUSTED_SUBPACKAGES``
+    (estimators, kernels, transformers, robots and the plain state objects
+    they hold; exceptions and warnings left out) and ``TRUSTED_NAMES``
+    (scikit-learn's GP kernels). Only the package's own modules are imported
+    to list them, never a ``__main__`` module; a name in a file is only
+    compared with this set.
+
+    Returns
+    -------
+    names : frozenset of str
+        Fully qualified names (``module.QualName``).
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.persistence import trusted_types
+    >>> names = trusted_types()
+    >>> "sklearn_gpcd.detection.detector.CollisionDetector" in names
+    True
+    >>> "sklearn_gpcd.cli.main" in names or "numpy.memmap" in names
+    False
     """
-    package = name.split(".", 1)[0]
-    if package == "sklearn_gpcd":
-        return True
-    if package not in TRUSTED_PACKAGES:
-        return False
-    obj = _resolve(name)
-    return isinstance(obj, (type, np.ufunc))
+    return _trusted_types()
 
 
-def _resolve(name):
-    """The object named ``module.attr[.attr...]``, or None if it does not exist."""
-    parts = name.split(".")
-    for split in range(len(parts) - 1, 0, -1):
-        try:
-            obj = importlib.import_module(".".join(parts[:split]))
-        except ImportError:
-            continue
-        for attr in parts[split:]:
-            obj = getattr(obj, attr, None)
-        return obj
-    return None
+@lru_cache(maxsize=1)
+def _trusted_types():
+    names = set(TRUSTED_NAMES)
+    for sub in TRUSTED_SUBPACKAGES:
+        package = importlib.import_module(f"{__package__}.{sub}")
+        modules = [package.__name__] + [
+            info.name for info in pkgutil.walk_packages(package.__path__, package.__name__ + ".")
+            if info.name.rsplit(".", 1)[-1] != "__main__"]
+        for name in modules:
+            try:
+                module = importlib.import_module(name)
+            except ImportError:  # an optional dependency (e.g. matplotlib) is missing
+                continue
+            for obj in vars(module).values():
+                if (isinstance(obj, type) and obj.__module__ == name
+                        and not issubclass(obj, BaseException)):
+                    names.add(f"{obj.__module__}.{obj.__qualname__}")
+    return frozenset(names)

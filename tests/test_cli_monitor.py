@@ -96,7 +96,8 @@ def test_calibrate_refuses_a_bare_regressor(work, capsys):
 
     bare = save(load_model(work["model"]).regressor, work["folder"] / "bare.joblib")
     out = work["folder"] / "bare_detector.skops"
-    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out)]) == 2
+    assert main(["calibrate", str(bare), *map(str, work["free"]), "-q", "-o", str(out),
+                 "--trust-pickle"]) == 2  # our own pickle, but not a model file
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(bare) in err[0] and "gpcd train" in err[0]
     assert not out.exists()
@@ -207,7 +208,10 @@ def test_monitor_needs_exactly_one_source(work, capsys):
 
 def test_monitor_rtde_loopback_gives_the_offline_events(work, capsys):
     """End to end without a robot: RTDE server on 127.0.0.1 streaming the recording at
-    real time (about 5 s), the CLI's RTDE client, the same events as offline."""
+    real time (about 5 s), the CLI's RTDE client, the same events as offline. The
+    server is a thread of this process: on a loaded machine it may not send for more
+    than the default stall bound (20 ms), which the monitor rightly reports as a
+    fault (tests/test_monitoring.py); here the bound is 1 s."""
     offline, live = work["folder"] / "off2.json", work["folder"] / "live.json"
     assert main(["monitor", str(work["detector"]), str(work["push"]), "-q",
                  "--json", str(offline)]) == 0
@@ -216,7 +220,7 @@ def test_monitor_rtde_loopback_gives_the_offline_events(work, capsys):
         status = {}
         runner = threading.Thread(target=lambda: status.update(rc=main([
             "monitor", str(work["detector"]), "--rtde", "127.0.0.1", "--port",
-            str(server.port), "--json", str(live)])))
+            str(server.port), "--json", str(live), "--stall-timeout", "1"])))
         runner.start()
         runner.join(timeout=60.0)
     assert status.get("rc") == 0

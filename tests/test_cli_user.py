@@ -261,7 +261,7 @@ def test_train_p_f_with_robot_from_metadata(sims, tmp_path, capsys):
     assert "trained P_F for robot ur10e (6 joints) on 1 recording(s)" in captured.out
     assert "causal inputs" in captured.out and "GP support 2000 rows per joint" in captured.out
     assert "fitting P_F (6 joints)" in captured.err and "done in" in captured.err
-    trained = load_model(out)
+    trained = load_model(out, trust_pickle=True)
     model, rec = trained.regressor, sims["rec"]
     X = trained.features.transform(load_recording(sims["rtde"]))
     assert model.predict(X).shape == rec.current.shape
@@ -292,7 +292,7 @@ def test_train_inputs_optimizer_and_seed_options(sims, tmp_path, capsys):
                      "--n-support", "60", "--optimizer", "adam", "--seed", "3", "-q",
                      "--n-jobs", "1", "-o", str(paths[inputs])]) == 0
     assert "zero-phase inputs" in capsys.readouterr().out
-    causal, zero = load_model(paths["causal"]), load_model(paths["zero-phase"])
+    causal, zero = (load_model(paths[k], trust_pickle=True) for k in ("causal", "zero-phase"))
     assert (causal.training["inputs"], zero.training["inputs"]) == ("causal", "zero-phase")
     for trained in (causal, zero):
         assert trained.regressor.optimizer_ == "adam" == trained.training["optimizer"]
@@ -321,15 +321,15 @@ def test_train_coulomb_width_reaches_every_joint_and_is_recorded(sims, tmp_path,
     assert main(["train", str(sims["rtde"]), "--model", "p_f", "--coulomb-width", "0.02",
                  "--n-support", "50", "-q", "-o", str(out)]) == 0
     assert "Coulomb tanh(qd / 0.02)" in capsys.readouterr().out
-    trained = load_model(out)
+    trained = load_model(out, trust_pickle=True)
     assert trained.training["coulomb_width"] == 0.02
     assert [mean.features.coulomb_width for mean in trained.regressor.mean] == [0.02] * 6
     sign = main(["train", str(sims["rtde"]), "--model", "p_f", "--n-support", "50", "-q",
                  "-o", str(tmp_path / "sign.joblib")])
-    assert sign == 0 and load_model(tmp_path / "sign.joblib").training["coulomb_width"] is None
+    signed = load_model(tmp_path / "sign.joblib", trust_pickle=True)  # our own pickle
+    assert sign == 0 and signed.training["coulomb_width"] is None
     X = trained.features.transform(load_recording(sims["rtde"]))
-    assert not np.array_equal(trained.regressor.predict(X),
-                              load_model(tmp_path / "sign.joblib").regressor.predict(X))
+    assert not np.array_equal(trained.regressor.predict(X), signed.regressor.predict(X))
     for args, message in ((["--model", "p_f", "--coulomb-width", "0"], "expected a number > 0"),
                           (["--model", "sp_c", "--coulomb-width", "0.01"], "has none")):
         capsys.readouterr()
@@ -426,7 +426,7 @@ def test_train_records_the_largest_acceleration_for_the_braking_regime(sims, tmp
     out = tmp_path / "sp_c.joblib"
     assert main(["train", str(sims["rtde"]), "--model", "sp_c", "--n-support", "50", "-q",
                  "-o", str(out)]) == 0
-    trained = load_model(out)
+    trained = load_model(out, trust_pickle=True)
     X = trained.features.transform(load_recording(sims["rtde"]))
     limit = np.abs(X[:, block_columns("qdd", 6)]).max()
     assert trained.training["acceleration_limit"] == pytest.approx(limit)

@@ -10,6 +10,7 @@ sense, the column and the line; the command must exit with status 2 and one
 ``docs/user_guide/io.rst`` ("Every error and warning").
 """
 
+import io
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -655,3 +656,33 @@ def test_a_row_is_dropped_once_for_one_reason():
                                               r" 1 exact duplicate .*; 1 absurd"):
         rec = finalize_recording("x.csv", columns, np.arange(n) + 2, column_labels=labels)
     assert rec.metadata["dropped_rows"] == [12, 13] and rec.n_samples == 38
+
+
+def test_npz_header_claiming_more_rows_than_the_file_holds_is_refused_cheaply(tmp_path):
+    """A header claiming 1e9 rows in a small file: one ValueError naming the key, from
+    the sizes alone (NumPy would allocate 45 GiB before reading)."""
+    import tracemalloc
+    import zipfile
+
+    path = tmp_path / "forged.npz"
+    n = 50
+    np.savez(path, time=np.arange(n) * 0.002, q=np.zeros((n, 6)), qd=np.zeros((n, 6)),
+             current=np.ones((n, 6)))
+    with zipfile.ZipFile(path) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    data = entries["q.npy"]
+    header = np.lib.format.header_data_from_array_1_0(np.zeros((n, 6)))
+    forged = io.BytesIO()
+    np.lib.format.write_array_header_1_0(forged, dict(header, shape=(10**9, 6)))
+    entries["q.npy"] = forged.getvalue() + data[len(data) - n * 6 * 8:]
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, value in entries.items():
+            archive.writestr(name, value)
+    tracemalloc.start()
+    try:
+        with pytest.raises(ValueError, match=r"key 'q' claims shape \(1000000000, 6\)"):
+            read_npz(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 10 * 2**20  # nothing near the claimed 45 GiB was allocated

@@ -87,7 +87,9 @@ def detector(data):
 
 
 def round_trip(obj, fmt, tmp_path, **load_params):
-    return load(save(obj, tmp_path / f"model.{fmt}"), **load_params)
+    """``obj`` saved and loaded again (our own pickles are trusted explicitly)."""
+    return load(save(obj, tmp_path / f"model.{fmt}"), trust_pickle=fmt == "joblib",
+                **load_params)
 
 
 def bumped(X, Y, start=100, stop=160, amps=0.8):
@@ -195,7 +197,7 @@ def test_rigid_body_features_round_trip(factory, fmt, data, tmp_path):
     if fmt == "skops":
         untrusted = skops_io.get_untrusted_types(file=path)
         assert not [name for name in untrusted if name.startswith("pinocchio")], untrusted
-    copy = load(path)
+    copy = load(path, trust_pickle=fmt == "joblib")
     robots = [mean.features_.robot_ for mean in copy.mean_]
     assert len(robots) == N_JOINTS
     assert all(isinstance(robot.model, pin.Model) for robot in robots)
@@ -237,7 +239,7 @@ def test_same_version_loads_without_warning(fmt, detector, tmp_path):
     path = save(detector, tmp_path / f"det.{fmt}")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        load(path)
+        load(path, trust_pickle=True)
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
@@ -246,7 +248,7 @@ def test_other_package_version_warns_on_load(fmt, detector, tmp_path, monkeypatc
         patch.setattr(_persistence, "__version__", "0.0.1")
         path = save(detector, tmp_path / f"det.{fmt}")
     with pytest.warns(GPCDVersionWarning, match="saved with sklearn-gpcd 0.0.1") as record:
-        copy = load(path)
+        copy = load(path, trust_pickle=True)
     names = {w.message.estimator_name for w in record if w.category is GPCDVersionWarning}
     assert {"CollisionDetector", "SemiParametricGPRegressor"} <= names
     assert all(w.message.original_version == "0.0.1" for w in record
@@ -261,7 +263,7 @@ def test_other_sklearn_version_warns_on_load(fmt, tmp_path, monkeypatch):
         patch.setattr(sklearn, "__version__", "0.1")
         path = save(gp, tmp_path / f"gp.{fmt}")
     with pytest.warns(InconsistentVersionWarning, match="from version 0.1 when"):
-        load(path)
+        load(path, trust_pickle=True)
 
 
 def test_pickle_without_a_version_warns():

@@ -156,7 +156,8 @@ def _round_trip(robot, fmt, tmp_path):
         pytest.importorskip("skops.io")
     from sklearn_gpcd.persistence import load, save
 
-    return load(save(robot, tmp_path / f"robot.{fmt}"))  # skops: no trusted= needed
+    # skops: no trusted= needed; joblib: our own pickle, trusted explicitly
+    return load(save(robot, tmp_path / f"robot.{fmt}"), trust_pickle=fmt == "joblib")
 
 
 def _assert_bit_identical(copy, robot, rng):

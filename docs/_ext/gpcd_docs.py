@@ -41,6 +41,7 @@ PUBLIC_MODULES = {
     "experiments": "The paper's experiments",
     "persistence": "Saving and loading models",
     "workflow": "Training and calibrating a detector (gpcd train, gpcd calibrate)",
+    "monitoring": "Live monitoring (gpcd monitor)",
     "cli": "The gpcd command",
 }
 

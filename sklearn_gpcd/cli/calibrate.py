@@ -128,6 +128,9 @@ def add_parser(sub):
                      "the margin and the false-alarm figure are less safe)")
     cal.add_argument("-o", "--output", type=model_file_arg, required=True,
                      help="detector file to write (.skops, or .joblib / .pkl)")
+    cal.add_argument("--trust-pickle", action="store_true",
+                     help="load a .joblib / .pkl model file (a pickle runs any code it "
+                     "carries: only for a file from a source you trust)")
     cal.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     cal.set_defaults(func=run)
 
@@ -167,7 +170,7 @@ def run(args):
                    bands=args.band or (), band_candidates=args.band_candidates or (),
                    braking=args.braking)
     check_calibration_options(**options)
-    trained = load_model(args.model)
+    trained = load_model(args.model, trust_pickle=args.trust_pickle)
     recordings = read_recordings(args.recordings, args, "calibration recordings")
     robot = _optional_robot(args, recordings)
     calibrated = calibrate_detector(

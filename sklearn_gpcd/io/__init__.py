@@ -11,6 +11,9 @@
                            ``rosbags`` package)
 :class:`RTDEClient`        live UR controller data (RTDE protocol 2);
                            :class:`LoopbackRTDEServer` replays a recording
+                           (and injects link faults); what can end a
+                           stream: :class:`RTDEProtocolError`,
+                           :class:`MalformedPackage`, :class:`StreamPaused`
 :func:`degrees_note`       unit sanity checks of a recording's signals,
 :func:`units_note`         as sentences for warnings
 =========================  ==================================================
@@ -25,7 +28,13 @@ file, column and row for input that cannot be repaired. The user guide page
 """
 
 from ._checks import degrees_note, units_note
-from ._rtde_live import LoopbackRTDEServer, RTDEClient
+from ._rtde_live import (
+    LoopbackRTDEServer,
+    MalformedPackage,
+    RTDEClient,
+    RTDEProtocolError,
+    StreamPaused,
+)
 from ._validation import RecordingWarning
 from .columns import COLUMN_PRESETS, ColumnPreset
 from .load import detect_format, load_recording, load_recordings
@@ -37,12 +46,15 @@ from .table import read_csv
 
 __all__ = [
     "COLUMN_PRESETS",
-    "ColumnPreset",
     "JOINT_SIGNALS",
+    "ColumnPreset",
     "LoopbackRTDEServer",
+    "MalformedPackage",
     "RTDEClient",
+    "RTDEProtocolError",
     "Recording",
     "RecordingWarning",
+    "StreamPaused",
     "degrees_note",
     "detect_format",
     "load_recording",

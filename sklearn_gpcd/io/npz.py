@@ -72,6 +72,7 @@ def read_npz(
     source = str(path)
     check_file(Path(path))
     try:
+        _check_sizes(source, path)
         with np.load(path, allow_pickle=False) as archive:
             arrays = {key: archive[key] for key in archive.files}
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
@@ -109,6 +110,41 @@ def read_npz(
         units=units, name=Path(path).name if name is None else name,
         metadata={"format": "npz", "key_map": {k: v for k, v in key_map.items()}},
         max_dropped=max_dropped, max_joint_speed=max_joint_speed, min_samples=min_samples)
+
+
+#: Largest ratio of uncompressed to compressed size deflate can reach (about 1032:1).
+MAX_DEFLATE_RATIO = 1100
+
+
+def _check_sizes(source, path):
+    """Refuse arrays whose header claims more data than the archive holds.
+
+    Reads only the zip directory and each ``.npy`` header, before NumPy
+    allocates the array the header describes: a header claiming 1e9 rows
+    in a small file is a ValueError, not a 45 GiB allocation.
+    """
+    size = Path(path).stat().st_size
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            if not info.filename.endswith(".npy"):
+                continue
+            key = info.filename[:-4]
+            if info.compress_size > size or (
+                    info.file_size > MAX_DEFLATE_RATIO * info.compress_size + 1024):
+                raise ValueError(f"{source}: key {key!r} claims {info.file_size} bytes, more "
+                                 f"than a file of {size} bytes can hold")
+            with archive.open(info) as member:
+                version = np.lib.format.read_magic(member)
+                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0)
+                shape, _, dtype = read(member)
+                header = member.tell()
+            claimed = int(np.prod(shape, dtype=object)) * dtype.itemsize
+            if claimed > info.file_size - header:
+                rows = f"{shape[0]} rows, " if shape else ""
+                raise ValueError(
+                    f"{source}: key {key!r} claims shape {shape} ({rows}{claimed} bytes) but "
+                    f"holds {info.file_size - header} bytes; the file is truncated or forged")
 
 
 def _take(source, arrays, field, spec):

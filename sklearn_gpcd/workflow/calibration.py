@@ -475,7 +475,7 @@ def save_detector(calibrated, path):
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "detector.joblib"
     >>> save_detector(CalibratedDetector(None, None, {"margin": 1.5}), path).name
     'detector.joblib'
-    >>> load_detector(path).calibration
+    >>> load_detector(path, trust_pickle=True).calibration  # our own pickle
     {'margin': 1.5}
     """
     from ..persistence import save
@@ -484,13 +484,15 @@ def save_detector(calibrated, path):
                  "features": calibrated.features, "calibration": calibrated.calibration}, path)
 
 
-def load_detector(path):
+def load_detector(path, trust_pickle=False):
     """Read a detector file written by ``gpcd calibrate`` (:func:`save_detector`).
 
     Parameters
     ----------
     path : str or path-like
         ``.skops`` (or ``.joblib`` / ``.pkl``) file.
+    trust_pickle : bool, default=False
+        Load a ``.joblib`` / ``.pkl`` file (see :func:`sklearn_gpcd.load`).
 
     Returns
     -------
@@ -512,14 +514,14 @@ def load_detector(path):
     >>> from sklearn_gpcd.persistence import save
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "not_a_detector.joblib"
     >>> _ = save({"kind": "something else"}, path)
-    >>> load_detector(path)
+    >>> load_detector(path, trust_pickle=True)
     Traceback (most recent call last):
     ...
     ValueError: ...not_a_detector.joblib: not a detector file written by gpcd calibrate...
     """
     from ..persistence import load
 
-    bundle = load(path)
+    bundle = load(path, trust_pickle=trust_pickle)
     if not (isinstance(bundle, dict) and bundle.get("kind") == DETECTOR_KIND):
         raise ValueError(f"{path}: not a detector file written by gpcd calibrate (a model "
                          "from gpcd train goes through gpcd calibrate first)")

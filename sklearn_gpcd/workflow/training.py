@@ -426,13 +426,16 @@ def save_model(trained, path):
                  "features": trained.features, "training": trained.training}, path)
 
 
-def load_model(path):
+def load_model(path, trust_pickle=False):
     """Read a model file written by ``gpcd train`` (:func:`save_model`).
 
     Parameters
     ----------
     path : str or path-like
         A model file.
+    trust_pickle : bool, default=False
+        Load a ``.joblib`` / ``.pkl`` file (a pickle runs any code it
+        carries; see :func:`sklearn_gpcd.load`).
 
     Returns
     -------
@@ -452,12 +455,12 @@ def load_model(path):
     >>> trained = TrainedModel(LinearRegression().fit([[0.0], [1.0]], [0.0, 1.0]), None,
     ...                        {"inputs": "causal"})
     >>> _ = save_model(trained, path)
-    >>> load_model(path).training
+    >>> load_model(path, trust_pickle=True).training  # our own pickle
     {'inputs': 'causal'}
     """
     from ..persistence import load
 
-    bundle = load(path)
+    bundle = load(path, trust_pickle=trust_pickle)
     kind = bundle.get("kind") if isinstance(bundle, dict) else type(bundle).__name__
     if kind != MODEL_KIND:
         raise ValueError(f"{path}: not a model file written by gpcd train (it holds "
