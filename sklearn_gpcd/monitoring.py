@@ -38,7 +38,11 @@ import subprocess
 import time
 import warnings
 
+from pathlib import Path
+
 import numpy as np
+
+from .workflow.calibration import band_label, band_settings
 
 __all__ = ["BLIND", "MONITORING", "RECOVERING", "HookWarning", "MonitorSession",
            "paced", "recording_samples", "stall_bound"]
@@ -57,6 +61,8 @@ MIN_STALL = 0.02
 FAULT_EXIT_STATUS = 3
 #: Fault records kept in full in the report (later ones are only counted).
 MAX_FAULT_RECORDS = 1000
+#: Line colours of the bands in a multi-band figure (C3, red, shades the events).
+BAND_COLORS = ("C0", "C2", "C4", "C1", "C5", "C6", "C8", "C9")
 
 
 class HookWarning(UserWarning):
@@ -228,7 +234,8 @@ class MonitorSession:
         Print ``ALARM`` lines as they happen (``FAULT``, ``RECOVERING`` and
         ``MONITORING`` lines are always printed).
     band_labels : list of str, default=None
-        Names of the bands in the ``ALARM`` lines (default ``"band k"``).
+        Names of the bands in the ``ALARM`` lines (default: each band's filter
+        and debounce, :func:`~sklearn_gpcd.workflow.band_label`).
     stall_timeout : float, default=None
         Stall bound [s]; None: :func:`stall_bound` of the detector's sample
         time.
@@ -295,7 +302,7 @@ class MonitorSession:
         self.bands = self.monitor.bands
         self.multiband = len(self.bands) > 1
         self.band_labels = (list(band_labels) if band_labels is not None else
-                            [f"band {b + 1}" for b in range(len(self.bands))])
+                            [band_label(band_settings(band.rule)) for band in self.bands])
         self.signals = tuple(features.signals_)
         self.thresholds = [band.thresholds for band in self.bands]
         self.regime_names = tuple(self.bands[0].rule.regime_names_)
@@ -324,6 +331,114 @@ class MonitorSession:
         if rule.regimes is not None:
             seconds = max(seconds, float(rule.regimes.settle_time))
         return seconds
+
+    def events_text(self):
+        """The events in words: counts, per band, and one row per event.
+
+        Returns
+        -------
+        text : str
+        """
+        n_samples = sum(r["n_samples"] for r in self.recordings)
+        n_faults = sum(r["n_sensor_faults"] for r in self.recordings)
+        out = [f"{len(self.events)} alarm event(s) in {len(self.recordings)} recording(s), "
+               f"{n_samples} samples ({n_faults} sensor faults)"]
+        if self.multiband:
+            for b, label in enumerate(self.band_labels, start=1):
+                n_events = sum(b in e["bands"] for e in self.events)
+                out.append(f"  band {b} ({label}) alarmed in {n_events} event(s)")
+        if not self.events:
+            return "\n".join(out)
+        width = max(9, *(len(e["recording"]) for e in self.events))
+        columns = [("recording", f"<{width}", lambda e: e["recording"]),
+                   ("start [s]", ">9", lambda e: f"{e['start_s']:.3f}"),
+                   ("end [s]", ">9", lambda e: f"{e['end_s']:.3f}"),
+                   ("joints", "<12", lambda e: ",".join(map(str, e["joints"]))),
+                   ("peak |m| [A]", ">12", lambda e: f"{e['peak_A']:.3f}"),
+                   ("delay [s]", ">9", lambda e: f"{e['delay_s']:.3f}")]
+        if self.multiband:
+            columns.insert(4, ("bands", "<6", lambda e: ",".join(map(str, e["bands"]))))
+        out.append("  ".join(f"{name:{spec}}" for name, spec, _ in columns))
+        for e in self.events:
+            out.append("  ".join(f"{value(e):{spec}}" for _, spec, value in columns))
+        return "\n".join(out)
+
+    def plot(self, key, folder):
+        """One figure of recording ``key`` (``keep_series``): one axis per joint,
+        alarm events shaded, alarms marked.
+
+        One band: the monitoring signal and its per-regime thresholds [A].
+        Several bands: each band's ``|m|`` over its threshold (per regime), so
+        that every band crosses at 1.
+
+        Parameters
+        ----------
+        key : str
+            The recording (its name in :meth:`start`).
+        folder : path-like
+            Where to write ``<key stem>.png``.
+
+        Returns
+        -------
+        path : Path or None
+            None (with a warning) when matplotlib is not installed.
+        """
+        try:
+            import matplotlib
+
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
+        except ImportError:
+            warnings.warn("matplotlib is not installed; no figure", UserWarning, stacklevel=2)
+            return None
+        s = self.series
+        t = np.asarray(s["t"])
+        signal, regime = np.asarray(s["signal"]), np.asarray(s["regime"], dtype=int)
+        alarms = np.asarray(s["alarms"], dtype=bool)
+        n = signal.shape[2] if signal.ndim == 3 else 0
+        fig, axes = plt.subplots(max(n, 1), 1, figsize=(9, 1.6 * max(n, 1) + 0.8),
+                                 sharex=True, squeeze=False)
+        events = [e for e in self.events if e["recording"] == key]
+        draw = self._draw_ratios if self.multiband else self._draw_signal
+        for j in range(n):
+            ax = axes[j, 0]
+            for k, e in enumerate(events):
+                ax.axvspan(e["start_s"], e["end_s"], color="C3", alpha=0.15,
+                           label="alarm event" if k == 0 else None)
+            ax.set_ylabel(draw(ax, t, signal[:, :, j], regime, j), fontsize=8)
+            if alarms[:, j].any():
+                ax.plot(t[alarms[:, j]], np.zeros(alarms[:, j].sum()), "|", color="k", ms=8,
+                        label="alarm")
+            ax.tick_params(labelsize=7)
+            ax.legend(fontsize=6, loc="upper right")
+        axes[-1, 0].set_xlabel("t [s]")
+        fig.suptitle(f"{key}: " + ("each band's |m| over its threshold (per regime), alarms"
+                                   if self.multiband else
+                                   "causal monitoring signal, per-regime thresholds, alarms"),
+                     fontsize=9)
+        fig.tight_layout()
+        path = Path(folder) / f"{Path(key).stem}.png"
+        fig.savefig(path, dpi=80)
+        plt.close(fig)
+        return path
+
+    def _draw_signal(self, ax, t, signal, regime, j):
+        """One band: joint ``j``'s signal and its thresholds ``+-`` (per regime); the y label."""
+        ax.plot(t, signal[:, 0], lw=0.7, color="C0", label="monitoring signal m")
+        band = self.thresholds[0][regime[:, 0], j]
+        ax.plot(t, band, lw=0.7, color="C1",
+                label="threshold (" + "/".join(self.regime_names) + ")")
+        ax.plot(t, -band, lw=0.7, color="C1")
+        return f"joint {j + 1} [A]"
+
+    def _draw_ratios(self, ax, t, signal, regime, j):
+        """Several bands: joint ``j``'s ``|m| / threshold`` per band, and 1; the y label."""
+        for b, label in enumerate(self.band_labels):
+            ratio = np.abs(signal[:, b]) / self.thresholds[b][regime[:, b], j]
+            ax.plot(t, ratio, lw=0.7, color=BAND_COLORS[b % len(BAND_COLORS)],
+                    label=f"band {b + 1} ({label})")
+        ax.axhline(1.0, lw=0.7, ls="--", color="k", label="threshold")
+        return f"joint {j + 1}\n|m| / threshold"
 
     # ------------------------------------------------------------ the stream
     def start(self, name):

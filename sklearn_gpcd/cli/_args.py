@@ -2,7 +2,6 @@
 progress bar, reading recordings and resolving the robot."""
 
 import argparse
-import contextlib
 import json
 import math
 import os
@@ -11,42 +10,16 @@ import time
 import warnings
 from pathlib import Path
 
+
 # ---------------------------------------------------------------- arguments
 def robot_arg(value):
     """Resolve ``--robot`` at parse time so a bad name fails with usage help."""
     from ..robots import load_robot
 
     try:
-        with quiet_c_stderr():  # urdfdom prints parse errors on fd 2 itself
-            return load_robot(value)
+        return load_robot(value)
     except (ValueError, OSError) as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-@contextlib.contextmanager
-def quiet_c_stderr():
-    """Send what C/C++ libraries write on file descriptor 2 to /dev/null.
-
-    Python's own ``sys.stderr`` is flushed first and restored after, so
-    only third-party noise (e.g. urdfdom's parser messages) is dropped; the
-    command reports errors itself.
-    """
-    try:
-        fd = sys.__stderr__.fileno() if sys.__stderr__ is not None else 2
-        saved = os.dup(fd)
-    except (OSError, ValueError, AttributeError):
-        yield  # no real stderr (embedded interpreter): nothing to silence
-        return
-    with contextlib.suppress(Exception):
-        sys.stderr.flush()
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, fd)
-        yield
-    finally:
-        os.dup2(saved, fd)
-        os.close(saved)
-        os.close(devnull)
 
 
 def column_map_arg(value):
@@ -130,24 +103,27 @@ def model_file_arg(value):
     return output_file_arg(value)
 
 
-def positive_int(value):
+def _number(value, cast, ok, what):
+    """``value`` cast by ``cast`` when ``ok`` of it, else an ArgumentTypeError."""
     try:
-        number = int(value)
+        number = cast(value)
     except ValueError:
-        number = 0
-    if number < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value!r}")
+        number = None
+    if number is None or not ok(number):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {value!r}")
     return number
+
+
+def positive_int(value):
+    return _number(value, int, lambda n: n >= 1, "an integer >= 1")
 
 
 def positive_float(value):
-    try:
-        number = float(value)
-    except ValueError:
-        number = float("nan")
-    if not number > 0 or not math.isfinite(number):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {value!r}")
-    return number
+    return _number(value, float, lambda n: 0 < n < math.inf, "a number > 0")
+
+
+def non_negative_float(value):
+    return _number(value, float, lambda n: 0 <= n < math.inf, "a number >= 0")
 
 
 def n_support_arg(value):
@@ -247,8 +223,7 @@ def robot_for(args, recordings):
                          "ur10e, or a URDF path)")
     else:
         try:
-            with quiet_c_stderr():
-                robot = load_robot(names[0])
+            robot = load_robot(names[0])
         except ValueError as exc:
             raise ValueError(f"the recordings name robot {names[0]!r}, which gpcd cannot "
                              f"load ({exc}); pass --robot") from None
@@ -272,16 +247,6 @@ def add_recording_options(parser, robot_help):
         "see sklearn_gpcd.io.columns)")
 
 
-
-
-def non_negative_float(value):
-    try:
-        number = float(value)
-    except ValueError:
-        number = float("nan")
-    if not (number >= 0 and math.isfinite(number)):
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {value!r}")
-    return number
 
 
 def existing_file(value):

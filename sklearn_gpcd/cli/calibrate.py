@@ -6,10 +6,8 @@ recordings, a thin layer over :func:`sklearn_gpcd.workflow.calibrate_detector`
 import argparse
 import math
 import time
-from collections import Counter
 from pathlib import Path
 
-from ..workflow.calibration import band_label
 from ._args import (
     ProgressBar,
     add_recording_options,
@@ -55,20 +53,7 @@ def _braking_arg(value):
 
 
 def add_parser(sub):
-    """Register ``calibrate`` on the ``gpcd`` subparsers.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-
-    Examples
-    --------
-    >>> import argparse
-    >>> parser = argparse.ArgumentParser(prog="gpcd")
-    >>> add_parser(parser.add_subparsers(dest="command"))
-    >>> sorted(parser._subparsers._group_actions[0].choices)
-    ['calibrate']
-    """
+    """Register ``calibrate`` on the ``gpcd`` subparsers ``sub``."""
     cal = sub.add_parser(
         "calibrate",
         help="choose detection thresholds on collision-free recordings",
@@ -150,6 +135,7 @@ def run(args):
     from ..io.load import recording_paths
     from ..workflow import (
         calibrate_detector,
+        calibration_report,
         check_calibration_options,
         load_model,
         recording_keys,
@@ -178,95 +164,6 @@ def run(args):
         progress=lambda label, total: ProgressBar(label, total, enabled=not args.quiet),
         **options)
     save_detector(calibrated, args.output)
-    _print_calibration(calibrated.calibration, len(calibrated.calibration["recordings"]))
+    print(calibration_report(calibrated.calibration))
     print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}")
     return 0
-
-
-def _seconds(value):
-    return "none" if value is None else f"{value:g} s"
-
-
-def _print_calibration(summary, n_recordings):
-    if summary.get("split_s") is not None:
-        print(f"cut {summary['n_files']} recording(s) into {n_recordings} pieces of at least "
-              f"{summary['split_s']:g} s (--split), each left out in turn like a recording; "
-              "pieces of one log are less independent than separate runs")
-    print(f"calibrated on {n_recordings} collision-free recording(s), "
-          f"{summary['hours'] * 60:.1f} min, sample time {summary['sample_time_s']:g} s, "
-          f"controller signals used: {', '.join(summary['signals']) or 'none'}; settle "
-          f"time {_seconds(summary['settle_time_s'])}, rest reference "
-          f"{_seconds(summary['rest_reference_s'])}"
-          + (" (chosen across the recordings)" if summary.get("selected") else "")
-          + ("" if summary.get("brake_limit") is None else
-             f"; braking above {summary['brake_limit']:.3g} rad/s^2"))
-    if summary.get("candidates"):
-        print("  candidates, best first (alarms: nested onsets at that fixed candidate, "
-              "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
-        for c in sorted(summary["candidates"], key=lambda c: c["rank"]):
-            settle, tau = c["params"]["settle_time_s"], c["params"]["rest_reference_s"]
-            print(f"    settle {_seconds(settle):>6}, rest reference {_seconds(tau):>5}: "
-                  f"alarms {c['n_false_alarms']}, score {c['score']:+.3f}, "
-                  f"margin {c['margin']:.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
-    if (info := summary.get("training")):
-        print(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
-              f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "
-              f"seed {info['seed']}")
-    if "bands" not in summary:
-        _print_margin(summary, "  ")
-        _print_false_alarms(summary)
-        _print_thresholds(summary, summary, "  ")
-        return
-    for b, band in enumerate(summary["bands"], start=1):
-        print(f"  band {b} ({band_label(band)})" + (", the main one:" if b == 1 else ":"))
-        _print_margin(band, "    ")
-        if band["false_alarms_per_hour"] is not None:
-            print(f"    nested false alarms of this band alone: "
-                  f"{band['n_false_alarms_nested']} alarm onset(s) = "
-                  f"{band['false_alarms_per_hour']:.2f} per hour")
-        _print_thresholds(band, summary, "    ")
-    if (table := summary.get("band_candidates")):
-        print(f"  band {len(summary['bands'])} chosen across the recordings, candidates best "
-              "first (alarms: nested onsets of the union; score: time-weighted mean log "
-              "threshold of the band, smaller is tighter):")
-        for c in sorted(table, key=lambda c: c["rank"]):
-            print(f"    {band_label(c['params']):<28} alarms {c['n_false_alarms']}, score "
-                  f"{c['score']:+.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
-        folds = Counter(map(band_label, summary["fold_band_settings"].values()))
-        if folds:
-            print("    chosen without each recording (for the expected false alarms): "
-                  + ", ".join(f"{label} {n}x" for label, n in folds.most_common()))
-    _print_false_alarms(summary, " (any band)")
-
-
-def _print_margin(entry, pad):
-    print(f"{pad}margin (leave-one-recording-out, one for all joints and regimes): "
-          f"{entry['margin']:.3f}")
-
-
-def _print_false_alarms(summary, which=""):
-    if summary["false_alarms_per_hour"] is None:
-        print(f"  expected false alarms{which} per hour: n/a (the nested figure needs >= 3 "
-              "recordings)")
-        return
-    print(f"  expected false alarms{which}: {summary['n_false_alarms_nested']} alarm "
-          f"onset(s) on left-out recordings in {summary['hours'] * 60:.1f} min = "
-          f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
-          "out: each recording scored with margin"
-          + (", levels and settings" if summary.get("selected")
-             else ", levels and band" if summary.get("band_candidates") else " and levels")
-          + " chosen without it)")
-
-
-def _print_thresholds(entry, summary, pad):
-    """The thresholds table(s) of ``entry`` (A, and Nm when known), one row per regime."""
-    n = len(entry["thresholds_A"][0])
-    units = [("A", entry["thresholds_A"])]
-    if "thresholds_Nm" in entry:
-        units.append((f"Nm, torque constants of {summary['robot']}", entry["thresholds_Nm"]))
-    for unit, table in units:
-        print(f"{pad}thresholds [{unit}]:")
-        print(f"{pad}  " + f"{'regime':<10}" + "".join(f"{f'joint {j + 1}':>10}"
-                                                        for j in range(n)))
-        for name, row in zip(summary["regimes"], table):
-            print(f"{pad}  " + f"{name:<10}" + "".join(f"{v:>10.3f}" for v in row))

@@ -10,20 +10,7 @@ RECORDINGS = "train"
 
 
 def add_parser(sub):
-    """Register ``diagnose`` on the ``gpcd`` subparsers.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-
-    Examples
-    --------
-    >>> import argparse
-    >>> parser = argparse.ArgumentParser(prog="gpcd")
-    >>> add_parser(parser.add_subparsers(dest="command"))
-    >>> parser.parse_args(["diagnose", "--test", "held.csv", "train.csv"]).test
-    ['held.csv']
-    """
+    """Register ``diagnose`` on the ``gpcd`` subparsers ``sub``."""
     dia = sub.add_parser(
         "diagnose",
         help="find the physics the robot model misses in real recordings",

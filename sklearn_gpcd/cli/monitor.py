@@ -13,11 +13,10 @@ band alarms, and the report names the bands.
 """
 
 import json
-import sys
 import time
 from pathlib import Path
 
-from ..workflow.calibration import band_label, band_settings, load_detector, recording_keys
+from ..workflow.calibration import load_detector, recording_keys
 from ._args import (
     column_map_arg,
     existing_file,
@@ -34,20 +33,7 @@ RECORDINGS = "recordings"
 
 
 def add_parser(sub):
-    """Register ``monitor`` on the ``gpcd`` subparsers.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-
-    Examples
-    --------
-    >>> import argparse
-    >>> parser = argparse.ArgumentParser(prog="gpcd")
-    >>> add_parser(parser.add_subparsers(dest="command"))
-    >>> sorted(parser._subparsers._group_actions[0].choices)
-    ['monitor']
-    """
+    """Register ``monitor`` on the ``gpcd`` subparsers ``sub``."""
     mon = sub.add_parser(
         "monitor",
         help="detect collisions in recordings, a real-time replay or a live UR (RTDE)",
@@ -124,7 +110,6 @@ def run(args):
     session = MonitorSession(detector, features, hook=args.hook,
                              keep_series=args.plot is not None, echo=live,
                              stall_timeout=args.stall_timeout)
-    session.band_labels = [band_label(band_settings(b.rule)) for b in session.bands]
     plots = []
     try:
         if args.rtde is not None:
@@ -142,7 +127,7 @@ def run(args):
                 session.run_recording(rec, key, duration=args.duration,
                                       speed=args.speed if args.replay is not None else None)
                 if args.plot is not None:
-                    plots.append(_plot(session, Path(args.plot), key))
+                    plots.append(session.plot(key, Path(args.plot)))
     except BaseException as exc:  # the report on every exit path, then as before
         if session.recordings:
             session.finish()  # the open event, the summary so far
@@ -150,7 +135,7 @@ def run(args):
                         else f"error: {' '.join(str(exc).split())}", abnormal=True)
             _write_report(args, session, calibration, plots)
         raise
-    _print_events(session)
+    print(session.events_text())
     stats = session.live_statistics() if live else None
     if stats is not None:
         print(f"  {stats['n_ticks']} ticks; latency receive -> decision p50 "
@@ -202,102 +187,3 @@ def _write_report(args, session, calibration, plots):
     if session.multiband:
         report["bands"] = session.band_labels
     Path(args.json).write_text(json.dumps(report, indent=2))
-
-
-def _print_events(session):
-    n_samples = sum(r["n_samples"] for r in session.recordings)
-    n_faults = sum(r["n_sensor_faults"] for r in session.recordings)
-    print(f"{len(session.events)} alarm event(s) in {len(session.recordings)} recording(s), "
-          f"{n_samples} samples ({n_faults} sensor faults)")
-    if session.multiband:
-        for b, label in enumerate(session.band_labels, start=1):
-            n_events = sum(b in e["bands"] for e in session.events)
-            print(f"  band {b} ({label}) alarmed in {n_events} event(s)")
-    if not session.events:
-        return
-    width = max(9, *(len(e["recording"]) for e in session.events))
-    columns = [("recording", f"<{width}", lambda e: e["recording"]),
-               ("start [s]", ">9", lambda e: f"{e['start_s']:.3f}"),
-               ("end [s]", ">9", lambda e: f"{e['end_s']:.3f}"),
-               ("joints", "<12", lambda e: ",".join(map(str, e["joints"]))),
-               ("peak |m| [A]", ">12", lambda e: f"{e['peak_A']:.3f}"),
-               ("delay [s]", ">9", lambda e: f"{e['delay_s']:.3f}")]
-    if session.multiband:
-        columns.insert(4, ("bands", "<6", lambda e: ",".join(map(str, e["bands"]))))
-    print("  ".join(f"{name:{spec}}" for name, spec, _ in columns))
-    for e in session.events:
-        print("  ".join(f"{value(e):{spec}}" for _, spec, value in columns))
-
-
-#: Line colours of the bands in a multi-band figure (C3, red, shades the events).
-_BAND_COLORS = ("C0", "C2", "C4", "C1", "C5", "C6", "C8", "C9")
-
-
-def _plot(session, folder, key):
-    """One figure per recording, one axis per joint, alarm events shaded, alarms marked.
-
-    One band: the monitoring signal and its per-regime thresholds [A]. Several
-    bands: each band's ``|m|`` over its threshold (per regime), so that every
-    band crosses at 1.
-    """
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("gpcd monitor: warning: matplotlib is not installed; no figure",
-              file=sys.stderr)
-        return None
-    import numpy as np
-
-    s = session.series
-    t = np.asarray(s["t"])
-    signal, regime = np.asarray(s["signal"]), np.asarray(s["regime"], dtype=int)
-    alarms = np.asarray(s["alarms"], dtype=bool)
-    n = signal.shape[2] if signal.ndim == 3 else 0
-    fig, axes = plt.subplots(max(n, 1), 1, figsize=(9, 1.6 * max(n, 1) + 0.8), sharex=True,
-                             squeeze=False)
-    events = [e for e in session.events if e["recording"] == key]
-    draw = _draw_ratios if session.multiband else _draw_signal
-    for j in range(n):
-        ax = axes[j, 0]
-        for k, e in enumerate(events):
-            ax.axvspan(e["start_s"], e["end_s"], color="C3", alpha=0.15,
-                       label="alarm event" if k == 0 else None)
-        ax.set_ylabel(draw(ax, session, t, signal[:, :, j], regime, j), fontsize=8)
-        if alarms[:, j].any():
-            ax.plot(t[alarms[:, j]], np.zeros(alarms[:, j].sum()), "|", color="k", ms=8,
-                    label="alarm")
-        ax.tick_params(labelsize=7)
-        ax.legend(fontsize=6, loc="upper right")
-    axes[-1, 0].set_xlabel("t [s]")
-    fig.suptitle(f"{key}: " + ("each band's |m| over its threshold (per regime), alarms"
-                               if session.multiband else
-                               "causal monitoring signal, per-regime thresholds, alarms"),
-                 fontsize=9)
-    fig.tight_layout()
-    path = folder / f"{Path(key).stem}.png"
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
-
-
-def _draw_signal(ax, session, t, signal, regime, j):
-    """One band: joint ``j``'s signal and its thresholds ``+-`` (per regime); the y label."""
-    ax.plot(t, signal[:, 0], lw=0.7, color="C0", label="monitoring signal m")
-    band = session.thresholds[0][regime[:, 0], j]
-    ax.plot(t, band, lw=0.7, color="C1",
-            label="threshold (" + "/".join(session.regime_names) + ")")
-    ax.plot(t, -band, lw=0.7, color="C1")
-    return f"joint {j + 1} [A]"
-
-
-def _draw_ratios(ax, session, t, signal, regime, j):
-    """Several bands: joint ``j``'s ``|m| / threshold`` per band, and 1; the y label."""
-    for b, label in enumerate(session.band_labels):
-        ratio = abs(signal[:, b]) / session.thresholds[b][regime[:, b], j]
-        ax.plot(t, ratio, lw=0.7, color=_BAND_COLORS[b % len(_BAND_COLORS)],
-                label=f"band {b + 1} ({label})")
-    ax.axhline(1.0, lw=0.7, ls="--", color="k", label="threshold")
-    return f"joint {j + 1}\n|m| / threshold"

@@ -9,20 +9,7 @@ SCENARIOS = ("d1", "d2", "joint1-cyclic", "interaction")
 
 
 def add_parsers(sub):
-    """Register ``reproduce``, ``simulate`` and ``robots`` on the ``gpcd`` subparsers.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-
-    Examples
-    --------
-    >>> import argparse
-    >>> parser = argparse.ArgumentParser(prog="gpcd")
-    >>> add_parsers(parser.add_subparsers(dest="command"))
-    >>> parser.parse_args(["simulate", "-o", "out.csv"]).scenario
-    'interaction'
-    """
+    """Register ``reproduce``, ``simulate`` and ``robots`` on the subparsers ``sub``."""
     rep = sub.add_parser(
         "reproduce",
         help="run the paper's experiments on the built-in simulator",

@@ -20,20 +20,7 @@ RECORDINGS = "recordings"
 
 
 def add_parser(sub):
-    """Register ``train`` on the ``gpcd`` subparsers.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-
-    Examples
-    --------
-    >>> import argparse
-    >>> parser = argparse.ArgumentParser(prog="gpcd")
-    >>> add_parser(parser.add_subparsers(dest="command"))
-    >>> parser.parse_args(["train", "a.csv", "-o", "model.skops"]).model
-    'sp_p'
-    """
+    """Register ``train`` on the ``gpcd`` subparsers ``sub``."""
     tra = sub.add_parser(
         "train",
         help="fit P_f, SP_S, SP_P or SP_C on your own recordings",

@@ -1,5 +1,8 @@
 """Entry points: :func:`load_robot` and :func:`list_robots`."""
 
+import contextlib
+import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -116,7 +119,8 @@ def load_robot(name_or_urdf, **overrides):
     if key in UR_PARAMETERS:
         spec = _load_builtin(key)
     elif _is_urdf(name_or_urdf):
-        spec = _load_urdf(name_or_urdf)
+        with _quiet_c_stderr():  # urdfdom prints its parse errors on fd 2 itself
+            spec = _load_urdf(name_or_urdf)
     else:
         raise ValueError(
             f"unknown robot {str(name_or_urdf)!r}: known robots are {list_robots()}, "
@@ -157,3 +161,29 @@ def resolve_robot(robot):
     if isinstance(robot, (str, Path)):
         return load_robot(robot)
     raise TypeError(f"robot must be a name, a URDF path or a Robot, got {type(robot).__name__}")
+
+
+@contextlib.contextmanager
+def _quiet_c_stderr():
+    """Send what C/C++ libraries write on file descriptor 2 to /dev/null.
+
+    Python's own ``sys.stderr`` is flushed first and restored after, so
+    only third-party noise (urdfdom's parser messages) is dropped: a URDF
+    that does not load is a ValueError that says why.
+    """
+    try:
+        fd = sys.__stderr__.fileno() if sys.__stderr__ is not None else 2
+        saved = os.dup(fd)
+    except (OSError, ValueError, AttributeError):
+        yield  # no real stderr (embedded interpreter): nothing to silence
+        return
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, fd)
+        yield
+    finally:
+        os.dup2(saved, fd)
+        os.close(saved)
+        os.close(devnull)

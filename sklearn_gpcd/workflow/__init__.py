@@ -19,6 +19,7 @@ from .calibration import (
     band_label,
     band_settings,
     calibrate_detector,
+    calibration_report,
     check_calibration_options,
     load_detector,
     recording_keys,
@@ -47,7 +48,7 @@ __all__ = [
     "DETECTOR_KIND", "DETECTOR_RULE", "INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND",
     "MODEL_SIGNALS", "OPTIMIZERS", "SELECT_GRID", "TRAIN_RULE", "CalibratedDetector",
     "TrainedModel", "TrainingSet", "acceleration_limit", "band_label", "band_settings",
-    "calibrate_detector", "check_calibration_options", "load_detector", "load_model",
+    "calibrate_detector", "calibration_report", "check_calibration_options", "load_detector", "load_model",
     "recording_keys", "save_detector", "save_model", "split_recordings", "train_model",
     "training_rows", "training_set",
 ]

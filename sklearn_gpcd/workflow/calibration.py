@@ -24,13 +24,15 @@ Options:
   that are left out in turn like recordings.
 """
 
+from collections import Counter
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "SELECT_GRID", "CalibratedDetector",
-           "band_label", "band_settings", "calibrate_detector", "check_calibration_options",
+           "band_label", "band_settings", "calibrate_detector", "calibration_report",
+           "check_calibration_options",
            "load_detector", "recording_keys", "save_detector", "split_recordings"]
 
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
@@ -453,6 +455,135 @@ def _json_params(params):
         key = key.removeprefix("regimes__")
         out[f"{key}_s" if key in ("settle_time", "rest_reference") else key] = value
     return out
+
+
+def calibration_report(summary):
+    """The calibration summary in words: what ``gpcd calibrate`` prints.
+
+    Recordings and settings, the candidates (``select``, ``band_candidates``),
+    the margin, the expected false alarms (nested leave-one-recording-out)
+    and the thresholds per regime and joint in A (and Nm), per band.
+
+    Parameters
+    ----------
+    summary : dict
+        ``calibration`` of a :class:`CalibratedDetector`.
+
+    Returns
+    -------
+    text : str
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> from sklearn_gpcd.workflow import calibrate_detector, calibration_report, train_model
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(600) * 0.01
+    >>> def rec(phase):
+    ...     q = np.sin(t + phase)[:, None]
+    ...     return Recording(time=t, q=q, qd=np.cos(t + phase)[:, None],
+    ...                      current=2 * q + 0.05 * rng.normal(size=q.shape),
+    ...                      target_current=2 * q)
+    >>> trained = train_model([rec(0.0)], model="sp_c", n_support=50)
+    >>> summary = calibrate_detector(trained, [rec(1.0), rec(2.0), rec(3.0)]).calibration
+    >>> print(calibration_report(summary))  # doctest: +ELLIPSIS
+    calibrated on 3 collision-free recording(s), 0.3 min, sample time 0.01 s, ...
+      expected false alarms: ... alarm onset(s) on left-out recordings in 0.3 min = ...
+    """
+    out = []
+    _report_lines(summary, out)
+    return "\n".join(out)
+
+
+def _seconds_text(value):
+    return "none" if value is None else f"{value:g} s"
+
+
+def _report_lines(summary, out):
+    n_recordings = len(summary["recordings"])
+    if summary.get("split_s") is not None:
+        out.append(f"cut {summary['n_files']} recording(s) into {n_recordings} pieces of at least "
+              f"{summary['split_s']:g} s (--split), each left out in turn like a recording; "
+              "pieces of one log are less independent than separate runs")
+    out.append(f"calibrated on {n_recordings} collision-free recording(s), "
+          f"{summary['hours'] * 60:.1f} min, sample time {summary['sample_time_s']:g} s, "
+          f"controller signals used: {', '.join(summary['signals']) or 'none'}; settle "
+          f"time {_seconds_text(summary['settle_time_s'])}, rest reference "
+          f"{_seconds_text(summary['rest_reference_s'])}"
+          + (" (chosen across the recordings)" if summary.get("selected") else "")
+          + ("" if summary.get("brake_limit") is None else
+             f"; braking above {summary['brake_limit']:.3g} rad/s^2"))
+    if summary.get("candidates"):
+        out.append("  candidates, best first (alarms: nested onsets at that fixed candidate, "
+              "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
+        for c in sorted(summary["candidates"], key=lambda c: c["rank"]):
+            settle, tau = c["params"]["settle_time_s"], c["params"]["rest_reference_s"]
+            out.append(f"    settle {_seconds_text(settle):>6}, rest reference {_seconds_text(tau):>5}: "
+                  f"alarms {c['n_false_alarms']}, score {c['score']:+.3f}, "
+                  f"margin {c['margin']:.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
+    if (info := summary.get("training")):
+        out.append(f"  model: {info['model'].upper()} trained on {info['inputs']} inputs, "
+              f"{info['n_support']} support rows per joint, optimizer {info['optimizer']}, "
+              f"seed {info['seed']}")
+    if "bands" not in summary:
+        _margin_line(summary, "  ", out)
+        _false_alarm_line(summary, out)
+        _threshold_lines(summary, summary, "  ", out)
+        return
+    for b, band in enumerate(summary["bands"], start=1):
+        out.append(f"  band {b} ({band_label(band)})" + (", the main one:" if b == 1 else ":"))
+        _margin_line(band, "    ", out)
+        if band["false_alarms_per_hour"] is not None:
+            out.append(f"    nested false alarms of this band alone: "
+                  f"{band['n_false_alarms_nested']} alarm onset(s) = "
+                  f"{band['false_alarms_per_hour']:.2f} per hour")
+        _threshold_lines(band, summary, "    ", out)
+    if (table := summary.get("band_candidates")):
+        out.append(f"  band {len(summary['bands'])} chosen across the recordings, candidates best "
+              "first (alarms: nested onsets of the union; score: time-weighted mean log "
+              "threshold of the band, smaller is tighter):")
+        for c in sorted(table, key=lambda c: c["rank"]):
+            out.append(f"    {band_label(c['params']):<28} alarms {c['n_false_alarms']}, score "
+                  f"{c['score']:+.3f}" + ("  <- chosen" if c["rank"] == 0 else ""))
+        folds = Counter(map(band_label, summary["fold_band_settings"].values()))
+        if folds:
+            out.append("    chosen without each recording (for the expected false alarms): "
+                  + ", ".join(f"{label} {n}x" for label, n in folds.most_common()))
+    _false_alarm_line(summary, out, " (any band)")
+
+
+def _margin_line(entry, pad, out):
+    out.append(f"{pad}margin (leave-one-recording-out, one for all joints and regimes): "
+          f"{entry['margin']:.3f}")
+
+
+def _false_alarm_line(summary, out, which=""):
+    if summary["false_alarms_per_hour"] is None:
+        out.append(f"  expected false alarms{which} per hour: n/a (the nested figure needs >= 3 "
+              "recordings)")
+        return
+    out.append(f"  expected false alarms{which}: {summary['n_false_alarms_nested']} alarm "
+          f"onset(s) on left-out recordings in {summary['hours'] * 60:.1f} min = "
+          f"{summary['false_alarms_per_hour']:.2f} per hour (nested leave-one-recording-"
+          "out: each recording scored with margin"
+          + (", levels and settings" if summary.get("selected")
+             else ", levels and band" if summary.get("band_candidates") else " and levels")
+          + " chosen without it)")
+
+
+def _threshold_lines(entry, summary, pad, out):
+    """The thresholds table(s) of ``entry`` (A, and Nm when known), one row per regime."""
+    n = len(entry["thresholds_A"][0])
+    units = [("A", entry["thresholds_A"])]
+    if "thresholds_Nm" in entry:
+        units.append((f"Nm, torque constants of {summary['robot']}", entry["thresholds_Nm"]))
+    for unit, table in units:
+        out.append(f"{pad}thresholds [{unit}]:")
+        out.append(f"{pad}  " + f"{'regime':<10}" + "".join(f"{f'joint {j + 1}':>10}"
+                                                        for j in range(n)))
+        for name, row in zip(summary["regimes"], table):
+            out.append(f"{pad}  " + f"{name:<10}" + "".join(f"{v:>10.3f}" for v in row))
 
 
 def save_detector(calibrated, path):
