@@ -16,7 +16,12 @@ B. *calibrated*: the unloaded runs are diagnosed first (friction, rotor
    controls (leave-one-out calibration);
 C. *every unloaded run*: each unloaded identification run (18 files, the
    two early 19-column ones included) diagnosed as in A; none should carry
-   a payload.
+   a payload. Then the spread of each estimate across these runs: per
+   effect, joint and parameter, in how many runs it is named, its median,
+   range and relative spread (what is stable on this robot, what is not).
+
+Every loaded run's payload is checked against :data:`PAYLOAD_MASS` (within
+10 %).
 
 Run ``python benchmarks/real_payload_diagnosis.py [--data DIR] [--json OUT]``.
 Exits 0 with a message when the data is absent.
@@ -40,6 +45,12 @@ UNLOADED = ("ur-20_02_19_14harm50sec.csv", "ur-20_02_19_15harm50sec.csv",
             "ur-20_01_31-unload.csv")
 LOADED = ("ur-20_02_19_14harm50secLoad.csv", "ur-20_02_19_15harm50secLoad.csv",
           "ur-20_01_31-load.csv", "ur-20_01_13-load_2600.csv")
+#: Mass [kg] of the payload of the loaded runs (issue 39); checked within 10 %.
+PAYLOAD_MASS = 2.805
+PAYLOAD_TOLERANCE = 0.10
+#: An estimate is called stable when named in every run with a relative spread
+#: (std over |median|) below this.
+STABLE_SPREAD = 0.2
 #: Held-out pairs: same payload mounting (centre of mass found alike).
 HELDOUT = {"ur-20_02_19_14harm50secLoad.csv": "ur-20_01_31-load.csv",
            "ur-20_01_31-load.csv": "ur-20_02_19_14harm50secLoad.csv"}
@@ -62,6 +73,40 @@ def payload_of(diagnosis):
                     "com": [p[k][0] for k in ("com_x", "com_y", "com_z")],
                     "evidence_t": effect.evidence.t if effect.evidence else None}
     return None
+
+
+def within(pay):
+    """Whether a payload estimate is within PAYLOAD_TOLERANCE of PAYLOAD_MASS."""
+    return pay is not None and abs(pay["mass"] / PAYLOAD_MASS - 1) <= PAYLOAD_TOLERANCE
+
+
+def estimates(diagnosis):
+    """``{"effect[joint j] parameter": value}`` of every named effect."""
+    out = {}
+    for e in diagnosis.effects_:
+        where = "" if e.target is None else \
+            f"[{'link' if e.name == 'link_mass' else 'joint'} {e.target + 1}]"
+        for key, (value, _) in e.parameters.items():
+            out[f"{e.name}{where} {key}"] = float(value)
+    return out
+
+
+def spread_table(per_run):
+    """Rows (name, runs named, median, min, max, relative spread, verdict) over runs."""
+    n = len(per_run)
+    names = sorted({k for run in per_run.values() for k in run})
+    rows = []
+    for name in names:
+        values = np.array([run[name] for run in per_run.values() if name in run])
+        median = float(np.median(values))
+        spread = float(values.std() / abs(median)) if values.size > 1 and median else np.nan
+        stable = values.size == n and np.isfinite(spread) and spread < STABLE_SPREAD
+        rows.append({"estimate": name, "runs": int(values.size), "of": n, "median": median,
+                     "min": float(values.min()), "max": float(values.max()),
+                     "relative_spread": spread,
+                     "verdict": "stable" if stable else
+                     ("named in every run, spread" if values.size == n else "not in every run")})
+    return rows
 
 
 def summary(diagnosis):
@@ -89,7 +134,8 @@ def main(argv=None):
         diag = DynamicsDiagnosis(robot).fit(recs[name])
         results["direct"][name] = {"payload": payload_of(diag), "effects": summary(diag)}
         pay = payload_of(diag)
-        print(f"   {name:36s} payload {pay['mass']:.2f} +- {pay['mass_std']:.2f} kg"
+        print(f"   {name:36s} payload {pay['mass']:.2f} +- {pay['mass_std']:.2f} kg "
+              f"({'within' if within(pay) else 'NOT within'} 10 % of {PAYLOAD_MASS} kg)"
               if pay else f"   {name:36s} no payload found")
     results["seconds"]["direct"] = time.perf_counter() - t0
 
@@ -112,7 +158,8 @@ def main(argv=None):
                                 "nmse_after": scores["nmse_after"]}
         results["calibrated"][name] = entry
         pay = entry["payload"]
-        line = (f"   {name:36s} payload {pay['mass']:.2f} +- {pay['mass_std']:.2f} kg, "
+        line = (f"   {name:36s} payload {pay['mass']:.2f} +- {pay['mass_std']:.2f} kg "
+                f"({'within' if within(pay) else 'NOT within'} 10 % of {PAYLOAD_MASS} kg), "
                 f"com {np.round(pay['com'], 3).tolist()} m" if pay else
                 f"   {name:36s} no payload found")
         print(line + f"; effects: {', '.join(entry['effects'])}")
@@ -142,27 +189,47 @@ def main(argv=None):
     every = sorted(f.name for f in folder.glob("*.csv")
                    if "load" not in f.name.lower().replace("unload", ""))
     results["every_unloaded_direct"] = {}
+    per_run = {}
     for name in every:
         diag = DynamicsDiagnosis(robot).fit(load_recording(folder / name))
         pay = payload_of(diag)
-        results["every_unloaded_direct"][name] = {"payload": pay, "effects": summary(diag)}
+        per_run[name] = estimates(diag)
+        results["every_unloaded_direct"][name] = {"payload": pay, "effects": summary(diag),
+                                                  "estimates": per_run[name]}
         print(f"   {name:36s} " + (f"payload {pay['mass']:.2f} kg (!)" if pay else "no payload")
               + f"; effects: {', '.join(summary(diag)) or '-'}")
     results["seconds"]["every_unloaded"] = time.perf_counter() - t0
+    table = results["spread_across_unloaded_runs"] = spread_table(per_run)
+    print(f"   spread of each estimate across the {len(every)} unloaded runs (each run "
+          "diagnosed on its own):")
+    print(f"   {'estimate':58s} {'runs':>5s} {'median':>10s} {'min':>10s} {'max':>10s} "
+          f"{'spread':>7s}  verdict")
+    for row in table:
+        spread = f"{100 * row['relative_spread']:.0f} %" if np.isfinite(
+            row["relative_spread"]) else "-"
+        print(f"   {row['estimate']:58s} {row['runs']:>2d}/{row['of']:<2d} "
+              f"{row['median']:10.4g} {row['min']:10.4g} {row['max']:10.4g} {spread:>7s}  "
+              f"{row['verdict']}")
     loaded_direct = sum(results["direct"][n]["payload"] is not None for n in LOADED)
     loaded_calibrated = sum(results["calibrated"][n]["payload"] is not None for n in LOADED)
     unloaded_clean = sum(results["controls"][n]["payload"] is None for n in UNLOADED)
     every_clean = sum(v["payload"] is None for v in results["every_unloaded_direct"].values())
+    direct_within = sum(within(results["direct"][n]["payload"]) for n in LOADED)
+    calibrated_within = sum(within(results["calibrated"][n]["payload"]) for n in LOADED)
     results["summary"] = {"loaded_with_payload_direct": loaded_direct,
                           "loaded_with_payload_calibrated": loaded_calibrated,
                           "unloaded_without_payload": unloaded_clean,
                           "n_loaded": len(LOADED), "n_unloaded": len(UNLOADED),
                           "every_unloaded_without_payload_direct": every_clean,
-                          "n_every_unloaded": len(every)}
+                          "n_every_unloaded": len(every),
+                          "loaded_within_10_percent_direct": direct_within,
+                          "loaded_within_10_percent_calibrated": calibrated_within}
     print(f"loaded runs diagnosed with a payload: {loaded_direct}/{len(LOADED)} (direct), "
           f"{loaded_calibrated}/{len(LOADED)} (calibrated); unloaded runs diagnosed without "
           f"a payload: {unloaded_clean}/{len(UNLOADED)} (controls), {every_clean}/{len(every)} "
-          "(every unloaded identification run, direct)")
+          "(every unloaded identification run, direct); loaded runs with a payload within "
+          f"10 % of {PAYLOAD_MASS} kg: {direct_within}/{len(LOADED)} (direct), "
+          f"{calibrated_within}/{len(LOADED)} (calibrated)")
     results["seconds"]["total"] = time.perf_counter() - start
     print(f"total {results['seconds']['total']:.1f} s")
     if args.json:
