@@ -23,7 +23,8 @@ C. *every unloaded run*: each unloaded identification run (18 files, the
 Every loaded run's payload is checked against :data:`PAYLOAD_MASS` (within
 10 %).
 
-Run ``python benchmarks/real_payload_diagnosis.py [--data DIR] [--json OUT]``.
+Run ``python benchmarks/real_payload_diagnosis.py [--data DIR] [--json OUT]
+[--figure PNG]``.
 Exits 0 with a message when the data is absent.
 """
 
@@ -109,6 +110,40 @@ def spread_table(per_run):
     return rows
 
 
+def spread_figure(per_run, table, path):
+    """One dot per run and estimate: its value over the median across runs, and how often named.
+
+    Only the estimates named in at least two runs; the velocity scales and
+    first moments are left out (they follow from the amplitudes).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in table if r["runs"] >= 2 and r["median"]
+            and not r["estimate"].endswith(("_velocity", "first_moment_x", "first_moment_y",
+                                            "first_moment_z", "torque_constant"))]
+    fig, ax = plt.subplots(figsize=(8, 0.35 * len(rows) + 1.5))
+    for y, row in enumerate(rows):
+        values = np.array([run[row["estimate"]] for run in per_run.values()
+                           if row["estimate"] in run])
+        ax.plot(values / row["median"], np.full(values.size, y), "o", alpha=0.6,
+                color="C0" if row["verdict"] == "stable" else "C3")
+    ax.axvline(1.0, color="k", lw=0.8)
+    ax.axvspan(1 - STABLE_SPREAD, 1 + STABLE_SPREAD, color="0.9", zorder=0)
+    ax.set_yticks(range(len(rows)))
+    ax.set_yticklabels([f"{r['estimate']} ({r['runs']}/{r['of']} runs)" for r in rows],
+                       fontsize=7)
+    ax.set_xlabel("estimate / its median across the runs that name it")
+    ax.set_title("UR10e unloaded identification runs, each diagnosed on its own\n"
+                 f"(blue: named in every run with spread < {100 * STABLE_SPREAD:.0f} %)",
+                 fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def summary(diagnosis):
     return sorted({f"{e.name}" for e in diagnosis.effects_})
 
@@ -117,6 +152,9 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=None, help="identification_data folder")
     parser.add_argument("--json", default=None, help="write all numbers here")
+    parser.add_argument("--figure", default=None,
+                        help="write the spread of each estimate across the unloaded runs "
+                             "here (PNG, needs matplotlib)")
     args = parser.parse_args(argv)
     folder = data_folder(args.data)
     if not all((folder / name).is_file() for name in UNLOADED + LOADED):
@@ -210,6 +248,9 @@ def main(argv=None):
         print(f"   {row['estimate']:58s} {row['runs']:>2d}/{row['of']:<2d} "
               f"{row['median']:10.4g} {row['min']:10.4g} {row['max']:10.4g} {spread:>7s}  "
               f"{row['verdict']}")
+    if args.figure:
+        spread_figure(per_run, table, args.figure)
+        print(f"   figure: {args.figure}")
     loaded_direct = sum(results["direct"][n]["payload"] is not None for n in LOADED)
     loaded_calibrated = sum(results["calibrated"][n]["payload"] is not None for n in LOADED)
     unloaded_clean = sum(results["controls"][n]["payload"] is None for n in UNLOADED)
