@@ -188,13 +188,21 @@ def simulate(robot, torque_constants, armature, injection=None, n_targets=8,
             log_q.append(data.qpos.copy())
             log_qd.append(data.qvel.copy())
         mujoco.mj_step(plant, data)
+    return logged(log_t, log_q, log_qd, cur_t, cur_i, inj.delay, rng, name)
+
+
+def logged(log_t, log_q, log_qd, cur_t, cur_i, delay, rng, name=None):
+    """The logged recording: current delayed by ``delay``, sensor noise, start dropped.
+
+    Shared by the plants of the blind protocol (``_pybullet_plant.py``).
+    """
     log_t = np.array(log_t)
     cur_t, cur_i = np.array(cur_t), np.array(cur_i)
-    current = np.column_stack([np.interp(log_t - inj.delay, cur_t, cur_i[:, j])
-                               for j in range(6)])
-    q = np.array(log_q) + POSITION_NOISE * rng.normal(size=(len(log_t), 6))
-    qd = np.array(log_qd) + VELOCITY_NOISE * rng.normal(size=(len(log_t), 6))
+    current = np.column_stack([np.interp(log_t - delay, cur_t, cur_i[:, j])
+                               for j in range(cur_i.shape[1])])
+    q = np.array(log_q) + POSITION_NOISE * rng.normal(size=(len(log_t), cur_i.shape[1]))
+    qd = np.array(log_qd) + VELOCITY_NOISE * rng.normal(size=(len(log_t), cur_i.shape[1]))
     current = current + CURRENT_NOISE * rng.normal(size=current.shape)
-    keep = log_t >= max(inj.delay, 0.0) + 0.1  # drop the start (servo settling)
+    keep = log_t >= max(delay, 0.0) + 0.1  # drop the start (servo settling)
     return Recording(time=log_t[keep] - log_t[keep][0], q=q[keep], qd=qd[keep],
                      current=current[keep], units="A", name=name)

@@ -128,6 +128,41 @@ def test_two_effects_payload_and_stribeck_both_found(nominal):
     _check(_diagnose(nominal, train), test, expected)
 
 
+def test_opposite_coulomb_and_viscous_changes_on_one_joint_both_found(nominal):
+    # -3 Nm of Coulomb and +6 Nm s/rad of viscous friction cancel at 0.5 rad/s: tried one
+    # at a time neither explains much; the pair is tested together (issue 39)
+    train, test = _simulate([FrictionDelta(coulomb=_one_hot(1, -3.0), static=_one_hot(1, -3.0),
+                                           viscous=_one_hot(1, 6.0))])
+    _check(_diagnose(nominal, train), test,
+           {"coulomb_friction": ([1], {"delta_coulomb": -3.0}),
+            "viscous_friction": ([1], {"delta_viscous": 6.0})})
+
+
+def test_delay_next_to_a_payload_is_named_as_a_delay(nominal):
+    # the payload dominates the nominal residual of joints 2-4; the delay must still be
+    # judged on the joint where it shows most, and named as a delay, not as friction
+    train, test = _simulate([Payload(3.0, com=(0.0, 0.03, 0.06))], delay=0.032)
+    diag = _diagnose(nominal, train)
+    named = {f.name for f in diag.effects_}
+    assert {"payload", "time_delay"} <= named, named
+    assert not named & {"viscous_friction", "rotor_inertia"}, named
+    fitted = {f.name: f for f in diag.effects_}
+    assert fitted["time_delay"].parameters["delay"][0] == pytest.approx(0.032, rel=0.2)
+    assert fitted["payload"].parameters["mass"][0] == pytest.approx(3.0, rel=0.2)
+
+
+def test_every_named_effect_passes_the_held_out_test_given_the_others(nominal):
+    # significance does not relax after a large finding: each reported effect's evidence
+    # is its held-out test in the final model (all other effects in), and it passes it
+    train, _ = _simulate([Payload(3.0, com=(0.0, 0.03, 0.06)),
+                          TorqueConstantError([1, 1, 1, 0.85, 1, 1])], delay=0.016)
+    diag = _diagnose(nominal, train)
+    assert len(diag.effects_) >= 3
+    for fitted in diag.effects_:
+        assert fitted.evidence.eligible(diag.min_gain, diag.min_t), fitted.name
+        assert fitted.joint_share >= diag.min_share, fitted.name
+
+
 def test_logged_current_delay_found(nominal):
     train, test = _simulate(delay=0.016)
     _check(_diagnose(nominal, train), test, {"time_delay": ([0, 1, 2], {"delay": 0.016})})

@@ -397,9 +397,10 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             model = joint_fit(signals, self.nominal_, selected,
                               guarded_mask if guard else mask)
             problems = [(k, reason) for k, f in enumerate(model.effects)
-                        if (reason := self._problem(f))] or _inseparable_friction(model.effects)
+                        if (reason := self._problem(f, model.effects))] or \
+                _inseparable_friction(model.effects)
             implausible = {k for k, f in enumerate(model.effects)
-                           if f.effect.implausible(f.parameters, f.target, self.nominal_)}
+                           if self._implausible(f, model.effects)}
             if not problems:
                 return model
             k, reason = min(problems, key=lambda p: model.effects[p[0]].explained_variance)
@@ -411,12 +412,25 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                                            "reason": reason, "implausible": k in implausible})
             del selected[k]
 
-    def _problem(self, fitted):
+    def _implausible(self, fitted, effects):
+        """Why a jointly fitted effect is physically implausible, or None."""
+        if fitted.name == "friction_softening":
+            # the dry friction that softens includes a peak named on the same joint
+            peak = sum(f.parameters["delta_stribeck"][0] for f in effects
+                       if f.name == "stribeck_friction" and f.target == fitted.target)
+            return fitted.effect.implausible(fitted.parameters, fitted.target, self.nominal_,
+                                             peak=peak)
+        return fitted.effect.implausible(fitted.parameters, fitted.target, self.nominal_)
+
+    def _problem(self, fitted, effects=()):
         """Why a jointly fitted effect is not reported, or None."""
-        reason = fitted.effect.implausible(fitted.parameters, fitted.target, self.nominal_)
+        reason = self._implausible(fitted, effects)
         if reason:
             return reason
-        share = fitted.explained_variance
+        # practical significance on the joint where the effect shows most (a fixed
+        # yardstick: the nominal residual; see selection.MIN_SHARE)
+        share = fitted.joint_share if np.isfinite(fitted.joint_share) else \
+            fitted.explained_variance
         if np.isfinite(share) and share < self.min_share:
             return (f"explains {100 * share:.2g} % of the nominal residual on its joints "
                     f"(needs {100 * self.min_share:g} %)")

@@ -161,6 +161,10 @@ class Effect:
         True when the columns depend on time (not a function of the state).
     rest_guard : bool
         True when rows next to a joint's rest must be left out of its fit.
+    trend : bool
+        True for a trend in time from the start of each recording (its
+        held-out test leaves out the first time block, where it has nothing
+        to show).
 
     Examples
     --------
@@ -194,6 +198,7 @@ class Effect:
     units = ()
     needs_time = False
     rest_guard = False
+    trend = False
 
     def targets(self, nominal):
         """What the effect may act on: joints for per-joint effects, else ``[None]``.
@@ -493,16 +498,22 @@ class FrictionSofteningEffect(StribeckFrictionEffect):
         peak = super().physical(theta, cov, target, settings, nominal)
         return dict(zip(self.parameter_names, peak.values()))
 
-    def implausible(self, params, target, nominal):
+    def implausible(self, params, target, nominal, peak=0.0):
+        """Why the softening is implausible, or None (see :meth:`Effect.implausible`).
+
+        ``peak`` [Nm] is a Stribeck peak named on the same joint: the dry
+        friction that softens is then the Coulomb level plus that peak.
+        """
         value, vs = params["softening"][0], params["softening_velocity"][0]
         lo, hi = BOUNDS["stribeck_velocity"]
         if value < 0:
             return (f"a negative softening ({value:.3g} Nm) is a Stribeck peak, not a softening "
                     "of dry friction")
         coulomb = nominal_friction_levels(nominal, target)[0]
-        if coulomb > 0 and value > 1.5 * coulomb:
+        dry = coulomb + max(float(peak), 0.0)
+        if coulomb > 0 and value > 1.5 * dry:
             return (f"softening of {value:.3g} Nm exceeds 1.5 times the dry friction "
-                    f"({coulomb:.3g} Nm)")
+                    f"({dry:.3g} Nm)")
         if not lo <= vs <= hi:
             return f"softening velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
         return None
@@ -993,12 +1004,18 @@ class FrictionDriftEffect(Effect):
 
     Columns ``[t sign(qd_l), t qd_l] / K`` with ``t`` the time since the
     start of the recording; reported ``coulomb_rate`` [Nm/s] and
-    ``viscous_rate`` [Nm s/rad per s]. Needs time stamps.
+    ``viscous_rate`` [Nm s/rad per s]. Needs time stamps. Two variants
+    compete (``settings_grid``): the dry friction level alone drifting
+    (``with_viscous=False``, one column; ``viscous_rate`` is then reported
+    as 0) and both levels drifting; the selection prefers the simpler one
+    unless the second column earns its place.
 
     Examples
     --------
     >>> FrictionDriftEffect().needs_time
     True
+    >>> FrictionDriftEffect().settings_grid()
+    [{'with_viscous': False}, {'with_viscous': True}]
     """
 
     name = "friction_drift"
@@ -1006,12 +1023,25 @@ class FrictionDriftEffect(Effect):
     parameter_names = ("coulomb_rate", "viscous_rate")
     units = ("Nm/s", "Nm s/rad/s")
     needs_time = True
+    trend = True
 
-    def design(self, signals, nominal, target, **settings):
+    def settings_grid(self):
+        return [{"with_viscous": False}, {"with_viscous": True}]
+
+    def design(self, signals, nominal, target, with_viscous=True, **settings):
         if signals.time is None:
             raise ValueError("friction_drift needs time stamps (recordings, not bare states)")
         qd, t = signals.qd[:, target], signals.time
-        return _per_joint_column(signals, target, np.column_stack([t * np.sign(qd), t * qd]))
+        cols = [t * np.sign(qd), t * qd] if with_viscous else [t * np.sign(qd)]
+        return _per_joint_column(signals, target, np.column_stack(cols))
+
+    def physical(self, theta, cov, target, settings, nominal):
+        std = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        out = {"coulomb_rate": (float(theta[0]), float(std[0])),
+               "viscous_rate": (0.0, 0.0)}
+        if theta.size > 1:
+            out["viscous_rate"] = (float(theta[1]), float(std[1]))
+        return out
 
     def implausible(self, params, target, nominal):
         rate = params["coulomb_rate"][0]
@@ -1023,9 +1053,12 @@ class FrictionDriftEffect(Effect):
         rate, std = params["coulomb_rate"]
         word = "rises" if rate > 0 else "falls"
         vrate, vstd = params["viscous_rate"]
-        return (f"the friction of {_joint_list(joints)} {word} over time: Coulomb level by "
-                f"{abs(rate) * 60:.3g} +- {std * 60:.2g} Nm per minute, viscous coefficient "
-                f"by {vrate * 60:.3g} +- {vstd * 60:.2g} Nm s/rad per minute")
+        text = (f"the friction of {_joint_list(joints)} {word} over time: Coulomb level by "
+                f"{abs(rate) * 60:.3g} +- {std * 60:.2g} Nm per minute")
+        if vrate == 0 and vstd == 0:  # the dry-friction-only variant
+            return text + " (a trend in time, not a constant level)"
+        return text + (f", viscous coefficient by {vrate * 60:.3g} +- {vstd * 60:.2g} Nm s/rad "
+                       "per minute")
 
 
 #: The effect library, in order of prior plausibility: on ties within one

@@ -67,6 +67,13 @@ class FittedEffect:
     nominal_ss : float
         Denominator of ``explained_variance``: sum of squares of the nominal
         residual over ``joints`` on the training rows.
+    joint_share : float
+        Largest share, over ``joints``, of one joint's nominal residual sum
+        of squares (less what the other payload, link-mass and tilt effects
+        explain there) this effect removes given the others.
+        Practical significance is judged on it: an effect acting on every
+        joint (a delay) is not hidden by a large effect on some of them, nor
+        a joint's friction by a payload.
 
     Examples
     --------
@@ -99,6 +106,7 @@ class FittedEffect:
     evidence: object = None
     explained_ss: float = 0.0
     nominal_ss: float = 0.0
+    joint_share: float = np.nan
 
     @property
     def name(self):
@@ -489,8 +497,31 @@ def joint_fit(signals, nominal, selected, mask, n_iter=3):
             effect=effect, target=target, settings=settings, joints=joints,
             theta=theta[sl].copy(), cov=cov[sl, sl].copy(), parameters=params,
             explained_variance=explained_ss / nominal_ss if nominal_ss > 0 else np.nan,
-            evidence=steps[k], explained_ss=explained_ss, nominal_ss=nominal_ss))
+            evidence=steps[k], explained_ss=explained_ss, nominal_ss=nominal_ss,
+            joint_share=_joint_share(G, h, rr, weights, design, items, k, sse_without - sse)))
     return DiagnosedModel(nominal, fitted)
+
+
+def _joint_share(G, h, rr, weights, design, items, k, explained):
+    """Largest share over item ``k``'s joints of the yardstick its ``explained`` SS makes.
+
+    The yardstick is the nominal residual less what the *other* effects with
+    parameters shared by every joint and fixed by the configuration
+    (payload, link mass, tilt; not a time delay) explain (see
+    ``selection._yardstick``).
+    """
+    joints = list(design.joints[k])
+    shared = [np.arange(design.slices[i].start, design.slices[i].stop)
+              for i, (effect, _, _) in enumerate(items)
+              if i != k and not effect.per_joint and not effect.needs_time]
+    yardstick = rr
+    if shared:
+        keep = np.concatenate(shared)
+        theta, _ = _solve(G, h, weights, keep)
+        yardstick = np.minimum(_sse(G, h, rr, theta, keep), rr)
+    if not np.all(yardstick[joints] > 0):
+        return np.nan
+    return float(np.max(explained[joints] / yardstick[joints]))
 
 
 def _refine(effect, settings, theta, design, k, G, h, rr, weights):

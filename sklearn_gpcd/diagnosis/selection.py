@@ -44,9 +44,11 @@ added to :math:`S` in turn; its gain per fold is the loss decrease. It is
   inflates the standard error).
 
 * it is practically significant: fitted on all data, it removes at least
-  ``min_share`` (default 1 %) of the sum of squares of the nominal model's
-  residual on its joints (a 0.1 % share is not a finding, however
-  consistent), and
+  ``min_share`` (default 1 %) of the nominal residual's sum of squares on
+  one of its joints (a 0.1 % share is not a finding, however consistent;
+  the nominal residual is a yardstick that does not shrink as effects are
+  found, and an effect acting on every joint is judged on the joint where it
+  shows most, so that a large effect elsewhere does not hide it), and
 * its parameters are physically plausible (``check``, see
   :meth:`~sklearn_gpcd.diagnosis.Effect.implausible`); an implausible
   estimate is recorded as rejected, with the reason, and the next candidate
@@ -64,8 +66,9 @@ excitation that would separate them (:func:`separating_excitation`).
 
 Selection stops when no candidate is eligible; then a backward pass drops,
 one at a time, any chosen effect that no longer removes ``min_gain`` of the
-held-out loss of its joints (or ``min_share`` of their nominal residual)
-given all the others. The chosen set is refitted jointly on all data
+held-out loss of its joints with consistent per-fold gains (the same test
+as when it was picked, ``min_t`` or every fold), or ``min_share`` of the
+nominal residual of one of them, given all the others. The chosen set is refitted jointly on all data
 (:func:`joint_fit`).
 """
 
@@ -81,7 +84,7 @@ from .effects import _joint_list
 MIN_GAIN = 0.02
 #: Default minimum t-statistic of the per-fold gains.
 MIN_T = 3.0
-#: Default minimum share of the nominal residual's sum of squares (on the
+#: Default minimum share of the nominal residual's sum of squares (on one of the
 #: effect's joints, all training rows) an effect must explain.
 MIN_SHARE = 0.01
 #: Correlation of two effects' fitted contributions from which they count as
@@ -214,15 +217,25 @@ PAIR_SEPARATION = 3.0
 
 
 def _friction_pairs(candidates):
-    """Composites of a Stribeck peak and a low-speed softening on the same joint.
+    """Composites of two friction terms of one joint that can cancel each other.
 
-    A peak added to friction that softens at lower speed cancels part of the
-    softening: tried one at a time, neither lowers the error much. The
-    composite shares the columns of its two parts (no new columns).
+    A Stribeck peak added to friction that softens at lower speed cancels
+    part of the softening, and a Coulomb change of one sign part of a viscous
+    change of the other: tried one at a time, neither lowers the error much.
+    A composite shares the columns of its two parts (no new columns).
     """
     peaks = [c for c in candidates if c.effect.name == "stribeck_friction"]
     softenings = [c for c in candidates if c.effect.name == "friction_softening"]
+    viscous = {c.target: c for c in candidates if c.effect.name == "viscous_friction"}
     pairs = []
+    for coulomb in candidates:
+        # a Coulomb and a viscous change of opposite signs cancel at some speed: tried one
+        # at a time neither explains much, together they do
+        if coulomb.effect.name == "coulomb_friction" and coulomb.target in viscous:
+            visc = viscous[coulomb.target]
+            pairs.append(Candidate(coulomb.effect, coulomb.target, {}, coulomb.joints,
+                                   np.concatenate([coulomb.columns, visc.columns]),
+                                   coulomb.order, parts=(coulomb, visc)))
     for peak in peaks:
         vs = peak.settings.get("stribeck_velocity")
         for soft in softenings:
@@ -451,14 +464,17 @@ class Step:
     folds_improved : int
         Folds where it lowered the loss.
     n_folds : int
-    fold_gains : ndarray of shape (n_folds,)
+        Folds of the sign test (all but the first for a trend in time, see
+        ``Effect.trend``).
+    fold_gains : ndarray of shape (n_splits,)
         Per-fold loss decrease (sum over joints).
     delta_bic : float
         In-sample BIC change (negative favours the effect), for reference.
     share : float
-        Share of the nominal residual's sum of squares on the candidate's
-        joints it removes when fitted on all training rows (practical
-        significance); NaN when unknown.
+        Largest share, over the candidate's joints, of a joint's nominal
+        residual sum of squares it removes when fitted on all training rows
+        (practical significance; a fixed yardstick, so that it does not relax
+        as other effects are found); NaN when unknown.
     theta : ndarray
         The candidate's coefficients fitted on all training rows (with the
         effects already chosen).
@@ -503,7 +519,7 @@ class Step:
         the per-fold gains are consistent (t-statistic at least ``min_t``, or
         an improvement in every fold: a sign test, probability
         ``2**-n_folds`` under no effect). Practically: the candidate removes
-        at least ``min_share`` of the nominal residual on its joints
+        at least ``min_share`` of the nominal residual on one of its joints
         (``share``; not checked when NaN).
         """
         consistent = self.t >= min_t or self.folds_improved == self.n_folds
@@ -524,13 +540,21 @@ class Step:
         }
 
 
-def _evaluate(stats, candidate, base_columns, base_losses, weights, with_columns):
-    """Evidence for adding (or keeping) ``candidate`` to ``base_columns``."""
+def _evaluate(stats, candidate, base_columns, base_losses, weights, with_columns,
+              yardstick=None):
+    """Evidence for adding (or keeping) ``candidate`` to ``base_columns``.
+
+    ``yardstick``: per-joint sum of squares for the practical significance
+    (:func:`_yardstick`; None: the nominal residual).
+    """
     losses = cv_losses(stats, with_columns, weights)
     d = (base_losses - losses).sum(axis=1)  # per fold, all joints
     F = len(d)
     gain = float(d.mean())
     se = float(d.std(ddof=1) / np.sqrt(F)) if F > 1 else np.inf
+    # the sign test counts the folds where the effect has something to show: a trend from
+    # the start of each recording has nothing in the first time block (fold 0)
+    signed = d[1:] if candidate.effect.trend and F > 2 else d
     joints = list(candidate.joints)
     base_f = base_losses[:, joints].sum(axis=1)
     scale = base_f.mean()
@@ -547,9 +571,15 @@ def _evaluate(stats, candidate, base_columns, base_losses, weights, with_columns
     rss0, rss1 = (sse0 * weights).sum(), (sse1 * weights).sum()
     dbic = float(n * np.log(max(rss1, 1e-300) / max(rss0, 1e-300))
                  + candidate.n_params * np.log(n))
-    nominal_ss = stats.rss.sum(0)[joints].sum()
-    share = float((sse0 - sse1)[joints].sum() / nominal_ss) if nominal_ss > 0 else np.nan
-    return Step(candidate, gain, se, t, rel, int((d > 0).sum()), F, dbic, d, share,
+    # practical significance against a yardstick that does not shrink as effects are
+    # found: the nominal residual (less what shared-parameter effects explain, see
+    # _yardstick), on the joint where the effect shows most (a delay or a payload acts on
+    # every joint, but a large effect on some of them would otherwise hide it)
+    nominal_ss = (stats.rss.sum(0) if yardstick is None else yardstick)[joints]
+    share = float(np.max((sse0 - sse1)[joints] / nominal_ss)) if np.all(nominal_ss > 0) \
+        else np.nan
+    return Step(candidate, gain, se, t, rel, int((signed > 0).sum()), len(signed), dbic, d,
+                share,
                 theta[-candidate.n_params:])
 
 
@@ -657,12 +687,13 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
     while max_effects is None or len(selected) < max_effects:
         base = columns_of(selected)
         guarded_now = _uses_guard(selected)
-        pool = [c for c in candidates if c.family not in families and id(c) not in banned]
-        steps = _score(guarded_stats if guarded_now else stats, pool, base)
+        pool = [c for c in candidates if id(c) not in banned
+                and not {c.family, *(p.family for p in c.parts)} & families]
+        steps = _score(guarded_stats if guarded_now else stats, pool, base, selected)
         pick = None
         if not guarded_now and any(c.effect.rest_guard for c in pool):
             # guard effects compete with the others on the same (guarded) rows
-            on_guarded = _score(guarded_stats, pool, base)
+            on_guarded = _score(guarded_stats, pool, base, selected)
             guard_steps = [s for s in on_guarded if s.candidate.effect.rest_guard]
             other = max((s.gain for s in on_guarded if not s.candidate.effect.rest_guard),
                         default=-np.inf)
@@ -687,14 +718,20 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
             if pick is None:
                 break
             _record_ambiguity(stats, base, pick, close, ambiguities, check)
-        selected.append(pick.candidate)
-        families.add(pick.candidate.family)
+        # a composite enters as its parts: each is then re-tested on its own (with its own
+        # practical significance) by the backward pass, given all the others
+        selected.extend(pick.candidate.parts or [pick.candidate])
+        families.update({pick.candidate.family, *(p.family for p in pick.candidate.parts)})
 
     # backward pass: drop the weakest effect that no longer earns its place
     while selected:
         evidence = _given_others(guarded_stats if _uses_guard(selected) else stats, selected)
-        weakest = min(evidence, key=lambda s: s.relative_gain if s.gain > 0 else -np.inf)
-        if weakest.gain > 0 and weakest.relative_gain >= min_gain:
+        # the same held-out test as when it was picked (gain, consistency), now given
+        # every other effect: a small term picked next to a large one is re-tested
+        failing = [s for s in evidence if not s.eligible(min_gain, min_t)]
+        weakest = min(failing or evidence,
+                      key=lambda s: s.relative_gain if s.gain > 0 else -np.inf)
+        if not failing:
             thin = [s for s in evidence if s.share < min_share]
             if not thin:
                 return evidence, history
@@ -703,11 +740,36 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
     return [], history
 
 
-def _score(stats, candidates, base):
-    """Evidence of adding each candidate to the columns ``base``."""
+def _yardstick(stats, chosen):
+    """Per-joint sum of squares practical significance is judged against.
+
+    The nominal residual on each joint, less what the chosen effects with
+    parameters shared by every joint and fixed by the configuration (payload,
+    link mass, gravity tilt) explain there: a friction term of a joint is
+    judged as if a payload found next to it were not there, not against a
+    residual the payload dominates -- and not against what is left after the
+    other terms of its own joint either, which would relax the bar as
+    findings accumulate. A time delay is not subtracted: its term is the
+    time derivative of every joint's current, and subtracting it left the
+    delay's own approximation errors to be named as rotor inertia (measured
+    on the package's simulator, a payload with a 32 ms delay).
+    """
+    rss = stats.rss.sum(0)
+    shared = [c for c in chosen if not c.effect.per_joint and not c.effect.needs_time]
+    if not shared:
+        return rss
+    columns = np.concatenate([c.columns for c in shared])
+    mse = in_sample_mse(stats, columns, _weights(stats, np.zeros(0, dtype=int)))
+    return np.minimum(mse * np.maximum(stats.counts.sum(0), 1), rss)
+
+
+def _score(stats, candidates, base, chosen=()):
+    """Evidence of adding each candidate to the columns ``base`` (of ``chosen``)."""
     weights = _weights(stats, base)
     base_losses = cv_losses(stats, base, weights)
-    return [_evaluate(stats, c, base, base_losses, weights, np.concatenate([base, c.columns]))
+    yardstick = _yardstick(stats, chosen)
+    return [_evaluate(stats, c, base, base_losses, weights, np.concatenate([base, c.columns]),
+                      yardstick)
             for c in candidates]
 
 
@@ -819,14 +881,16 @@ def plausibility_check(nominal):
     'torque constant scale 0.05 outside [0.5, 1.5] (a motor that lost or gained 95 % of its torque)'
     """
 
-    def check(candidate, theta):
+    def check(candidate, theta, peak=0.0):
         if theta is None:
             return None
         theta = np.asarray(theta, dtype=float)
         if candidate.parts:
-            start = 0
+            start, peak = 0, 0.0
             for part in candidate.parts:
-                reason = check(part, theta[start:start + part.n_params])
+                if part.effect.name == "stribeck_friction":
+                    peak = float(theta[start])
+                reason = check(part, theta[start:start + part.n_params], peak)
                 if reason is not None:
                     return f"{part.effect.name.replace('_', ' ')}: {reason}"
                 start += part.n_params
@@ -834,6 +898,8 @@ def plausibility_check(nominal):
         effect = candidate.effect
         params = effect.physical(theta, np.zeros((theta.size, theta.size)), candidate.target,
                                  candidate.settings, nominal)
+        if effect.name == "friction_softening":  # on top of a peak of its composite
+            return effect.implausible(params, candidate.target, nominal, peak=peak)
         return effect.implausible(params, candidate.target, nominal)
 
     return check
@@ -849,5 +915,5 @@ def _given_others(stats, selected):
         base = np.concatenate([c.columns for c in others]) if others else np.zeros(0, int)
         base_losses = cv_losses(stats, base, weights)
         out.append(_evaluate(stats, cand, base, base_losses, weights,
-                             np.concatenate([base, cand.columns])))
+                             np.concatenate([base, cand.columns]), _yardstick(stats, others)))
     return out
