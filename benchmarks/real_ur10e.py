@@ -110,7 +110,7 @@ from sklearn_gpcd.detection import (
 )
 from sklearn_gpcd.detection import loro_margin as _loro_margin  # noqa: E402
 from sklearn_gpcd.detection import nested_false_alarms as _nested_false_alarms  # noqa: E402
-from sklearn_gpcd.workflow import SELECT_GRID  # noqa: E402
+from sklearn_gpcd.workflow import SELECT_GRID, band_label, band_settings  # noqa: E402
 from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress, split_nmse  # noqa: E402
 from sklearn_gpcd.features import contiguous_segments  # noqa: E402
@@ -252,12 +252,12 @@ def banded_detector(regressor, limit, **settings):
 
 
 def band_text(rule):
-    """A band's filter and debounce, as the tables show them.
+    """A band's filter and debounce, as the tables show them (the CLI's wording).
 
     >>> band_text(AlarmRule(filter_cutoff=10.0, filter_order=1, min_duration=2))
     '10 Hz, order 1, debounce 2'
     """
-    return f"{rule.filter_cutoff:g} Hz, order {rule.filter_order}, debounce {rule.min_duration}"
+    return band_label(band_settings(rule))
 
 
 def flat(params):

@@ -33,7 +33,6 @@ from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
 
 from ..metrics import alarm_onsets
-from ._signal import segment_starts
 from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
 from .rules import AlarmRule
 
@@ -473,7 +472,7 @@ def _band_run(rule, residuals, times, margin_rule):
     """One band at its settings: series, LORO margin, levels and its own nested folds."""
     series = {}
     for key, (u, motion) in residuals.items():
-        signal, regime, _ = rule.signal(u, segment_starts(len(u)), motion)
+        signal, regime, _ = rule.signal(u, motion=motion)
         series[key] = _excursion(rule, signal, regime)
     keys = list(series)
     peaks = {k: v[2] for k, v in series.items()}

@@ -331,9 +331,9 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
                                  sample_time="auto", rules=rules)
     result = calibrate_across_recordings(template, blocks, times, param_grid=grid)
     several = bool(bands or band_candidates)
-    summary = _summary(result, result.bands if several else [result], trained, features, robot,
-                       keys=keys, split=split, n_files=n_files, select=select,
-                       several=several, chosen_band=bool(band_candidates))
+    summary = _summary(result, trained, features, robot, keys=keys, split=split,
+                       n_files=n_files, select=select, several=several,
+                       chosen_band=bool(band_candidates))
     return CalibratedDetector(result.detector, features, summary)
 
 
@@ -393,17 +393,21 @@ def _brake_limit(braking, training):
     return float(limit)
 
 
-def _summary(result, per_band, trained, features, robot, *, keys, split, n_files,
-             select, several, chosen_band):
+def _summary(result, trained, features, robot, *, keys, split, n_files, select, several,
+             chosen_band):
     """The calibration summary: what ``gpcd calibrate`` prints and the file keeps."""
     torque_constants = None if robot is None else getattr(robot, "torque_constants", None)
-    entries = [_band_entry(band, torque_constants) for band in per_band]
+    # one band: its figures are the calibration's (each recording's false alarms at
+    # the settings chosen without it); several: each band's own
+    figures = result.bands if several else [result]
+    entries = [_band_entry(band.rule, fig, torque_constants)
+               for band, fig in zip(result.bands, figures)]
     det = result.detector
     regimes = det.rules_[0].regimes
     summary = {
         "recordings": keys, "split_s": split, "n_files": n_files,
         "hours": result.hours, "margin": entries[0]["margin"],
-        "margin_rule": "global", "regimes": list(per_band[0].regime_names),
+        "margin_rule": "global", "regimes": list(result.regime_names),
         "settle_time_s": 0.5 if regimes is None else regimes.settle_time,
         "rest_reference_s": None if regimes is None else regimes.rest_reference,
         "brake_limit": None if regimes is None else regimes.brake_limit,
@@ -434,15 +438,14 @@ def _summary(result, per_band, trained, features, robot, *, keys, split, n_files
     return summary
 
 
-def _band_entry(result, torque_constants):
-    """One band's calibration (a band of a calibrate_across_recordings result, or the
-    result itself with one band) for the summary."""
-    rule = result.bands[0].rule if "detector" in result else result.rule
+def _band_entry(rule, figures, torque_constants):
+    """One band for the summary: its fitted ``rule`` and the ``margin`` and nested
+    false alarms of ``figures`` (a band of a calibrate_across_recordings result)."""
     thresholds = np.atleast_2d(rule.thresholds_)
-    entry = {**band_settings(rule), "margin": float(result.margin.max()),
+    entry = {**band_settings(rule), "margin": float(figures.margin.max()),
              "thresholds_A": thresholds.tolist(),
-             "n_false_alarms_nested": result.n_false_alarms,
-             "false_alarms_per_hour": result.false_alarms_per_hour}
+             "n_false_alarms_nested": figures.n_false_alarms,
+             "false_alarms_per_hour": figures.false_alarms_per_hour}
     if torque_constants is not None:
         entry["thresholds_Nm"] = (thresholds * np.asarray(torque_constants)).tolist()
     return entry
