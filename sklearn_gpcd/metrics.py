@@ -24,6 +24,7 @@ __all__ = [
     "event_recall",
     "false_alarms_per_hour",
     "make_detection_scorer",
+    "rate_upper_bound",
     "mean_detection_delay",
     "nmse",
 ]
@@ -385,6 +386,45 @@ def false_alarms_per_hour(
     if free_hours <= 0:
         return float("nan")
     return float(onsets.sum() / free_hours)
+
+
+def rate_upper_bound(count, hours, confidence=0.95):
+    """Upper confidence bound of an event rate from a count (Poisson, exact).
+
+    ``count`` alarm onsets seen in ``hours`` of data bound the true rate by
+
+    .. math:: \\lambda_{up} = \\frac{\\chi^2_{c}(2n + 2)}{2T}
+
+    (the one-sided Garwood bound at confidence :math:`c`): with no onset in
+    ``T`` hours the rate is below ``3.0 / T`` per hour at 95 %, so a short
+    calibration cannot promise a low false-alarm rate, whatever it saw.
+
+    Parameters
+    ----------
+    count : int
+        Events seen (e.g. nested false-alarm onsets).
+    hours : float
+        Duration of the data they were counted on [h].
+    confidence : float, default=0.95
+        One-sided confidence level.
+
+    Returns
+    -------
+    bound : float
+        Events per hour (inf without data).
+
+    Examples
+    --------
+    >>> round(rate_upper_bound(0, 1.0), 2)      # nothing seen in one hour
+    3.0
+    >>> round(rate_upper_bound(0, 20 / 3600), 0)  # nothing seen in 20 s
+    539.0
+    """
+    from scipy.stats import chi2
+
+    if hours <= 0:
+        return float("inf")
+    return float(chi2.ppf(confidence, 2 * int(count) + 2) / (2.0 * hours))
 
 
 def _sample_durations(time, new, sample_time=None):

@@ -209,6 +209,30 @@ def test_streaming_with_regimes_and_reference_equals_batch():
     assert (out.prediction == -1).any()
 
 
+@pytest.mark.parametrize("alarm_hold, n_events", [(1.0, 1), (0.0, 2)])
+def test_a_push_that_moves_the_arm_does_not_relax_its_threshold(alarm_hold, n_events):
+    """A push on a still arm moves it: with the hold it is one alarm judged at the
+    rest thresholds; without, the arm is 'moving' at once and the push splits."""
+    qd, current = _still_then_moving()
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.0, filter_cutoff=2.0,
+                     min_duration=3, regimes=Regimes(rest_reference=2.0,
+                                                     alarm_hold=alarm_hold))
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rule).fit(stack_currents(qd, current))
+    pushed_qd, pushed = qd.copy(), current.copy()
+    pushed[700:760, 0] += np.hanning(60) * 1.0          # the push: a current bump ...
+    pushed_qd[720:735, 0] = 0.05                         # ... that moves the arm a little
+    Z = stack_currents(pushed_qd, pushed + 2.0 * (pushed_qd - qd))  # the model explains qd
+    alarm = det.predict(Z) == -1
+    onsets = np.flatnonzero(alarm[1:] & ~alarm[:-1]) + 1
+    assert np.count_nonzero((onsets >= 690) & (onsets < 780)) == n_events  # the push
+    assert not alarm[:700].any()
+    out = StreamingMonitor(det).replay(Z)
+    assert np.array_equal(out.prediction, det.predict(Z))
+    np.testing.assert_allclose(out.signal, det.monitoring_signal(Z).signal, rtol=1e-12,
+                               atol=1e-12)
+
+
 # ----------------------------------------------- raw samples on the simulator
 @pytest.fixture(scope="module")
 def simulated():

@@ -190,7 +190,7 @@ def test_braking_takes_the_limit_given_or_the_models_own(work, capsys):
     limit = round(0.5 * float(qdd), 3)  # hard enough to brake on these runs
     given = work["folder"] / "braking.skops"
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]),
-                 f"--braking={limit}", "-q", "-o", str(given)]) == 0
+                 f"--braking={limit}", "--no-select", "-q", "-o", str(given)]) == 0
     assert f"braking above {limit:.3g} rad/s^2" in capsys.readouterr().out
     detector, _, calibration = load_detector(given)
     assert detector.rules[0].regimes.brake_limit == limit

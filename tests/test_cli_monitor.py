@@ -60,7 +60,7 @@ def _json_events(path):
 def test_calibrate_applies_the_loro_rule_and_reports_it(work, capsys):
     out = work["folder"] / "again.skops"
     assert main(["calibrate", str(work["model"]), *map(str, work["free"]), "-q",
-                 "-o", str(out)]) == 0
+                 "--no-select", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "margin (leave-one-recording-out" in text and "per hour" in text
     assert "thresholds [A]" in text and "thresholds [Nm, torque constants of ur10e]" in text
@@ -125,7 +125,7 @@ def test_calibrate_split_cuts_one_long_log_into_left_out_pieces(work, capsys):
     out = work["folder"] / "split.skops"
     seconds = rec.duration / 3.5  # three pieces
     assert main(["calibrate", str(work["model"]), str(work["free"][2]), "--split",
-                 f"{seconds}", "-q", "-o", str(out)]) == 0
+                 f"{seconds}", "--no-select", "-q", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "cut 1 recording(s) into 3 pieces" in text
     detector, features, calibration = load_detector(out)

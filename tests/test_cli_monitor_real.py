@@ -134,7 +134,7 @@ def test_cli_workflow_matches_the_benchmark_rule_on_real_logs(bench, ur10e_dir, 
     assert main(["train", *map(str, train), "--model", "sp_c", "--n-support", "200", "-q",
                  "-o", str(model)]) == 0
     assert main(["calibrate", str(model), *(str(ur10e_dir / k) for k in cal_keys), "-q",
-                 "-o", str(det_path)]) == 0
+                 "--no-select", "-o", str(det_path)]) == 0
     events_json = tmp_path / "events.json"
     assert main(["monitor", str(det_path), *(str(ur10e_dir / k) for k in bench.PUSHES),
                  "-q", "--json", str(events_json)]) == 0

@@ -77,13 +77,15 @@ def add_parser(sub):
                      metavar="SECONDS",
                      help="seconds the arm must be still after a motion before it is at "
                      "rest (default 0.5)")
-    cal.add_argument("--select", action="store_true",
+    cal.add_argument("--select", action=argparse.BooleanOptionalAction, default="auto",
                      help="choose the settle time (0.5, 1, 2, 3 s) and the rest reference "
-                     "(none, 2, 5 s) across the recordings too: of the pairs with the fewest "
+                     "(none, 2, 5 s) across the recordings: of the pairs with the fewest "
                      "nested alarm onsets on the recordings, the one with the smallest "
                      "time-weighted thresholds at its own leave-one-recording-out margin; "
                      "the expected false alarms then count each recording at the pair "
-                     "chosen without it")
+                     "chosen without it. The default unless --settle-time, "
+                     "--rest-reference, --band, --band-candidate or --no-regimes fix the "
+                     "settings; --no-select keeps settle 0.5 s and rest reference 5 s")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
     cal.add_argument("--band", type=_band_arg, action="append", default=None,

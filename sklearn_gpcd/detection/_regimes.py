@@ -94,6 +94,9 @@ class RegimeState:
     brake_hold : int, default=0
         Samples the braking regime lasts after the last sample above the
         limit.
+    alarm_hold : int, default=0
+        Samples at most that an alarm holds the regime of its onset (see
+        :meth:`step`); 0: no hold.
 
     Examples
     --------
@@ -107,13 +110,15 @@ class RegimeState:
     [(0, 1.0), (1, 2.0), (1, 2.0), (2, 0.0), (2, 0.5)]
     """
 
-    def __init__(self, sigma_v, settle, beta, n_joints, brake_limit=None, brake_hold=0):
+    def __init__(self, sigma_v, settle, beta, n_joints, brake_limit=None, brake_hold=0,
+                 alarm_hold=0):
         self.sigma_v = float(sigma_v)
         self.settle = int(settle)
         self.beta = beta
         self.n_joints = int(n_joints)
         self.brake_limit = None if brake_limit is None else float(brake_limit)
         self.brake_hold = int(brake_hold)
+        self.alarm_hold = int(alarm_hold)
         self.reference = np.zeros(n_joints)
         self._step = np.zeros(n_joints)
         self.reset()
@@ -124,6 +129,7 @@ class RegimeState:
         self._moved = False
         self._referenced = False
         self._braking_for = 0
+        self._held_for = 0
         self.reference[:] = 0.0
 
     def braking(self, qdd):
@@ -153,11 +159,22 @@ class RegimeState:
         self._moved = True
         return MOVING
 
-    def step(self, motion, signal):
+    def step(self, motion, signal, hold=None):
         """Regime of one sample; ``signal`` is re-referenced in place at rest.
 
         The braking regime overrides the others for the thresholds only: the
         rest reference follows the motion regimes as without it.
+
+        **A contact never relaxes its own threshold.** While the band is in
+        alarm the caller passes the regime of the alarm's onset as ``hold``:
+        it is returned whatever the motion says, and at rest the reference is
+        frozen (subtracted, not tracked). A push on a still arm moves it; without
+        the hold the arm would be ``moving`` at once, with the loose thresholds
+        of motion, and one push would be reported as several events. The
+        counters still advance, so when the alarm clears a displaced arm
+        settles again before it is at rest. The hold lasts ``alarm_hold``
+        samples at most: an alarm that outlasts it (a contact that stays, an
+        arm that moves on) is judged by the regime of the motion again.
 
         Parameters
         ----------
@@ -166,6 +183,8 @@ class RegimeState:
             accelerations when ``brake_limit`` is set.
         signal : ndarray of shape (n_joints,)
             Monitoring signal of the sample, modified in place.
+        hold : int or None, default=None
+            Regime code to keep (the band is in alarm), or None.
 
         Returns
         -------
@@ -174,10 +193,14 @@ class RegimeState:
         """
         n = self.n_joints
         regime = self.regime(motion[:n])
+        braking = self.brake_limit is not None and self.braking(motion[n:])
+        self._held_for = self._held_for + 1 if hold is not None else 0
+        if hold is not None and self._held_for <= self.alarm_hold:
+            if hold == REST and self._referenced:
+                np.subtract(signal, self.reference, out=signal)
+            return hold
         self._reference(regime, signal)
-        if self.brake_limit is not None and self.braking(motion[n:]):
-            return BRAKING
-        return regime
+        return BRAKING if braking else regime
 
     def _reference(self, regime, signal):
         """Re-reference ``signal`` in place at rest (Eq. above), track ``b``."""
@@ -196,7 +219,7 @@ class RegimeState:
 
 
 def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
-                brake_hold=0):
+                brake_hold=0, alarm_hold=0):
     """:class:`RegimeState` over a batch, restarting at every segment start.
 
     Parameters
@@ -207,8 +230,8 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
         Joint velocities, followed by the accelerations with ``brake_limit``.
     starts : ndarray of int
         Segment starts (new recordings).
-    sigma_v, settle, beta, brake_limit, brake_hold
-        See :class:`RegimeState`.
+    sigma_v, settle, beta, brake_limit, brake_hold, alarm_hold
+        See :class:`RegimeState` (no alarm: ``alarm_hold`` is not used).
 
     Returns
     -------
@@ -233,15 +256,77 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
     ...             brake_limit=5.0, brake_hold=2)[1].tolist()
     [0, 3, 3, 3, 1]
     """
-    state = RegimeState(sigma_v, settle, beta, signal.shape[1], brake_limit, brake_hold)
+    settings = dict(sigma_v=sigma_v, settle=settle, beta=beta, brake_limit=brake_limit,
+                    brake_hold=brake_hold, alarm_hold=alarm_hold)
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
-    reference = np.zeros_like(out)
-    is_start = np.zeros(signal.shape[0], dtype=bool)
-    is_start[starts] = True
-    for k in range(signal.shape[0]):
-        if is_start[k]:
-            state.reset()
-        regimes[k] = state.step(motion[k], out[k])
-        reference[k] = signal[k] - out[k]
-    return out, regimes, reference
+    bounds = np.append(starts, signal.shape[0])
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        state = RegimeState(n_joints=signal.shape[1], **settings)
+        for k in range(lo, hi):
+            regimes[k] = state.step(motion[k], out[k])
+    return out, regimes, signal - out
+
+
+def held_regime_pass(signal, motion, starts, settings, scales, level, min_duration):
+    """:func:`regime_pass` with the alarm hold of :meth:`RegimeState.step`.
+
+    Sample by sample, as a streaming monitor does: regime, debounce over the
+    last ``min_duration`` samples, ratio to the scale of the regime, alarm
+    where the ratio exceeds ``level``; while some joint is in alarm the
+    regime of the alarm's onset is held.
+
+    Parameters
+    ----------
+    signal : ndarray of shape (n_samples, n_joints)
+        Filtered residual.
+    motion : ndarray
+        As for :func:`regime_pass`.
+    starts : ndarray of int
+        Segment starts.
+    settings : dict
+        ``sigma_v``, ``settle``, ``beta``, ``brake_limit``, ``brake_hold``,
+        ``alarm_hold`` (see :class:`RegimeState`).
+    scales : ndarray of shape (n_regime_rows, n_joints)
+        Scale per regime.
+    level : float
+        A joint fires where its ratio exceeds it.
+    min_duration : int
+        Debounce window [samples].
+
+    Returns
+    -------
+    referenced, regimes, reference
+        As for :func:`regime_pass`.
+    ratio : ndarray of shape (n_samples, n_joints)
+        Debounced ``|m|`` over the scale of each sample's regime.
+
+    Examples
+    --------
+    A push on a still arm (joint speed 0.5 rad/s while pushed) stays one
+    alarm at the rest threshold:
+
+    >>> import numpy as np
+    >>> m = np.array([[0.0], [2.0], [2.0], [0.5], [0.0]])
+    >>> qd = np.array([[0.0], [0.0], [0.5], [0.5], [0.0]])
+    >>> settings = dict(sigma_v=0.01, settle=5, beta=None, alarm_hold=100)
+    >>> scales = np.array([[10.0], [10.0], [1.0]])       # moving, settling, rest
+    >>> _, regime, _, ratio = held_regime_pass(m, qd, np.array([0]), settings, scales, 1.0, 1)
+    >>> regime.tolist(), (ratio[:, 0] > 1.0).tolist()
+    ([2, 2, 2, 2, 1], [False, True, True, False, False])
+    """
+    n_joints = signal.shape[1]
+    out = np.array(signal, dtype=float, copy=True)
+    regimes = np.empty(signal.shape[0], dtype=np.intp)
+    ratio = np.empty_like(out)
+    bounds = np.append(starts, signal.shape[0])
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        state = RegimeState(n_joints=n_joints, **settings)
+        window = np.zeros((min_duration, n_joints))
+        alarmed, regime = False, 0
+        for i, k in enumerate(range(lo, hi)):
+            regime = regimes[k] = state.step(motion[k], out[k], regime if alarmed else None)
+            window[i % min_duration] = np.abs(out[k])
+            ratio[k] = window.min(axis=0) / scales[regime]
+            alarmed = bool(ratio[k].max() > level)
+    return out, regimes, signal - out, ratio

@@ -30,7 +30,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 
-from ._regimes import regime_names, regime_pass
+from ._regimes import held_regime_pass, regime_names, regime_pass
 from ._signal import debounce_segments, filter_segments, lowpass_coefficients, segment_starts
 from ._thresholds import (
     contamination_level,
@@ -86,6 +86,11 @@ class Regimes(BaseEstimator):
     brake_hold : float, default=0.5
         Seconds the braking regime lasts after the last sample above
         ``brake_limit``.
+    alarm_hold : float, default=1.0
+        Seconds at most that an alarm holds the regime (and rest reference)
+        of its onset: a push that moves a still arm is judged at the rest
+        thresholds while it lasts instead of relaxing them (one push, one
+        event). 0: the regime follows the motion during alarms too.
 
     Attributes
     ----------
@@ -106,13 +111,16 @@ class Regimes(BaseEstimator):
         "rest_reference": [None, *_positive_or_inf()],
         "brake_limit": [None, Interval(Real, 0, None, closed="neither")],
         "brake_hold": [Interval(Real, 0, None, closed="left")],
+        "alarm_hold": [Interval(Real, 0, None, closed="left")],
     }
 
-    def __init__(self, settle_time=0.5, rest_reference=None, brake_limit=None, brake_hold=0.5):
+    def __init__(self, settle_time=0.5, rest_reference=None, brake_limit=None, brake_hold=0.5,
+                 alarm_hold=1.0):
         self.settle_time = settle_time
         self.rest_reference = rest_reference
         self.brake_limit = brake_limit
         self.brake_hold = brake_hold
+        self.alarm_hold = alarm_hold
 
     @property
     def names(self):
@@ -131,7 +139,7 @@ class Regimes(BaseEstimator):
         Returns
         -------
         settings : dict
-            ``sigma_v``, ``settle`` and ``brake_hold`` in samples, ``beta``
+            ``sigma_v``, ``settle``, ``brake_hold`` and ``alarm_hold`` in samples, ``beta``
             (the rest reference's smoothing factor, None without it) and
             ``brake_limit``.
         """
@@ -144,6 +152,7 @@ class Regimes(BaseEstimator):
             "beta": beta,
             "brake_limit": self.brake_limit,
             "brake_hold": int(round(self.brake_hold / sample_time)),
+            "alarm_hold": int(round(self.alarm_hold / sample_time)),
         }
 
 
@@ -337,6 +346,9 @@ class AlarmRule(BaseEstimator):
     def signal(self, u, starts=None, motion=None):
         """Monitoring signal :math:`m`, regime codes and rest reference.
 
+        Without the alarm hold (:meth:`stages` applies it): what calibration
+        reads.
+
         Parameters
         ----------
         u : ndarray of shape (n_samples, n_joints)
@@ -357,13 +369,21 @@ class AlarmRule(BaseEstimator):
             Rest reference subtracted (None without ``rest_reference``).
         """
         starts = _starts(u, starts)
-        if self.filter_coefficients_ is not None:
-            u = filter_segments(u, *self.filter_coefficients_, starts)
+        u = self._filtered(u, starts)
         if self.regimes is None:
             return u, np.zeros(u.shape[0], dtype=np.intp), None
+        return regime_pass(u, self._motion(motion), starts, **self.regime_settings())
+
+    def _filtered(self, u, starts):
+        if self.filter_coefficients_ is None:
+            return u
+        return filter_segments(u, *self.filter_coefficients_, starts)
+
+    @staticmethod
+    def _motion(motion):
         if motion is None:
             raise ValueError("an AlarmRule with regimes needs the joint velocities (motion)")
-        return regime_pass(u, motion, starts, **self.regime_settings())
+        return motion
 
     def debounced(self, signal, starts=None):
         """:math:`\\tilde m`: the smallest ``|m|`` over the last ``min_duration`` samples.
@@ -397,6 +417,12 @@ class AlarmRule(BaseEstimator):
     def stages(self, u, starts=None, motion=None):
         """Every stage from the residual to the alarms.
 
+        With regimes, the regime of an alarm's onset is held while the alarm
+        lasts (a contact never relaxes its own threshold, see
+        :meth:`~sklearn_gpcd.detection._regimes.RegimeState.step`): the
+        recordings with an alarm are run again sample by sample with the
+        hold, as a :class:`~sklearn_gpcd.detection.StreamingMonitor` runs.
+
         Parameters
         ----------
         u, starts, motion
@@ -411,8 +437,28 @@ class AlarmRule(BaseEstimator):
         starts = _starts(u, starts)
         signal, regime, reference = self.signal(u, starts, motion)
         ratio = self.ratio(signal, regime, starts)
+        level = -self.offset_
+        if self.regimes is not None and (ratio > level).any():
+            signal, regime, reference, ratio = self._held(u, starts, motion, ratio > level,
+                                                          (signal, regime, reference, ratio))
         return {"signal": signal, "regime": regime, "reference": reference, "ratio": ratio,
-                "alarms": ratio > -self.offset_}
+                "alarms": ratio > level}
+
+    def _held(self, u, starts, motion, alarms, stages):
+        """``stages`` (signal, regime, reference, ratio) with the segments that
+        alarm run again with the alarm hold."""
+        signal, regime, reference, ratio = (np.array(a, copy=True) for a in stages)
+        filtered, motion = self._filtered(u, starts), self._motion(motion)
+        scales = np.atleast_2d(self.scale_)
+        bounds = np.append(starts, len(u))
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            if not alarms[lo:hi].any():
+                continue
+            rows = slice(lo, hi)
+            signal[rows], regime[rows], reference[rows], ratio[rows] = held_regime_pass(
+                filtered[rows], motion[rows], np.array([0]), self.regime_settings(), scales,
+                -self.offset_, self.min_duration)
+        return signal, regime, reference, ratio
 
     # ------------------------------------------------------- calibration
     def calibrate(self, u, starts=None, motion=None, *, sample_time, sigma_v=None, std=None,

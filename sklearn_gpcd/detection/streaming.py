@@ -231,6 +231,8 @@ class BandState:
     def reset(self):
         """Forget the filter, regime and debounce history."""
         self._fresh = True
+        self.alarmed = False
+        self.alarms[:] = False
         self._window[:] = 0.0
         self._position = 0
         if self._regime_state is not None:
@@ -271,7 +273,9 @@ class BandState:
         np.copyto(self._z, self._z_next)
         self._fresh = False
         if self._regime_state is not None:
-            self.regime = self._regime_state.step(motion, self.signal)
+            # the regime of an alarm's onset is held while the alarm lasts
+            self.regime = self._regime_state.step(
+                motion, self.signal, self.regime if self.alarmed else None)
         np.abs(self.signal, out=self._window_rows[self._position])
         self._position = (self._position + 1) % len(self._window_rows)
         np.minimum.reduce(self._window, axis=0, out=self.ratio)

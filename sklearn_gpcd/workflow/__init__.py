@@ -14,15 +14,20 @@ and ``gpcd calibrate``.
 from .calibration import (
     DETECTOR_KIND,
     DETECTOR_RULE,
+    MIN_CALIBRATION_SECONDS,
+    MIN_REGIME_SECONDS,
     SELECT_GRID,
     CalibratedDetector,
+    CalibrationWarning,
     band_label,
     band_settings,
     calibrate_detector,
+    calibration_coverage,
     calibration_report,
     check_calibration_options,
     load_detector,
     recording_keys,
+    resolve_select,
     save_detector,
     split_recordings,
 )
@@ -45,10 +50,11 @@ from .training import (
 )
 
 __all__ = [
-    "DETECTOR_KIND", "DETECTOR_RULE", "INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND",
+    "DETECTOR_KIND", "DETECTOR_RULE", "INPUTS", "MAX_TRAIN_ROWS", "MIN_CALIBRATION_SECONDS",
+    "MIN_REGIME_SECONDS", "MODELS", "MODEL_KIND",
     "MODEL_SIGNALS", "OPTIMIZERS", "SELECT_GRID", "TRAIN_RULE", "CalibratedDetector",
-    "TrainedModel", "TrainingSet", "acceleration_limit", "band_label", "band_settings",
-    "calibrate_detector", "calibration_report", "check_calibration_options", "load_detector", "load_model",
-    "recording_keys", "save_detector", "save_model", "split_recordings", "train_model",
+    "CalibrationWarning", "TrainedModel", "TrainingSet", "acceleration_limit", "band_label",
+    "band_settings", "calibrate_detector", "calibration_coverage", "calibration_report", "check_calibration_options", "load_detector", "load_model",
+    "recording_keys", "resolve_select", "save_detector", "save_model", "split_recordings", "train_model",
     "training_rows", "training_set",
 ]
