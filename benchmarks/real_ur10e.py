@@ -118,6 +118,7 @@ from sklearn_gpcd.io import RecordingWarning, load_recording  # noqa: E402
 from sklearn_gpcd.metrics import alarm_onsets  # noqa: E402
 from sklearn_gpcd.robots import load_robot  # noqa: E402
 from sklearn_gpcd.workflow import (  # noqa: E402
+    TrainedModel,
     acceleration_limit,
     calibrate_detector,
     train_model,
@@ -487,8 +488,58 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
     return out
 
 
-#: The cross-task recipes: ``gpcd calibrate`` options (none: the defaults).
-CROSS_TASK_RECIPES = {"defaults": {}, "--select": {"select": True}}
+#: The ``gpcd calibrate`` recipes scored through its function, by their options.
+RECIPES = {"defaults": {}, "--motion-envelope 0.05": {"motion_envelope": 0.05},
+           "--no-select --motion-envelope 0.05": {"select": False, "motion_envelope": 0.05}}
+#: The recipes of the same-task table.
+SAME_TASK_RECIPES = ("defaults", "--motion-envelope 0.05")
+
+
+def _recipe(trained, recordings, keys, options):
+    """:func:`~sklearn_gpcd.workflow.calibrate_detector` (``gpcd calibrate``) with
+    ``options``; the calibration warnings are kept with the result."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        calibrated = calibrate_detector(trained, recordings, keys=keys, **options)
+    messages = sorted({str(w.message) for w in caught
+                       if w.category.__name__ == "CalibrationWarning"})
+    return calibrated, messages
+
+
+def _recipe_result(calibrated, messages):
+    summary = calibrated.calibration
+    return {"nested_onsets": summary["n_false_alarms_nested"], "margin": summary["margin"],
+            "settle_time_s": summary["settle_time_s"],
+            "rest_reference_s": summary["rest_reference_s"],
+            "thresholds": np.atleast_2d(calibrated.detector.thresholds_),
+            "envelope": summary.get("envelope"), "warnings": messages}
+
+
+def same_task_recipes(data, models, unseen, pushes, labels, progress):
+    """The same task through ``gpcd calibrate``'s function: P_f, SP_S and SP_C
+    calibrated on the unseen recordings by ``SAME_TASK_RECIPES``, the pushes
+    monitored; nested onsets, pushes detected, delays."""
+    out = {}
+    for name in ("P_f", "SP_S", "SP_C"):
+        trained = TrainedModel(regressor=models[name], features=data.features,
+                               training={"model": MODELS[name]})
+        for recipe in SAME_TASK_RECIPES:
+            tic = time.perf_counter()
+            calibrated, messages = _recipe(trained, list(unseen.values()), list(unseen),
+                                           RECIPES[recipe])
+            res = out[f"{name}, {recipe}"] = {
+                **_recipe_result(calibrated, messages),
+                **{k: v for k, v in operating_point(calibrated.detector, {}, pushes, {
+                    k: stack_currents(data.features.transform(r), r.current)
+                    for k, r in pushes.items()}, labels).items()
+                   if k in ("events", "outside", "n_events", "n_detected", "median_delay_s",
+                            "max_delay_s")}}
+            progress(f"same task, {name}, gpcd calibrate {recipe}: {res['nested_onsets']} "
+                     f"nested onset(s) on the {len(unseen)} unseen recordings, "
+                     f"{res['n_detected']}/{res['n_events']} pushes detected, "
+                     f"{sum(len(v) for v in res['outside'].values())} onset(s) outside them "
+                     f"({time.perf_counter() - tic:.0f} s)")
+    return out
 
 
 def cross_task(root, train, unseen, labels, n_support, seed, n_jobs, progress):
@@ -497,11 +548,11 @@ def cross_task(root, train, unseen, labels, n_support, seed, n_jobs, progress):
     What a user does with ``gpcd train --signals none`` / ``gpcd calibrate`` /
     ``gpcd monitor``: state-only models (P_f, SP_S: the 2020 logs have no
     target current) trained on the training runs, thresholds chosen by
-    :func:`~sklearn_gpcd.workflow.calibrate_detector` on the unseen
-    collision-free recordings plus the 2020 task's own ``collision_free.csv``
-    (``CROSS_TASK_RECIPES``), then every 2020 collision file monitored:
-    recall and delay on its labelled collisions, alarm onsets on its
-    event-free segments, and the nested false alarms of the calibration.
+    :func:`~sklearn_gpcd.workflow.calibrate_detector` (``RECIPES``) on the
+    unseen collision-free recordings plus the 2020 task's own
+    ``collision_free.csv``, then every 2020 collision file monitored: recall
+    and delay on its labelled collisions, alarm onsets on its event-free
+    segments, and the nested false alarms of the calibration.
     """
     free = load(root / FAMILY_2020 / "collision_free.csv")
     recs = {key: load(root / key) for key in COLLISIONS}
@@ -514,12 +565,10 @@ def cross_task(root, train, unseen, labels, n_support, seed, n_jobs, progress):
             warnings.simplefilter("ignore")
             trained = train_model(data, load_robot("ur10e"), MODELS[name],
                                   **train_settings(n_support, seed, n_jobs))
-        for recipe, options in CROSS_TASK_RECIPES.items():
+        for recipe, options in RECIPES.items():
             tic = time.perf_counter()
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
-                det, features, summary = calibrate_detector(trained, calibration, keys=keys,
-                                                            **options)
+            calibrated, messages = _recipe(trained, calibration, keys, options)
+            det, features = calibrated.detector, calibrated.features
             files = {}
             for key, rec in recs.items():
                 block = stack_currents(features.transform(rec), rec.current)
@@ -538,17 +587,13 @@ def cross_task(root, train, unseen, labels, n_support, seed, n_jobs, progress):
                 "n_detected": sum(e["detected"] for f in files.values() for e in f["events"]),
                 "n_events": sum(len(f["events"]) for f in files.values()),
                 "free_onsets": sum(len(f["free_onsets"]) for f in files.values()),
-                "nested_onsets": summary["n_false_alarms_nested"],
-                "margin": summary["margin"], "settle_time_s": summary["settle_time_s"],
-                "rest_reference_s": summary["rest_reference_s"],
-                "warnings": sorted({str(w.message) for w in caught
-                                    if w.category.__name__ == "CalibrationWarning"}),
+                **_recipe_result(calibrated, messages),
             }
-            progress(f"cross-task, {name}, {recipe}: {res['n_detected']}/{res['n_events']} "
-                     f"labelled 2020 collisions detected, {res['free_onsets']} alarm onset(s) "
-                     f"on their event-free segments, {res['nested_onsets']} nested onset(s) "
-                     f"on the {len(keys)} calibration recordings, margin {res['margin']:.2f} "
-                     f"({time.perf_counter() - tic:.0f} s)")
+            progress(f"cross-task, {name}, gpcd calibrate {recipe}: {res['n_detected']}/"
+                     f"{res['n_events']} labelled 2020 collisions detected, "
+                     f"{res['free_onsets']} alarm onset(s) on their event-free segments, "
+                     f"{res['nested_onsets']} nested onset(s) on the {len(keys)} calibration "
+                     f"recordings, margin {res['margin']:.2f} ({time.perf_counter() - tic:.0f} s)")
     return out
 
 
@@ -751,6 +796,7 @@ def main(argv=None):
                                   progress, settings=chosen,
                                   banded={BANDED["P_f~"]: (models["P_f~"], limit)})
 
+    recipes = same_task_recipes(data, models, unseen, pushes, labels, progress)
     transfer = None
     if all((root / key).exists() for key in COLLISIONS):
         transfer = cross_task(root, train, unseen, labels, n_support, args.seed, args.n_jobs,
@@ -777,7 +823,7 @@ def main(argv=None):
     progress("quasi-static nMSE done")
 
     # -- report ----------------------------------------------------------------
-    report = report_tables(results, nmse, unseen, family, transfer)
+    report = report_tables(results, nmse, unseen, family, recipes, transfer)
     print("\n" + report, flush=True)
     (out / TABLES).write_text(report)
     figures = {}
@@ -806,6 +852,7 @@ def main(argv=None):
         "monitors": {n: {k: v for k, v in r.items() if k not in ("monitors", "detector")}
                      for n, r in results.items()},
         "collision_detection_data_2020": family,
+        "same_task_recipes": recipes,
         "cross_task": transfer,
     }
     summary["elapsed_s"] = progress.elapsed
@@ -845,7 +892,7 @@ def seconds_text(value, unit=""):
     return "none" if value is None else f"{value:g}{unit}"
 
 
-def report_tables(results, nmse, unseen, family=None, transfer=None):
+def report_tables(results, nmse, unseen, family=None, recipes=None, transfer=None):
     """The benchmark's tables as reStructuredText."""
     minutes = sum(r.duration for r in unseen.values()) / 60.0
     header = ["monitor", "settle, rest ref. [s]", "margin (max)", "onsets on unseen",
@@ -938,6 +985,17 @@ def report_tables(results, nmse, unseen, family=None, transfer=None):
         text += [f"{FAMILY_2020} (no target current: state-only models; thresholds from "
                  "collision_free.csv and the event-free segments of the other collision "
                  "files, margin by leave-one-recording-out)", "", rst_table(header, rows), ""]
+    if recipes:
+        header = ["model, gpcd calibrate", "settle, rest ref. [s]", "margin",
+                  "nested onsets on unseen", "pushes detected", "median delay [s]",
+                  "onsets outside pushes"]
+        rows = [[name, settings_text(res), f"{res['margin']:.2f}", res["nested_onsets"],
+                 f"{res['n_detected']}/{res['n_events']}",
+                 "n/a" if res["median_delay_s"] is None else f"{res['median_delay_s']:.2f}",
+                 sum(len(v) for v in res["outside"].values())] for name, res in recipes.items()]
+        text += [f"Same task through gpcd calibrate (calibrate_detector on the {len(unseen)} "
+                 "unseen recordings; defaults: settle time and rest reference chosen across "
+                 "them)", "", rst_table(header, rows), ""]
     if transfer:
         header = ["model, gpcd calibrate", "settle, rest ref. [s]", "margin",
                   "nested onsets (calibration)", "2020 collisions detected",

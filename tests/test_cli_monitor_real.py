@@ -63,7 +63,8 @@ def _assert_cli_reproduces(bench, root, tmp_path, published, monitor, model, cal
     events_file = tmp_path / f"{model}_events.json"
     assert main(["train", *train, "--model", model, *options, "-q",
                  "-o", str(model_file)]) == 0
-    assert main(["calibrate", str(model_file), *unseen, *calibrate, "-q",
+    fixed = [] if "--select" in calibrate else ["--no-select"]  # the benchmark's rule
+    assert main(["calibrate", str(model_file), *unseen, *calibrate, *fixed, "-q",
                  "-o", str(det_file)]) == 0
     assert main(["monitor", str(det_file), *(str(root / k) for k in bench.PUSHES), "-q",
                  "--json", str(events_file)]) == 0

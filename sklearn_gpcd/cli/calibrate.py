@@ -86,6 +86,12 @@ def add_parser(sub):
                      "chosen without it. The default unless --settle-time, "
                      "--rest-reference, --band, --band-candidate or --no-regimes fix the "
                      "settings; --no-select keeps settle 0.5 s and rest reference 5 s")
+    cal.add_argument("--motion-envelope", type=non_negative_float, default=None,
+                     metavar="SPEED",
+                     help="moving thresholds that follow the motion: a joint's band widens "
+                     "when it is stuck (|qd| well below SPEED rad/s), accelerates or moves "
+                     "fast, by the tightest envelope of the calibration residual (e.g. "
+                     "0.05; default: one moving threshold per joint)")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
     cal.add_argument("--band", type=_band_arg, action="append", default=None,
@@ -158,6 +164,7 @@ def run(args):
                    bands=args.band or (), band_candidates=args.band_candidates or (),
                    braking=args.braking)
     check_calibration_options(**options)
+    options["motion_envelope"] = args.motion_envelope or None  # 0: none
     trained = load_model(args.model, trust_pickle=args.trust_pickle)
     recordings = read_recordings(args.recordings, args, "calibration recordings")
     robot = _optional_robot(args, recordings)

@@ -268,7 +268,8 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
     return out, regimes, signal - out
 
 
-def held_regime_pass(signal, motion, starts, settings, scales, level, min_duration):
+def held_regime_pass(signal, motion, starts, settings, scales, level, min_duration,
+                     envelope=None):
     """:func:`regime_pass` with the alarm hold of :meth:`RegimeState.step`.
 
     Sample by sample, as a streaming monitor does: regime, debounce over the
@@ -293,6 +294,9 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
         A joint fires where its ratio exceeds it.
     min_duration : int
         Debounce window [samples].
+    envelope : ndarray of shape (n_samples, n_joints) or None, default=None
+        Motion envelope of the moving thresholds (``AlarmRule.envelope``),
+        frozen while an alarm lasts like the regime.
 
     Returns
     -------
@@ -323,10 +327,13 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         state = RegimeState(n_joints=n_joints, **settings)
         window = np.zeros((min_duration, n_joints))
-        alarmed, regime = False, 0
+        alarmed, regime, factor = False, 0, 1.0
         for i, k in enumerate(range(lo, hi)):
             regime = regimes[k] = state.step(motion[k], out[k], regime if alarmed else None)
             window[i % min_duration] = np.abs(out[k])
             ratio[k] = window.min(axis=0) / scales[regime]
+            if envelope is not None and regime == MOVING:
+                factor = factor if alarmed else envelope[k]
+                ratio[k] /= factor
             alarmed = bool(ratio[k].max() > level)
     return out, regimes, signal - out, ratio

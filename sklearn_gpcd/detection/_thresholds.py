@@ -229,6 +229,27 @@ def loro_factors(peaks, rule="global"):
     if n < 2:
         raise ValueError(f"leave-one-recording-out needs at least 2 recordings, got {n}")
     factors = [peaks[r] / peak_levels(np.delete(peaks, r, axis=0)) for r in range(n)]
+    return shared_margin(factors, rule)
+
+
+def shared_margin(factors, rule="global"):
+    """The margin from left-out factors: at least 1, shared by ``rule``.
+
+    Parameters
+    ----------
+    factors : list of ndarray of shape (n_regime_rows, n_joints)
+        Per left-out recording, its peaks over the others' levels.
+    rule : {"global", "joint", "regime", "cell"}, default="global"
+
+    Returns
+    -------
+    margin : ndarray of shape (n_regime_rows, n_joints)
+
+    Examples
+    --------
+    >>> shared_margin([np.array([[0.5, 2.0]]), np.array([[1.5, 0.5]])], "joint").tolist()
+    [[1.5, 2.0]]
+    """
     margin = np.maximum(np.max(factors, axis=0), 1.0)
     if rule == "regime":
         return np.repeat(margin.max(axis=1, keepdims=True), margin.shape[1], axis=1)

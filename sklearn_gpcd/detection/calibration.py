@@ -33,7 +33,15 @@ from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
 
 from ..metrics import alarm_onsets
-from ._thresholds import MARGIN_RULES, loro_factors, peak_levels, recording_peaks
+from ._envelope import envelope_factor, envelope_features, fit_envelope, held_factor, window_peaks
+from ._regimes import MOVING
+from ._thresholds import (
+    MARGIN_RULES,
+    loro_factors,
+    peak_levels,
+    recording_peaks,
+    shared_margin,
+)
 from .rules import AlarmRule
 
 __all__ = [
@@ -84,13 +92,17 @@ def regime_excursions(detector, blocks):
     out = {}
     for key, block in blocks.items():
         band = detector.monitoring_signal(block).bands[0]
-        out[key] = _excursion(rule, band.signal, band.regime)
+        if getattr(rule, "envelope_", None) is None:
+            out[key] = _excursion(rule, band.signal, band.regime)
+        else:  # |m| over the motion envelope, in the units of the levels
+            debounced = band.ratio * np.atleast_2d(rule.scale_)[band.regime]
+            out[key] = _excursion(rule, band.signal, band.regime, debounced)
     return out
 
 
-def _excursion(rule, signal, regime):
+def _excursion(rule, signal, regime, debounced=None):
     """``(debounced, regime, peaks)`` of one recording's monitoring signal."""
-    debounced = rule.debounced(signal)
+    debounced = rule.debounced(signal) if debounced is None else debounced
     recording = np.zeros(len(signal), dtype=np.intp)
     peaks = recording_peaks(debounced, regime, recording, len(rule.regime_names_))[0]
     return debounced, regime, peaks
@@ -470,17 +482,71 @@ def _recording_residuals(detector, keys, groups, residuals):
 
 def _band_run(rule, residuals, times, margin_rule):
     """One band at its settings: series, LORO margin, levels and its own nested folds."""
-    series = {}
-    for key, (u, motion) in residuals.items():
-        signal, regime, _ = rule.signal(u, motion=motion)
-        series[key] = _excursion(rule, signal, regime)
+    if rule.regimes is not None and rule.regimes.motion_envelope is not None:
+        series = _enveloped_series(rule, residuals)
+        margin = _fold_margin(series, list(series), margin_rule)
+    else:
+        series = {}
+        for key, (u, motion) in residuals.items():
+            signal, regime, _ = rule.signal(u, motion=motion)
+            series[key] = _excursion(rule, signal, regime)
+        margin = loro_margin({k: v[2] for k, v in series.items()}, list(series), margin_rule)
     keys = list(series)
     peaks = {k: v[2] for k, v in series.items()}
     folds = nested_false_alarms(series, times, margin_rule) if len(keys) >= 3 else {}
-    return Bunch(rule=rule, series=series, margin=loro_margin(peaks, keys, margin_rule),
+    return Bunch(rule=rule, series=series, margin=margin,
                  levels=regime_levels(peaks, keys), folds=folds,
                  n_false_alarms=sum(len(f["onsets"]) for f in folds.values()),
                  regime_names=tuple(rule.regime_names_))
+
+
+class _FoldSeries(dict):
+    """:func:`regime_excursions`-like series over a motion envelope fitted on all
+    recordings, with ``folds[r]``: the same over the envelope fitted without
+    ``r`` (what recording ``r`` is scored with when it is left out)."""
+
+    folds = None
+
+
+def _enveloped_series(rule, residuals):
+    """Series of a rule with a motion envelope: debounced ``|m|`` over the envelope.
+
+    The envelope is fitted on all recordings for the operating point and
+    again without each recording for its left-out figures, so that no
+    recording is scored against an envelope it shaped.
+    """
+    raw, constraints = {}, {}
+    speed, hold = rule.regimes.motion_envelope, rule.envelope_hold()
+    for key, (u, motion) in residuals.items():
+        signal, regime, _ = rule.signal(u, motion=motion)
+        debounced = rule.debounced(signal)
+        features = envelope_features(motion, u.shape[1], speed)
+        raw[key] = (signal, regime, debounced, features)
+        constraints[key] = window_peaks(debounced, regime == MOVING, features)
+
+    def over(keys):
+        _, coef = fit_envelope([constraints[k] for k in keys])
+        out = {}
+        for key, (signal, regime, debounced, features) in raw.items():
+            held = held_factor(envelope_factor(features, coef), np.array([0]), hold)
+            factor = np.where((regime == MOVING)[:, None], held, 1.0)
+            out[key] = _excursion(rule, signal, regime, debounced / factor)
+        return out
+
+    keys = list(raw)
+    series = _FoldSeries(over(keys))
+    series.folds = {r: over([k for k in keys if k != r]) for r in keys} if len(keys) > 1 else {}
+    return series
+
+
+def _fold_margin(series, keys, rule):
+    """The LORO margin with each left-out recording over the envelope fitted without it."""
+    factors = []
+    for r in keys:
+        fold = series.folds[r]
+        others = peak_levels(np.stack([fold[k][2] for k in keys if k != r]))
+        factors.append(fold[r][2] / others)
+    return shared_margin(factors, rule)
 
 
 def _held_out_union(bands, keys, r, rule):
@@ -508,7 +574,9 @@ def _selection_score(series, keys, rule):
 
 def _held_out_alarm(series, keys, r, rule):
     """Alarms (any joint) of recording ``r`` with margin and levels from the
-    other recordings of ``keys``."""
+    other recordings of ``keys`` (over the envelope fitted without ``r``)."""
+    if getattr(series, "folds", None):
+        series = series.folds[r]
     thresholds = _loro_thresholds(series, [k for k in keys if k != r], rule)
     debounced, regimes, _ = series[r]
     return (debounced > thresholds[regimes]).any(axis=1)

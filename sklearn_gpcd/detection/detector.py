@@ -190,7 +190,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     velocity_columns_ : list of int or None
         Velocity columns of the regressor inputs read by the regimes.
     acceleration_columns_ : list of int or None
-        Acceleration columns read by a braking regime (None without one).
+        Acceleration columns read by a braking regime or a motion envelope (None
+        without either).
     motion_columns_ : list of int or None
         Velocity columns, then acceleration columns: what the regimes read.
     n_features_in_ : int
@@ -484,9 +485,12 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         else:
             self.velocity_columns_ = self._layout_block(
                 "qd", n_inputs, "regimes need the joint velocities", "; pass velocity_columns")
-        if any(r.brake_limit is not None for r in regimes):
+        if any(r.reads_accelerations for r in regimes):
+            names = [name for name in ("brake_limit", "motion_envelope")
+                     if any(getattr(r, name) is not None for r in regimes)]
             self.acceleration_columns_ = self._layout_block(
-                "qdd", n_inputs, "brake_limit needs the joint accelerations",
+                "qdd", n_inputs, " and ".join(names)
+                + (" needs" if len(names) == 1 else " need") + " the joint accelerations",
                 ", the qdd block after q and qd")
         self.motion_columns_ = self.velocity_columns_ + list(self.acceleration_columns_ or [])
 
@@ -495,7 +499,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         for rule in rules:
             if rule.regimes is None:
                 continue
-            if self.velocity_columns_ is None or (rule.regimes.brake_limit is not None
+            if self.velocity_columns_ is None or (rule.regimes.reads_accelerations
                                                   and self.acceleration_columns_ is None):
                 raise ValueError("a rule with regimes (or a braking limit) was added after "
                                  "fit_residuals; fit the detector with it")

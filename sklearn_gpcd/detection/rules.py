@@ -30,7 +30,15 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 
-from ._regimes import held_regime_pass, regime_names, regime_pass
+from ._envelope import (
+    HOLD_SECONDS,
+    envelope_factor,
+    envelope_features,
+    fit_envelope,
+    held_factor,
+    window_peaks,
+)
+from ._regimes import MOVING, held_regime_pass, regime_names, regime_pass
 from ._signal import debounce_segments, filter_segments, lowpass_coefficients, segment_starts
 from ._thresholds import (
     contamination_level,
@@ -91,6 +99,13 @@ class Regimes(BaseEstimator):
         of its onset: a push that moves a still arm is judged at the rest
         thresholds while it lasts instead of relaxing them (one push, one
         event). 0: the regime follows the motion during alarms too.
+    motion_envelope : float or None, default=None
+        Moving thresholds that follow the motion
+        (:mod:`sklearn_gpcd.detection._envelope`): joint ``l``'s band widens
+        when it is stuck (``|qd_l|`` well below this speed [rad/s]), when it
+        accelerates or moves fast, by the tightest envelope of the
+        calibration residual. None: one moving threshold per joint. Needs
+        the ``qdd`` block of the paper's layout among the inputs.
 
     Attributes
     ----------
@@ -112,19 +127,26 @@ class Regimes(BaseEstimator):
         "brake_limit": [None, Interval(Real, 0, None, closed="neither")],
         "brake_hold": [Interval(Real, 0, None, closed="left")],
         "alarm_hold": [Interval(Real, 0, None, closed="left")],
+        "motion_envelope": [None, Interval(Real, 0, None, closed="neither")],
     }
 
     def __init__(self, settle_time=0.5, rest_reference=None, brake_limit=None, brake_hold=0.5,
-                 alarm_hold=1.0):
+                 alarm_hold=1.0, motion_envelope=None):
         self.settle_time = settle_time
         self.rest_reference = rest_reference
         self.brake_limit = brake_limit
         self.brake_hold = brake_hold
         self.alarm_hold = alarm_hold
+        self.motion_envelope = motion_envelope
 
     @property
     def names(self):
         return regime_names(self.brake_limit is not None)
+
+    @property
+    def reads_accelerations(self):
+        """Whether the regimes read the joint accelerations (braking, envelope)."""
+        return self.brake_limit is not None or self.motion_envelope is not None
 
     def settings(self, sample_time, sigma_v=None):
         """Keyword arguments of the regime pass at ``sample_time`` [s].
@@ -226,7 +248,12 @@ class AlarmRule(BaseEstimator):
     offset_ : float
         :math:`-\\gamma`: a joint fires when ``ratio > -offset_``.
     thresholds_ : ndarray of the shape of ``scale_``
-        :math:`\\sigma_{CD}` per joint (and regime) in units of the signal.
+        :math:`\\sigma_{CD}` per joint (and regime) in units of the signal
+        (with a motion envelope, the moving row is that of a smoothly
+        sliding joint at zero acceleration, times :math:`e_\\ell(x)`).
+    envelope_ : ndarray of shape (n_joints, 3) or None
+        Coefficients :math:`a, b, c` of the moving thresholds' envelope
+        (:mod:`~sklearn_gpcd.detection._envelope`; None without one).
 
     Examples
     --------
@@ -399,7 +426,7 @@ class AlarmRule(BaseEstimator):
         """
         return debounce_segments(np.abs(signal), self.min_duration, _starts(signal, starts))
 
-    def ratio(self, signal, regime, starts=None):
+    def ratio(self, signal, regime, starts=None, motion=None):
         """Debounced ``|m|`` over the scale of each sample's regime.
 
         Parameters
@@ -407,12 +434,51 @@ class AlarmRule(BaseEstimator):
         signal : ndarray of shape (n_samples, n_joints)
         regime : ndarray of int of shape (n_samples,)
         starts : ndarray of int, default=None
+        motion : ndarray, default=None
+            Velocities and accelerations, for a motion envelope.
 
         Returns
         -------
         ratio : ndarray of shape (n_samples, n_joints)
         """
-        return self.debounced(signal, starts) / np.atleast_2d(self.scale_)[regime]
+        ratio = self.debounced(signal, starts) / np.atleast_2d(self.scale_)[regime]
+        factor = self.envelope(motion, signal.shape[1], starts)
+        if factor is not None:
+            ratio /= np.where((regime == MOVING)[:, None], factor, 1.0)
+        return ratio
+
+    def envelope(self, motion, n_joints, starts=None):
+        """:math:`e_\\ell(x)` of every sample (as if moving); None without an envelope.
+
+        The largest value over the last 0.25 s (``_envelope.HOLD_SECONDS``).
+
+        Parameters
+        ----------
+        motion : ndarray of shape (n_samples, 2 * n_joints)
+            Velocities, then accelerations.
+        n_joints : int
+        starts : ndarray of int, default=None
+            Segment starts (the hold restarts).
+
+        Returns
+        -------
+        factor : ndarray of shape (n_samples, n_joints) or None
+        """
+        if getattr(self, "envelope_", None) is None:
+            return None
+        return self._hold_envelope(
+            envelope_factor(self._features(motion, n_joints), self.envelope_),
+            _starts(motion, starts))
+
+    def envelope_hold(self):
+        """Samples the envelope holds its largest value."""
+        return max(1, int(round(HOLD_SECONDS / self.sample_time_)))
+
+    def _features(self, motion, n_joints):
+        return envelope_features(self._motion(motion), n_joints, self.regimes.motion_envelope)
+
+    def _hold_envelope(self, factor, starts):
+        return held_factor(factor, starts, self.envelope_hold())
 
     def stages(self, u, starts=None, motion=None):
         """Every stage from the residual to the alarms.
@@ -436,7 +502,7 @@ class AlarmRule(BaseEstimator):
         """
         starts = _starts(u, starts)
         signal, regime, reference = self.signal(u, starts, motion)
-        ratio = self.ratio(signal, regime, starts)
+        ratio = self.ratio(signal, regime, starts, motion)
         level = -self.offset_
         if self.regimes is not None and (ratio > level).any():
             signal, regime, reference, ratio = self._held(u, starts, motion, ratio > level,
@@ -450,6 +516,7 @@ class AlarmRule(BaseEstimator):
         signal, regime, reference, ratio = (np.array(a, copy=True) for a in stages)
         filtered, motion = self._filtered(u, starts), self._motion(motion)
         scales = np.atleast_2d(self.scale_)
+        factor = self.envelope(motion, u.shape[1], starts)
         bounds = np.append(starts, len(u))
         for lo, hi in zip(bounds[:-1], bounds[1:]):
             if not alarms[lo:hi].any():
@@ -457,7 +524,7 @@ class AlarmRule(BaseEstimator):
             rows = slice(lo, hi)
             signal[rows], regime[rows], reference[rows], ratio[rows] = held_regime_pass(
                 filtered[rows], motion[rows], np.array([0]), self.regime_settings(), scales,
-                -self.offset_, self.min_duration)
+                -self.offset_, self.min_duration, None if factor is None else factor[rows])
         return signal, regime, reference, ratio
 
     # ------------------------------------------------------- calibration
@@ -499,7 +566,8 @@ class AlarmRule(BaseEstimator):
             self.scale_ = np.ones(n_joints) if normalized else rms_scale(std)
             gamma = float(self.k)
         elif self.threshold == "per_joint":
-            debounced = self.debounced(signal, starts)
+            debounced = self._enveloped(self.debounced(signal, starts), regimes, starts,
+                                        motion)
             levels = self._joint_levels(debounced, regimes, starts)
             margin = self._margin(debounced, regimes, recordings, levels.shape)
             self.scale_ = margin * levels
@@ -512,10 +580,27 @@ class AlarmRule(BaseEstimator):
                 gamma = contamination_level(peak, self.contamination)
             else:
                 gamma = false_alarm_level(peak, starts, self.sample_time_, self.false_alarm_rate)
+        if self.threshold != "per_joint":
+            self.envelope_ = None
         self.margin_ = np.broadcast_to(margin, np.shape(self.scale_)).copy()
         self.offset_ = -gamma
         self.thresholds_ = gamma * self.scale_
         return self
+
+    def _enveloped(self, debounced, regimes, starts, motion):
+        """``debounced`` over the motion envelope fitted on it (moving rows);
+        sets ``envelope_`` (None without one)."""
+        self.envelope_ = None
+        if self.regimes is None or self.regimes.motion_envelope is None:
+            return debounced
+        features = self._features(motion, debounced.shape[1])
+        moving = regimes == MOVING
+        bounds = np.append(starts, len(debounced))
+        _, self.envelope_ = fit_envelope([
+            window_peaks(debounced[lo:hi], moving[lo:hi], features[lo:hi])
+            for lo, hi in zip(bounds[:-1], bounds[1:])])
+        factor = self._hold_envelope(envelope_factor(features, self.envelope_), starts)
+        return debounced / np.where(moving[:, None], factor, 1.0)
 
     def _margin(self, debounced, regimes, recordings, shape):
         """The given margin, checked against the levels' shape, or the LORO one."""

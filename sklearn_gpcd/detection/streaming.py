@@ -10,7 +10,7 @@ from sklearn.utils.validation import check_is_fitted
 from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..gp import compile_predictor
-from ._regimes import RegimeState
+from ._regimes import MOVING, RegimeState
 
 
 class MonitorStatus(str, Enum):
@@ -191,6 +191,11 @@ class BandState:
         self._regime_state = (None if settings is None
                               else RegimeState(n_joints=n_joints, **settings))
         self.regime = 0
+        # the envelope of the last envelope_hold() samples (a ring), and the factor
+        self._envelope = (None if getattr(rule, "envelope_", None) is None
+                          else np.ones((rule.envelope_hold(), n_joints)))
+        self._envelope_position = 0
+        self._factor = None
         self._transition, self._zi_unit = _filter_transition(rule.filter_coefficients_)
         order = self._transition.shape[0] - 1
         # [u; z] -> [y; z']: filter input and state, output and next state
@@ -232,6 +237,7 @@ class BandState:
         """Forget the filter, regime and debounce history."""
         self._fresh = True
         self.alarmed = False
+        self._fresh_envelope = True
         self.alarms[:] = False
         self._window[:] = 0.0
         self._position = 0
@@ -280,6 +286,17 @@ class BandState:
         self._position = (self._position + 1) % len(self._window_rows)
         np.minimum.reduce(self._window, axis=0, out=self.ratio)
         self.ratio /= self._scale_rows[self.regime]
+        if self._envelope is not None:
+            factor = self.rule.envelope(motion[None, :], self.ratio.size)[0]
+            if self._fresh_envelope:  # the first sample fills the ring, as in batch
+                self._envelope[:] = factor
+                self._fresh_envelope = False
+            self._envelope[self._envelope_position] = factor
+            self._envelope_position = (self._envelope_position + 1) % len(self._envelope)
+            if self.regime == MOVING:
+                if not self.alarmed:  # frozen while an alarm lasts, like the regime
+                    self._factor = self._envelope.max(axis=0)
+                self.ratio /= self._factor
         top = max(self.ratio.tolist())
         if top > self.level or self.alarmed:  # else alarms is all False already
             np.greater(self.ratio, self.level, out=self.alarms)

@@ -16,6 +16,7 @@ from .calibration import (
     DETECTOR_RULE,
     MIN_CALIBRATION_SECONDS,
     MIN_REGIME_SECONDS,
+    MOTION_ENVELOPE_SPEED,
     SELECT_GRID,
     CalibratedDetector,
     CalibrationWarning,
@@ -51,7 +52,7 @@ from .training import (
 
 __all__ = [
     "DETECTOR_KIND", "DETECTOR_RULE", "INPUTS", "MAX_TRAIN_ROWS", "MIN_CALIBRATION_SECONDS",
-    "MIN_REGIME_SECONDS", "MODELS", "MODEL_KIND",
+    "MIN_REGIME_SECONDS", "MOTION_ENVELOPE_SPEED", "MODELS", "MODEL_KIND",
     "MODEL_SIGNALS", "OPTIMIZERS", "SELECT_GRID", "TRAIN_RULE", "CalibratedDetector",
     "CalibrationWarning", "TrainedModel", "TrainingSet", "acceleration_limit", "band_label",
     "band_settings", "calibrate_detector", "calibration_coverage", "calibration_report", "check_calibration_options", "load_detector", "load_model",

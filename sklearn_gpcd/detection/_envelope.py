@@ -1,0 +1,157 @@
+"""Moving thresholds that follow the motion: the envelope of the residual.
+
+Our extension of the paper (issue 38). A threshold per joint for the whole
+``moving`` regime is set by the worst motion of the calibration data: on the
+real UR10e, joint 1's by the joint-by-joint runs in which joint 1 stands
+**still** while another joint moves (its dry friction then holds any torque
+up to the breakaway level, which no model predicts), joint 2's by a run with
+hard accelerations. A task that moves all joints smoothly then gets
+thresholds several times its own residual, and misses its collisions.
+
+The envelope makes the moving threshold of joint :math:`\\ell` a function of
+the state,
+
+.. math::
+
+    \\sigma_{CD,\\ell}(x) = s_\\ell\\,\\big(1 + a_\\ell\\, e^{-(\\dot q_\\ell / v_0)^2}
+        + b_\\ell\\, |\\ddot q_\\ell| + c_\\ell\\, |\\dot q_\\ell|\\big),
+
+with :math:`s_\\ell` the level of the rule (a sliding joint at zero
+acceleration) and non-negative :math:`a, b, c`: a joint that is stuck
+(:math:`|\\dot q_\\ell| \\ll v_0`), accelerates hard or moves fast gets a
+wider band, a smoothly sliding one a tight band. The coefficients are the
+tightest non-negative envelope of the calibration residual: a linear
+programme that minimises the mean envelope subject to lying above the peak
+debounced ``|m|`` of every 0.25 s window of motion.
+"""
+
+import numpy as np
+from scipy.optimize import linprog
+
+#: Columns of the envelope's features: 1, stuck, |qdd|, |qd|.
+N_FEATURES = 4
+#: Samples per window whose peak the envelope must cover (0.25 s at 100 Hz).
+WINDOW = 25
+#: Smallest level [signal units] of the envelope's constant term.
+_FLOOR = 1e-6
+#: Seconds the envelope holds its largest value: a band widened by a
+#: velocity reversal or a burst of acceleration narrows again only after it,
+#: so the decaying tail of one contact does not cross it twice.
+HOLD_SECONDS = 0.25
+
+
+def envelope_features(motion, n_joints, still_speed):
+    """Per joint and sample: ``[1, exp(-(qd / v0)^2), |qdd|, |qd|]``.
+
+    Parameters
+    ----------
+    motion : ndarray of shape (n_samples, 2 * n_joints)
+        Joint velocities, then accelerations.
+    n_joints : int
+    still_speed : float
+        :math:`v_0` [rad/s]: below it a joint counts as stuck.
+
+    Returns
+    -------
+    features : ndarray of shape (n_samples, n_joints, 4)
+
+    Examples
+    --------
+    >>> f = envelope_features(np.array([[0.0, 2.0]]), 1, 0.05)
+    >>> f[0, 0].tolist()
+    [1.0, 1.0, 2.0, 0.0]
+    """
+    qd = np.abs(motion[:, :n_joints])
+    qdd = np.abs(motion[:, n_joints:2 * n_joints])
+    return np.stack([np.ones_like(qd), np.exp(-np.square(qd / still_speed)), qdd, qd],
+                    axis=-1)
+
+
+def envelope_factor(features, coef):
+    """``1 + a stuck + b |qdd| + c |qd|`` per sample and joint (``coef``: (n_joints, 3)).
+
+    Examples
+    --------
+    >>> envelope_factor(np.array([[[1.0, 1.0, 2.0, 0.0]]]), np.array([[0.5, 0.25, 0.0]])).tolist()
+    [[2.0]]
+    """
+    return 1.0 + np.einsum("nlk,lk->nl", features[..., 1:], coef)
+
+
+def held_factor(factor, starts, hold):
+    """The largest factor over the last ``hold`` samples, per segment (causal).
+
+    Examples
+    --------
+    >>> held_factor(np.array([[1.0], [3.0], [1.0], [1.0], [1.0]]), np.array([0]), 2)[:, 0].tolist()
+    [1.0, 3.0, 3.0, 1.0, 1.0]
+    """
+    if hold <= 1:
+        return factor
+    out = np.empty_like(factor)
+    bounds = np.append(starts, factor.shape[0])
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        padded = np.concatenate([np.repeat(factor[lo:lo + 1], hold - 1, axis=0), factor[lo:hi]])
+        windows = np.lib.stride_tricks.sliding_window_view(padded, hold, axis=0)
+        out[lo:hi] = windows.max(axis=-1)
+    return out
+
+
+def window_peaks(debounced, moving, features):
+    """The envelope's constraints of one recording: the peak of each window of motion.
+
+    Returns ``(features, peaks)`` of shape (n_windows, n_joints, 4) and
+    (n_windows, n_joints): per joint, the features at the sample where its
+    debounced ``|m|`` peaks in the window.
+    """
+    rows = np.flatnonzero(moving)
+    if rows.size == 0:
+        return np.zeros((0, debounced.shape[1], N_FEATURES)), np.zeros((0, debounced.shape[1]))
+    chunks = np.array_split(rows, max(1, rows.size // WINDOW))
+    top = np.array([c[np.argmax(debounced[c], axis=0)] for c in chunks])  # (n_windows, J)
+    joints = np.arange(debounced.shape[1])
+    return features[top, joints], debounced[top, joints]
+
+
+def fit_envelope(constraints):
+    """The tightest non-negative envelope over the window peaks of several recordings.
+
+    Parameters
+    ----------
+    constraints : list of tuple
+        :func:`window_peaks` of each recording.
+
+    Returns
+    -------
+    level : ndarray of shape (n_joints,)
+        The constant term :math:`s_\\ell` (the threshold of a smoothly sliding
+        joint at zero acceleration, before any margin).
+    coef : ndarray of shape (n_joints, 3)
+        :math:`a, b, c` relative to it.
+
+    Examples
+    --------
+    Peaks grow with the acceleration:
+
+    >>> qdd = np.linspace(0, 4, 50)
+    >>> F = np.stack([np.ones(50), np.zeros(50), qdd, np.zeros(50)], axis=-1)[:, None]
+    >>> level, coef = fit_envelope([(F, (1 + 0.5 * qdd)[:, None])])
+    >>> round(float(level[0]), 3), coef[0].round(3).tolist()
+    (1.0, [0.0, 0.5, 0.0])
+    """
+    features = np.concatenate([c[0] for c in constraints])
+    peaks = np.concatenate([c[1] for c in constraints])
+    n_joints = peaks.shape[1]
+    level, coef = np.ones(n_joints), np.zeros((n_joints, N_FEATURES - 1))
+    for joint in range(n_joints):
+        phi, y = features[:, joint], peaks[:, joint]
+        if y.size == 0 or not np.any(y > 0):
+            continue
+        result = linprog(phi.mean(axis=0), A_ub=-phi, b_ub=-y, method="highs",
+                         bounds=[(_FLOOR, None)] + [(0.0, None)] * (N_FEATURES - 1))
+        if result.status != 0:  # pragma: no cover - the problem is always feasible
+            level[joint] = y.max()
+            continue
+        level[joint] = result.x[0]
+        coef[joint] = result.x[1:] / result.x[0]
+    return level, coef
