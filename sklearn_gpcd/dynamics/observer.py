@@ -219,7 +219,10 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
     Unlike the package's regressors, the observer is a dynamic filter: the
     residual of a sample depends on the samples before it in the same
     recording, so its methods take the measured currents and the recording
-    boundaries (``groups``) besides the inputs.
+    boundaries (``groups``) besides the inputs. A
+    :class:`~sklearn_gpcd.detection.CollisionDetector` passes both (see
+    :meth:`predict`), so the observer is a detector's residual model under
+    the same alarm rules and calibration as any regressor.
 
     Parameters
     ----------
