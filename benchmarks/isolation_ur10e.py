@@ -18,10 +18,10 @@ labels from ``benchmarks/labels/ur10e_events.json``.
    causal low-pass, 5-sample debounce, a threshold per joint and regime,
    ``threshold="per_joint", false_alarm_rate=0``) and calibrated by the
    package's ``calibrate_across_recordings`` (leave-one-recording-out margin,
-   nested false alarms) on ``C``, beside the peer ``i - i_des``. The glue is
-   the peer's own model, ``ControllerCurrent``: it predicts the ``i_c``
-   block of the inputs, and the observer's blocks carry ``i - residual``
-   there, so the detector's residual is the observer's, sample for sample.
+   nested false alarms) on ``C``, beside the peer ``i - i_des``. The
+   observer is the detector's residual model itself (the detector passes it
+   the measured currents, ``sklearn_gpcd.detection.reads_currents``; it
+   steps by the training runs' median period, ``real_ur10e.fit_observer``).
    The GP monitors P_f, SP_C and SP_C +R (rest reference ``REST_TAU``),
    trained by ``real_ur10e.train_models`` as the real benchmark trains them
    (``--n-support``, ``--seed``; ``--no-gp`` leaves them out), go through
@@ -73,6 +73,7 @@ from real_ur10e import (  # noqa: E402
     REST_TAU,
     detector,
     family_calibration,
+    fit_observer,
     free_segments,
     load,
     operating_point,
@@ -84,9 +85,8 @@ from real_ur10e import (  # noqa: E402
 
 from sklearn_gpcd.contact import estimate_force, isolate_contact  # noqa: E402
 from sklearn_gpcd.detection import calibrate_across_recordings, stack_currents  # noqa: E402
-from sklearn_gpcd.dynamics import ControllerCurrent, MomentumObserver  # noqa: E402
+from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress  # noqa: E402
-from sklearn_gpcd.layout import block_columns  # noqa: E402
 from sklearn_gpcd.robots import load_robot  # noqa: E402
 from sklearn_gpcd.workflow import training_set  # noqa: E402
 
@@ -103,34 +103,15 @@ GP_MODELS = ("P_f", "SP_C")
 REFERENCE = "observer (all)"
 
 
-def observer_block(observer, inputs, rec):
-    """Detector input whose ``i_c`` block holds the observer's expected current.
-
-    ``ControllerCurrent`` predicts that block, so the detector's residual
-    ``i - i_hat`` is the observer's residual current of ``rec``.
-    """
-    inputs = np.array(inputs, dtype=float)
-    residual = observer.residual(inputs, rec.current, time=rec.time)
-    inputs[:, block_columns("i_c", 6)] = rec.current - residual
-    return stack_currents(inputs, rec.current)
-
-
 def fit_observers(train, features, progress):
-    """Both observer variants, fitted on the training runs (rows of all runs, each
-    run its own group for the residual spread)."""
-    X = [features.transform(r) for r in train]
-    groups = np.concatenate([np.full(len(x), k) for k, x in enumerate(X)])
-    stamps = np.concatenate([r.time for r in train])
-    current = np.vstack([r.current for r in train])
-    X = np.vstack(X)
+    """Both observer variants, identified on the training runs
+    (``real_ur10e.fit_observer``)."""
     out = {}
     for name, identify in OBSERVERS.items():
         tic = time.perf_counter()
-        out[name] = MomentumObserver("ur10e", identify=identify).fit(
-            X, current, groups=groups, time=stamps)
-        progress(f"{name}: fitted on {len(X)} rows in {time.perf_counter() - tic:.1f} s; "
-                 f"residual RMS on the training runs [A] "
-                 f"{np.round(out[name].residual_std_, 3).tolist()}")
+        out[name] = fit_observer(train, features, identify)
+        progress(f"{name}: fitted in {time.perf_counter() - tic:.1f} s; residual RMS on the "
+                 f"training runs [A] {np.round(out[name].residual_std_, 3).tolist()}")
     return out
 
 
@@ -146,18 +127,14 @@ def threshold_rows(name, det, k_tau):
 def unseen_comparison(observers, features, unseen, pushes, labels, models, progress):
     """Peer, GP models and observers through the benchmark's rule on ``C``; pushes
     scored. ``models`` maps names to ``(regressor, rest reference)``; the
-    observers go through the peer's model (``ControllerCurrent``)."""
-    plain = {k: stack_currents(features.transform(r), r.current) for k, r in unseen.items()}
-    plain_pushes = {k: stack_currents(features.transform(r), r.current)
-                    for k, r in pushes.items()}
-    monitors = {name: (model, tau, plain, plain_pushes) for name, (model, tau) in models.items()}
-    for name, obs in observers.items():
-        monitors[name] = (
-            models[PEER][0], None,
-            {k: observer_block(obs, features.transform(r), r) for k, r in unseen.items()},
-            {k: observer_block(obs, features.transform(r), r) for k, r in pushes.items()})
+    observers are residual models like the others."""
+    blocks = {k: stack_currents(features.transform(r), r.current) for k, r in unseen.items()}
+    push_blocks = {k: stack_currents(features.transform(r), r.current)
+                   for k, r in pushes.items()}
+    monitors = dict(models)
+    monitors.update({name: (obs, None) for name, obs in observers.items()})
     results = {}
-    for name, (model, tau, blocks, push_blocks) in monitors.items():
+    for name, (model, tau) in monitors.items():
         tic = time.perf_counter()
         calibration = calibrate_across_recordings(detector(model, tau), blocks,
                                                   times_of(unseen), rule=MARGIN_RULE)
@@ -185,17 +162,15 @@ def isolation_2020(root, train, observer, labels, progress):
     recs = {key: load(root / key) for key in COLLISIONS}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the missing i_c block, filled with zeros
-        inputs = {k: observer_block(observer, features.transform(r), r) for k, r in recs.items()}
-        base = {"collision_free": observer_block(observer, features.transform(free), free)}
+        inputs = {k: stack_currents(features.transform(r), r.current) for k, r in recs.items()}
+        base = {"collision_free": stack_currents(features.transform(free), free.current)}
     segments = {k: free_segments(r, labels[k]) for k, r in recs.items()}
-    peer_model = ControllerCurrent(6).fit(inputs[COLLISIONS[0]][:, :-6],
-                                          inputs[COLLISIONS[0]][:, -6:])
     std_torque = observer.residual_std_ * k_tau
     files = {}
     for key, rec in recs.items():
         blocks, times = family_calibration(key, base, times_of({"collision_free": free}),
                                            inputs, recs, segments)
-        calibration = calibrate_across_recordings(detector(peer_model), blocks, times,
+        calibration = calibrate_across_recordings(detector(observer), blocks, times,
                                                   rule=MARGIN_RULE)
         det = calibration.detector
         mon = det.monitoring_signal(inputs[key])

@@ -59,7 +59,11 @@ Monitors: ``i - i_des`` (the peer: ``ControllerCurrent``), P_f, SP_S, SP_P
 current as mean, GP correction), the "+R" variants with the rest
 re-reference (``rest_reference=REST_TAU``) and the "sel" variants of the
 peer, P_f, SP_S and SP_C with settle time and rest reference chosen across
-recordings (5b). The "bands" monitors (our extension, ``BANDED``) run the
+recordings (5b). The field's standard peer, the generalized-momentum
+observer (``MomentumObserver(identify="all")``, identified on the training
+runs, gains of ``mikhel1984/ext_observer``), is the detector's residual model
+under the same rule, plain, "+R" and "sel" (``observer_rows``; on the 2020
+task too). The "bands" monitors (our extension, ``BANDED``) run the
 peer, SP_C and P_f~ (P_f with a smooth Coulomb column, ``COULOMB_WIDTH``)
 with two alarm rules (a fast second band beside the rule's, alarm when
 either fires) and the braking regime (``brake_limit`` at the training runs'
@@ -295,6 +299,25 @@ def banded_result(model, limit, blocks, unseen, pushes, push_blocks, labels):
         "fold_settings": calibration.fold_settings or None,
         **operating_point(det, calibration.folds, pushes, push_blocks, labels),
     }
+
+
+def monitor_result(model, tau, grid, blocks, unseen, pushes, push_blocks, labels):
+    """One monitor of the main table: ``detector(model, tau)`` calibrated across the
+    unseen recordings (settings chosen from ``grid`` when given), nested false
+    alarms by every margin rule, pushes scored. Returns ``(result, calibration)``."""
+    calibration = calibrate_across_recordings(
+        detector(model, tau), blocks, times_of(unseen), rule=MARGIN_RULE, param_grid=grid)
+    det = calibration.detector
+    by_rule = {rule: sum(len(f["onsets"]) for f in nested_false_alarms(
+        calibration.series, unseen, rule).values()) for rule in MARGIN_RULES}
+    return {
+        "margin": calibration.margin, "thresholds": np.atleast_2d(det.thresholds_),
+        "onsets_by_margin_rule": by_rule,
+        "candidates": ([dict(c, params=flat(c["params"])) for c in calibration.candidates]
+                       if grid else None),
+        "fold_settings": {k: flat(v) for k, v in calibration.fold_settings.items()} or None,
+        **operating_point(det, calibration.folds, pushes, push_blocks, labels),
+    }, calibration
 
 
 def operating_point(det, folds, pushes, push_blocks, labels):
@@ -597,6 +620,59 @@ def cross_task(root, train, unseen, labels, n_support, seed, n_jobs, progress):
     return out
 
 
+#: The momentum observer's row (issue 36): ``MomentumObserver(identify="all")``
+#: with the gains of ``mikhel1984/ext_observer`` (not tuned).
+OBSERVER = "observer"
+
+
+def fit_observer(train, features, identify="all"):
+    """The momentum observer identified on the training runs (every row of each
+    run, causal inputs; each run its own recording; ``identify`` as
+    ``MomentumObserver``), stepping by the runs' median sampling period (a
+    detector passes no time stamps)."""
+    from sklearn_gpcd.dynamics import MomentumObserver
+
+    X = [features.transform(r) for r in train]
+    groups = np.concatenate([np.full(len(x), k) for k, x in enumerate(X)])
+    period = float(np.median(np.concatenate([np.diff(r.time) for r in train])))
+    return MomentumObserver("ur10e", identify=identify, sample_time=period).fit(
+        np.vstack(X), np.vstack([r.current for r in train]), groups=groups)
+
+
+def observer_rows(root, train, features, blocks, unseen, pushes, push_blocks, labels,
+                  results, family, progress):
+    """Add the momentum observer to ``results`` (and to ``family``, the 2020 task):
+    the observer is the detector's residual model (``detector(observer)``, the
+    rule of every monitor), calibrated by ``calibrate_across_recordings`` on
+    the same blocks, plain, with the rest reference (``+R``) and with settle
+    time and rest reference chosen across the recordings (``sel``), as the
+    peer and the GP monitors are; the other rows are untouched."""
+    tic = time.perf_counter()
+    observer = fit_observer(train, features)
+    progress(f"{OBSERVER}: identified on {len(train)} runs in {time.perf_counter() - tic:.1f} "
+             f"s, sample time {observer.sample_time:g} s, residual RMS [A] "
+             f"{np.round(observer.residual_std_, 3).tolist()}")
+    # the rule of every monitor; "+R" and "sel" as for the peer and the GP monitors
+    variants = {OBSERVER: (None, None), OBSERVER + " +R": (REST_TAU, None),
+                OBSERVER + " sel": (REST_TAU, SELECT_GRID)}
+    for name, (tau, grid) in variants.items():
+        tic = time.perf_counter()
+        res = results[name] = monitor_result(observer, tau, grid, blocks, unseen, pushes,
+                                             push_blocks, labels)[0]
+        progress(f"{name}: settle {res['settle_time_s']:g} s, rest reference "
+                 f"{seconds_text(res['rest_reference_s'], unit=' s')}; {res['onsets']} alarm "
+                 f"onset(s) on unseen collision-free data (nested LORO; by margin rule "
+                 f"{res['onsets_by_margin_rule']}), {res['n_detected']}/{res['n_events']} "
+                 "pushes detected, "
+                 f"{sum(len(v) for v in res['outside'].values())} alarm onset(s) outside them "
+                 f"({time.perf_counter() - tic:.0f} s)")
+    if family is not None:
+        chosen = {OBSERVER: {"settle_time": results[OBSERVER + " sel"]["settle_time_s"],
+                             "rest_reference": results[OBSERVER + " sel"]["rest_reference_s"]}}
+        family.update(collision_family(root, train, labels, None, None, None, progress,
+                                       models={OBSERVER: observer}, settings=chosen))
+
+
 def rest_referenced_prediction(model, block, rest_reference, settle_time=0.5):
     """Causal prediction incl. the rest reference (unfiltered monitor), for nMSE."""
     rule = AlarmRule("per_joint", false_alarm_rate=0.0,
@@ -737,19 +813,10 @@ def main(argv=None):
     results = {}
     for name, (model, tau, grid) in monitors.items():
         tic = time.perf_counter()
-        calibration = calibrate_across_recordings(
-            detector(model, tau), blocks, times_of(unseen), rule=MARGIN_RULE, param_grid=grid)
-        det = calibration.detector
-        by_rule = {rule: sum(len(f["onsets"]) for f in nested_false_alarms(
-            calibration.series, unseen, rule).values()) for rule in MARGIN_RULES}
-        res = results[name] = {
-            "margin": calibration.margin, "thresholds": np.atleast_2d(det.thresholds_),
-            "onsets_by_margin_rule": by_rule,
-            "candidates": ([dict(c, params=flat(c["params"])) for c in calibration.candidates]
-                           if grid else None),
-            "fold_settings": {k: flat(v) for k, v in calibration.fold_settings.items()} or None,
-            **operating_point(det, calibration.folds, pushes, push_blocks, labels),
-        }
+        res, calibration = monitor_result(model, tau, grid, blocks, unseen, pushes,
+                                          push_blocks, labels)
+        results[name] = res
+        by_rule = res["onsets_by_margin_rule"]
         tau_text = seconds_text(res["rest_reference_s"], unit=" s")
         n_distinct = len(set(map(str, calibration.fold_settings.values())))
         chosen = (f"settings chosen: settle {res['settle_time_s']:g} s, rest reference {tau_text} "
@@ -796,6 +863,11 @@ def main(argv=None):
                                   progress, settings=chosen,
                                   banded={BANDED["P_f~"]: (models["P_f~"], limit)})
 
+    # -- the momentum observer, the field's standard peer (issue 36) -------------
+    observer_rows(root, train, features, blocks, unseen, pushes, push_blocks, labels, results,
+                  family, progress)
+
+    # -- gpcd calibrate's function: same task and cross-task (issue 38) ----------
     recipes = same_task_recipes(data, models, unseen, pushes, labels, progress)
     transfer = None
     if all((root / key).exists() for key in COLLISIONS):

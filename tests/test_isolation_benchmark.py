@@ -1,5 +1,5 @@
-"""``benchmarks/isolation_ur10e.py``: the glue that puts the momentum observer
-through the detector's rule, and a clean exit without the data."""
+"""``benchmarks/isolation_ur10e.py``: the momentum observer through the detector's
+rule, and a clean exit without the data."""
 
 import importlib.util
 import sys
@@ -8,9 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sklearn_gpcd.detection import CollisionDetector
-from sklearn_gpcd.dynamics import ControllerCurrent, MomentumObserver
-from sklearn_gpcd.io import Recording
+from sklearn_gpcd.detection import stack_currents
+from sklearn_gpcd.dynamics import MomentumObserver
 
 from _pushes import inputs, training_run
 
@@ -34,14 +33,13 @@ def test_missing_data_exits_zero_with_message(bench, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-def test_the_detector_residual_of_an_observer_block_is_the_observer_residual(bench):
+def test_the_observer_is_the_benchmark_rule_s_residual_model(bench):
+    """The benchmark's rule (``real_ur10e.detector``) takes the observer itself:
+    the detector's residual is the observer's."""
     rec = training_run(seed=1, n_targets=3)
-    augmented = np.hstack([inputs(rec), np.zeros((rec.n_samples, 18))])  # [.., e_q, de_q, i_c]
-    obs = MomentumObserver("ur10", identify="friction").fit(augmented, rec.current,
-                                                            time=rec.time)
-    block = bench.observer_block(obs, augmented, rec)
-    det = CollisionDetector(ControllerCurrent(6), n_joints=6, sample_time=0.008).fit(block)
+    obs = MomentumObserver("ur10", identify="friction", sample_time=0.008).fit(
+        inputs(rec), rec.current)
+    block = stack_currents(inputs(rec), rec.current)
+    det = bench.detector(obs).fit(block, time=rec.time)
     np.testing.assert_allclose(det.monitoring_signal(block).residual,
-                               obs.residual(augmented, rec.current, time=rec.time),
-                               rtol=1e-12, atol=1e-12)
-    assert isinstance(rec, Recording)
+                               obs.residual(inputs(rec), rec.current), rtol=0, atol=1e-12)

@@ -125,7 +125,8 @@ def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
     assert saved["n_support"] == 100
     assert set(saved["monitors"]) == {"i - i_des", "P_f", "SP_S", "SP_P", "SP_C",
                                       "i - i_des +R", "SP_C +R", "i - i_des sel",
-                                      "P_f sel", "SP_S sel", "SP_C sel", *bench.BANDED.values()}
+                                      "P_f sel", "SP_S sel", "SP_C sel", *bench.BANDED.values(),
+                                      "observer", "observer +R", "observer sel"}
     chosen = saved["monitors"]["SP_C sel"]
     assert len(chosen["candidates"]) == 12 and len(chosen["fold_settings"]) == len(
         saved["unseen_collision_free"])
@@ -136,5 +137,6 @@ def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
         assert len(result["folds"]) == len(saved["unseen_collision_free"])
     assert (out / bench.TABLES).read_text().count("SP_C +R") >= 5
     family = saved["collision_detection_data_2020"]
-    assert set(family) == {"P_f", "SP_S", "P_f sel", "SP_S sel", bench.BANDED["P_f~"]}
+    assert set(family) == {"P_f", "SP_S", "P_f sel", "SP_S sel", bench.BANDED["P_f~"],
+                           "observer", "observer sel"}
     assert all(res["n_events"] == 25 for res in family.values())

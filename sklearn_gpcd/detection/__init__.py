@@ -26,7 +26,13 @@ from .calibration import (
     regime_excursions,
     regime_levels,
 )
-from .detector import CollisionDetector, SampleTimeWarning, default_regressor, stack_currents
+from .detector import (
+    CollisionDetector,
+    SampleTimeWarning,
+    default_regressor,
+    reads_currents,
+    stack_currents,
+)
 from .model_selection import CollisionThresholdCV, DetectionRefit, select_candidate
 from .rules import THRESHOLD_RULES, AlarmRule, Regimes
 from .streaming import BandState, MonitorStatus, StreamingMonitor
@@ -49,6 +55,7 @@ __all__ = [
     "loro_margin",
     "nested_alarms",
     "nested_false_alarms",
+    "reads_currents",
     "regime_excursions",
     "regime_levels",
     "select_candidate",

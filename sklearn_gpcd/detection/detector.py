@@ -357,7 +357,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         inputs, current = self._inputs(X), X[:, -n:]
         self.regressor_ = self._make_regressor(X.shape[1] - n)
         self.regressor_.fit(inputs, current[:, 0] if n == 1 else current)
-        mean, std = self._predict_currents(inputs, return_std)
+        mean, std = self._predict_currents(inputs, return_std, current=current, starts=starts)
         return Bunch(residual=current - mean, std=std, starts=starts, motion=self._motion(X),
                      recordings=recording_index(groups, labels))
 
@@ -595,10 +595,18 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             return True
         return fitting and any(rule.needs_std for rule in self.alarm_rules())
 
-    def _predict_currents(self, inputs, return_std):
-        """Predicted currents and (optionally) predictive std, both (n, n_joints)."""
+    def _predict_currents(self, inputs, return_std, current=None, starts=None):
+        """Predicted currents and (optionally) predictive std, both (n, n_joints).
+
+        A residual model that reads the measured currents (:func:`reads_currents`,
+        e.g. the momentum observer) gets them and the recording of each row
+        (from the segment ``starts``).
+        """
         n_rows = inputs.shape[0]
         regressor = self.regressor_
+        extra = {}
+        if reads_currents(regressor):
+            extra = _dynamic_model_arguments(current, starts, n_rows)
         if return_std:
             if "return_std" not in inspect.signature(regressor.predict).parameters:
                 raise ValueError(
@@ -606,11 +614,11 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
                     f"the predictive std, but {type(regressor).__name__}.predict has "
                     "no return_std argument; use a Gaussian process regressor"
                 )
-            mean, std = regressor.predict(inputs, return_std=True)
+            mean, std = regressor.predict(inputs, return_std=True, **extra)
             std = np.reshape(np.asarray(std, dtype=float), (n_rows, self.n_joints))
             std = np.maximum(std, np.finfo(float).tiny)
         else:
-            mean, std = regressor.predict(inputs), None
+            mean, std = regressor.predict(inputs, **extra), None
         return np.reshape(np.asarray(mean, dtype=float), (n_rows, self.n_joints)), std
 
     # ------------------------------------------------------------- predict
@@ -638,9 +646,11 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         X = validate_data(self, X, dtype=np.float64, reset=False)
         if return_std is None:
             return_std = self.needs_std()
-        predicted, std = self._predict_currents(self._inputs(X), return_std)
+        starts = segment_starts(X.shape[0], groups)
+        predicted, std = self._predict_currents(self._inputs(X), return_std,
+                                                current=X[:, -self.n_joints:], starts=starts)
         return Bunch(predicted=predicted, std=std, residual=X[:, -self.n_joints:] - predicted,
-                     starts=segment_starts(X.shape[0], groups), motion=self._motion(X))
+                     starts=starts, motion=self._motion(X))
 
     def stages(self, residuals):
         """Every rule's stages on residuals already predicted (see :meth:`residuals`).
@@ -783,6 +793,59 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         fired : ndarray of bool, shape (n_samples, n_joints)
         """
         return self.monitoring_signal(X, groups).alarms
+
+
+def reads_currents(model):
+    """Whether a residual model's ``predict`` reads the measured currents.
+
+    A dynamic residual model -- the momentum observer
+    (:class:`~sklearn_gpcd.dynamics.MomentumObserver`) -- computes the
+    expected current of a sample from the measured currents of the samples
+    up to it, in the same recording. Its ``predict`` takes them as a
+    ``current`` argument, and the recording of each row as ``groups``;
+    :class:`CollisionDetector` then passes both (the recordings from its
+    ``groups``, and a gap of rows left out by ``labels`` starts a new one),
+    so the observer is calibrated and monitored by the same alarm rules as
+    any regressor. (:class:`StreamingMonitor` does not run such a model: it
+    would need the model's own per-tick state.)
+
+    Parameters
+    ----------
+    model : estimator
+        A regressor, possibly wrapped in :class:`sklearn.frozen.FrozenEstimator`.
+
+    Returns
+    -------
+    reads : bool
+        True when ``model.predict`` has a ``current`` parameter.
+
+    Examples
+    --------
+    >>> from sklearn.linear_model import Ridge
+    >>> from sklearn_gpcd.dynamics import MomentumObserver
+    >>> reads_currents(Ridge()), reads_currents(MomentumObserver())
+    (False, True)
+    """
+    predict = getattr(model, "predict", None)
+    if predict is None:
+        return False
+    try:
+        return "current" in inspect.signature(predict).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def _dynamic_model_arguments(current, starts, n_rows):
+    """``current`` and ``groups`` (recording of each row, from the segment starts) for
+    a model that :func:`reads_currents`."""
+    if current is None:
+        raise ValueError("this residual model reads the measured currents; call it "
+                         "through CollisionDetector, which passes them")
+    groups = np.zeros(n_rows, dtype=np.intp)
+    if starts is not None and len(starts) > 1:
+        groups[np.asarray(starts[1:], dtype=np.intp)] = 1
+        groups = np.cumsum(groups)
+    return {"current": np.asarray(current, dtype=float), "groups": groups}
 
 
 def _check_joint_count(n_inputs, n_joints, per_joint, what):

@@ -11,6 +11,7 @@ from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..gp import compile_predictor
 from ._regimes import MOVING, RegimeState
+from .detector import reads_currents
 
 
 class MonitorStatus(str, Enum):
@@ -455,6 +456,7 @@ class StreamingMonitor(VersionedStateMixin):
         self._row = np.empty(detector.n_features_in_)
         self._finite = np.empty(detector.n_features_in_, dtype=bool)
         self._wrap = _frame_maker(detector)
+        _check_static_model(detector.regressor_)
         self._predictor = compile_predictor(
             detector.regressor_, self.n_inputs, n, wrap=self._wrap
         )
@@ -875,3 +877,14 @@ class StreamingMonitor(VersionedStateMixin):
         first = out.bands[0]
         out.signal, out.ratio, out.regime = first.signal, first.ratio, first.regime
         return out
+
+
+def _check_static_model(model):
+    """ValueError for a residual model that reads the measured currents (a dynamic
+    filter such as the momentum observer): its per-tick state is its own."""
+    if reads_currents(model):
+        raise ValueError(
+            f"{type(getattr(model, 'estimator', model)).__name__} reads the measured currents "
+            "of the samples before (a dynamic filter): StreamingMonitor does not run it; "
+            "use the detector's batch methods, or the model's own per-tick form (e.g. "
+            "MomentumObserver.stream())")

@@ -219,7 +219,10 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
     Unlike the package's regressors, the observer is a dynamic filter: the
     residual of a sample depends on the samples before it in the same
     recording, so its methods take the measured currents and the recording
-    boundaries (``groups``) besides the inputs.
+    boundaries (``groups``) besides the inputs. A
+    :class:`~sklearn_gpcd.detection.CollisionDetector` passes both (see
+    :meth:`predict`), so the observer is a detector's residual model under
+    the same alarm rules and calibration as any regressor.
 
     Parameters
     ----------
@@ -504,25 +507,57 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
             return residual, np.broadcast_to(self.residual_std_, residual.shape).copy()
         return residual
 
-    def predict(self, X, current, *, groups=None, time=None):
+    def predict(self, X, current, *, groups=None, time=None, return_std=False):
         """The current the collision-free model expects: ``current - residual``.
 
-        What a regressor's ``predict`` gives in a detector
-        (:class:`~sklearn_gpcd.detection.CollisionDetector` thresholds
-        ``current - predict``), so that the observer's residual is
-        ``current - predict(X, current)``.
+        What a regressor's ``predict`` gives in a detector: a
+        :class:`~sklearn_gpcd.detection.CollisionDetector` with the observer
+        as its ``regressor`` thresholds ``current - predict`` and passes the
+        measured currents and the recording of each row (the ``current``
+        parameter marks a model that reads them,
+        :func:`~sklearn_gpcd.detection.reads_currents`), so the detector's
+        residual is the observer's, under the same alarm rules as any
+        monitor. Inside a detector the observer steps by ``sample_time``
+        (the detector passes no time stamps): set it to the data's period.
 
         Parameters
         ----------
         X, current, groups, time
             As in :meth:`external_torque`.
+        return_std : bool, default=False
+            Also return ``residual_std_`` broadcast to every row (the
+            observer's noise level, constant).
 
         Returns
         -------
         i_hat : ndarray of shape (n_samples, n_joints)
+        std : ndarray of shape (n_samples, n_joints)
+            Only with ``return_std``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn.frozen import FrozenEstimator
+        >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
+        >>> from sklearn_gpcd.dynamics import MomentumObserver
+        >>> q = np.tile([0.0, -1.57, 1.57, -1.57, -1.57, 0.0], (200, 1))
+        >>> X = np.hstack([q, np.zeros((200, 12))])              # arm at rest
+        >>> obs = MomentumObserver("ur10", identify="none", sample_time=0.01)
+        >>> current = obs.fit(X, np.zeros((200, 6))).robot_.gravity(q[0]) / obs.torque_constants_
+        >>> rng = np.random.default_rng(0)
+        >>> free = stack_currents(X, current + 0.01 * rng.normal(size=(200, 6)))
+        >>> det = CollisionDetector(FrozenEstimator(obs), n_joints=6, sample_time=0.01,
+        ...                         rules=AlarmRule("per_joint", false_alarm_rate=0.0)).fit(free)
+        >>> hit = free.copy()
+        >>> hit[100:, -6 + 1] += 1.0                             # joint 2 resists a push
+        >>> bool(det.predict(free).min() == 1), bool(det.predict(hit)[150] == -1)
+        (True, True)
         """
-        return np.asarray(current, dtype=float) - self.residual(X, current, groups=groups,
-                                                                time=time)
+        residual = self.residual(X, current, groups=groups, time=time, return_std=return_std)
+        if return_std:
+            residual, std = residual
+            return np.asarray(current, dtype=float) - residual, std
+        return np.asarray(current, dtype=float) - residual
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
