@@ -121,6 +121,12 @@ def test_signals_none_trains_a_model_for_logs_without_the_controller_signals(
                  "-o", str(tmp_path / "d.skops")]) == 2
     err = capsys.readouterr().err
     assert "gpcd train ... --signals none" in err and "allow_missing" not in err
+    detector = tmp_path / "d_signals.skops"  # calibrated on logs with the signals
+    assert main(["calibrate", str(with_signals), *map(str, feedforward["calibrate"]), "-q",
+                 "-o", str(detector)]) == 0
+    assert main(["monitor", str(detector), str(bare[0]), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "gpcd train ... --signals none" in err and "allow_missing" not in err
     without = tmp_path / "gp_none.skops"
     assert main(["train", *map(str, feedforward["train"]), "--model", "gp", "--signals",
                  "none", "--n-support", "40", "-q", "-o", str(without)]) == 0

@@ -115,20 +115,25 @@ def _robot(args, recordings):
 
 
 def _signals(args, recordings, model):
-    """``(signals for the inputs, target-current check or None)``."""
+    """``(signals for the inputs, target-current check or None)``.
+
+    The check runs whenever the inputs would use the target current; with
+    ``--signals auto`` a target that fails it leaves the inputs (an explicit
+    list is taken as given), and SP_C leaves ``--model auto``'s candidates
+    either way.
+    """
     from ..workflow import check_target_current
 
     if args.signals == "none" or model in ("p_f", "sp_s"):
         return (), None
-    if args.signals != "auto":
-        return args.signals, None
     logged = tuple(s for s in SIGNALS if all(getattr(r, s) is not None for r in recordings))
-    if "target_current" not in logged:
-        return logged, None
+    signals = logged if args.signals == "auto" else args.signals
+    if "target_current" not in signals or "target_current" not in logged:
+        return signals, None
     check = check_target_current(recordings)
-    if not check.usable and model != "sp_c":
-        logged = tuple(s for s in logged if s != "target_current")
-    return logged, check
+    if not check.usable and model != "sp_c" and args.signals == "auto":
+        signals = tuple(s for s in signals if s != "target_current")
+    return signals, check
 
 
 def run(args):
@@ -162,7 +167,7 @@ def run(args):
     signals, check = _signals(args, recordings, model)
     bars = lambda label, total: ProgressBar(label, total, enabled=not quiet)  # noqa: E731
     data = training_set(recordings, args.inputs, progress=bars, signals=signals)
-    notes = []
+    notes = []  # printed before the fits, which may take minutes
     if robot is None:
         notes.append(f"no robot model ({no_robot}): fitting only the models that need none "
                      f"(SP_C, GP); P_f, SP_S and SP_P need --robot (built-in: "
@@ -171,7 +176,9 @@ def run(args):
         notes.append(check.text())
         if not check.usable and model == "sp_c":
             notes.append("WARNING: --model sp_c asked for: its mean may absorb contacts")
-    comparison = None
+    for note in notes:
+        print(note, flush=True)
+    notes, comparison = [], None
     if model == "auto":
         models, left_out = candidate_models(robot, data.features.signals_, check)
         if args.signals == "none":
@@ -187,8 +194,8 @@ def run(args):
             fold_support = min(FOLD_SUPPORT, resolve_n_support(args.n_support, len(data.y)))
             comparison = compare_models(
                 data, robot, models, n_support=fold_support,
-                optimizer=args.optimizer, seed=args.seed, n_jobs=n_jobs,
-                coulomb_width=args.coulomb_width, progress=bars)
+                optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed,
+                n_jobs=n_jobs, coulomb_width=args.coulomb_width, progress=bars)
             comparison.left_out = left_out
             model = comparison.best
     choice_seconds = time.perf_counter() - start

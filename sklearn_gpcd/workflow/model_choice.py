@@ -71,8 +71,9 @@ CHOICE_RULE = (
     "Leave-one-recording-out: up to 4 training recordings (evenly spread in their order; "
     "one recording is cut into 3 contiguous pieces) are each left out in turn; every "
     "candidate is fitted on the others (every k-th row up to 20,000 rows, 300 GP support "
-    "rows per joint, the optimizer asked for) and predicts the one left out. The error of a "
-    "joint is the mean squared error over every left-out row divided by the variance of the "
+    "rows per joint, the optimizer asked for) and predicts the one left out (every k-th row "
+    "up to 20,000 rows). The error of a "
+    "joint is the mean squared error over the left-out rows divided by the variance of the "
     "joint's current over the training rows (nMSE); the candidate with the smallest "
     "geometric mean over joints (every joint counts alike, whatever its scale: the mean log "
     "threshold gpcd calibrate --select minimises scales the same way) is fitted on all rows."
@@ -437,7 +438,7 @@ def _subset(data, rows, name):
 
 
 def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
-                   max_rows=20_000, optimizer="auto", seed=0, n_jobs=None,
+                   max_rows=20_000, optimizer="auto", sigma_v=None, seed=0, n_jobs=None,
                    coulomb_width=None, progress=None):
     """Leave-one-recording-out error of candidate models (:data:`CHOICE_RULE`).
 
@@ -455,9 +456,12 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
     n_support : int, default=300
         GP support rows per joint of each fit.
     max_rows : int, default=20000
-        Training rows of each fit at most (every k-th row).
+        Training rows of each fit, and left-out rows it predicts, at most
+        (every k-th row).
     optimizer : {"auto", "adam", "fmin_l_bfgs_b"}, default="auto"
         Of each fit.
+    sigma_v : float or None, default=None
+        Of each fit (:func:`~sklearn_gpcd.workflow.train_model`).
     seed : int, default=0
         Of each fit.
     n_jobs : int or None, default=None
@@ -507,13 +511,15 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
         train_rows = np.flatnonzero(~test)
         train_rows = train_rows[::max(1, -(-len(train_rows) // max_rows))]
         fold = _subset(data, train_rows, f"all but {name}")
-        X_test, y_test = data.X[test], data.y[test]
+        test_rows = np.flatnonzero(test)
+        test_rows = test_rows[::max(1, -(-len(test_rows) // max_rows))]
+        X_test, y_test = data.X[test_rows], data.y[test_rows]
         n_test += len(y_test)
         for k, model in enumerate(models):
             tic = time.perf_counter()
             fitted = train_model(
                 fold, robot, model, n_support=min(n_support, len(train_rows)),
-                optimizer=optimizer, seed=seed, n_jobs=n_jobs,
+                optimizer=optimizer, sigma_v=sigma_v, seed=seed, n_jobs=n_jobs,
                 coulomb_width=coulomb_width if model in ROBOT_MODELS else None)
             predicted = np.reshape(fitted.regressor.predict(X_test), y_test.shape)
             sse[k] += ((predicted - y_test) ** 2).sum(axis=0)
