@@ -188,3 +188,23 @@ def test_check_needs_motion_to_judge_a_joint():
     check = check_target_current([rec])
     assert not check.decided and not check.follows and not check.usable
     assert np.isnan(check.ratio).all() and "cannot tell" in check.text()
+
+
+def test_one_recording_is_compared_on_three_pieces():
+    from sklearn_gpcd.io import Recording
+    from sklearn_gpcd.workflow import compare_models, training_set
+
+    t = np.arange(900) * 0.01
+    q = np.column_stack([np.sin(t), np.cos(0.7 * t)])
+    rec = Recording(time=t, q=q, qd=np.gradient(q, t, axis=0), current=2 * q,
+                    target_current=1.9 * q, name="only")
+    table = compare_models(training_set([rec]), n_support=30)
+    assert table.held_out == [f"only piece {k}/3" for k in (1, 2, 3)]
+    assert table.models == ["sp_c", "gp"] and table.errors.shape == (2, 2)
+    assert table.best == "sp_c"  # the current is a multiple of the target
+
+
+@pytest.mark.parametrize("value", ["nothing", "target_q,target_q", "current"])
+def test_bad_signals_are_usage_errors(value, capsys):
+    assert main(["train", "a.csv", "-o", "m.skops", "--signals", value]) == 2
+    assert "expected auto, none or a comma-separated list" in capsys.readouterr().err
