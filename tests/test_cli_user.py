@@ -403,9 +403,12 @@ def test_n_support_auto_is_validated_and_keeps_small_sets_whole():
         SemiParametricGPRegressor(n_support="all").fit(X, X[:, 0])
 
 
-def test_train_without_robot_anywhere_is_an_error(sims, tmp_path, capsys):
-    assert main(["train", str(sims["anonymous"]), "-o", str(tmp_path / "m.skops")]) == 2
-    assert "--robot is required" in capsys.readouterr().err
+def test_train_without_robot_anywhere_needs_it_for_a_rigid_body_model(sims, tmp_path,
+                                                                      capsys):
+    # without a robot, only models that need none are fitted (tests/test_cli_train_auto.py)
+    assert main(["train", str(sims["anonymous"]), "--model", "p_f",
+                 "-o", str(tmp_path / "m.skops")]) == 2
+    assert "--model p_f needs the robot's rigid-body model" in capsys.readouterr().err
 
 
 def test_rtde_csv_keeps_the_robot_name(tmp_path):

@@ -1,10 +1,12 @@
-"""``gpcd train``: fit P_f, SP_S, SP_P or SP_C on a user's recordings
-(:func:`sklearn_gpcd.workflow.train_model`, rule ``TRAIN_RULE``)."""
+"""``gpcd train``: fit P_f, SP_S, SP_P, SP_C or the GP alone on a user's recordings,
+chosen by leave-one-recording-out error by default (:func:`sklearn_gpcd.workflow.train_model`,
+:func:`sklearn_gpcd.workflow.compare_models`, rule ``TRAIN_RULE``)."""
 
 import os
 import time
 
-from ..workflow.training import INPUTS, MODELS, OPTIMIZERS, TRAIN_RULE
+from ..workflow.model_choice import CHOICE_RULE, FEEDBACK_RULE
+from ..workflow.training import INPUTS, MODELS, OPTIMIZERS, ROBOT_MODELS, TRAIN_RULE
 from ._args import (
     ProgressBar,
     add_recording_options,
@@ -17,29 +19,59 @@ from ._args import (
 
 #: The positional list that recordings left over after the options join.
 RECORDINGS = "recordings"
+#: GP support rows per joint of the fits that compare models (fewer when
+#: ``--n-support`` asks for fewer).
+FOLD_SUPPORT = 300
+#: Controller signals ``--signals`` may name.
+SIGNALS = ("target_q", "target_qd", "target_current")
+
+
+def signals_arg(value):
+    """``--signals``: auto, none, or a comma-separated list of controller signals."""
+    import argparse
+
+    text = value.strip().lower()
+    if text in ("auto", "none"):
+        return text
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    if not names or not set(names) <= set(SIGNALS) or len(set(names)) < len(names):
+        raise argparse.ArgumentTypeError(
+            f"expected auto, none or a comma-separated list of {', '.join(SIGNALS)}, "
+            f"got {value!r}")
+    return names
 
 
 def add_parser(sub):
     """Register ``train`` on the ``gpcd`` subparsers ``sub``."""
     tra = sub.add_parser(
         "train",
-        help="fit P_f, SP_S, SP_P or SP_C on your own recordings",
-        description="Fit the paper's estimator (one GP per joint on the residual of the "
-        "rigid-body + friction model) on collision-free recordings and save it with the "
+        help="fit P_f, SP_S, SP_P, SP_C or the GP alone on your own recordings",
+        description="Fit a current model on collision-free recordings and save it with the "
         "causal input features gpcd calibrate and gpcd monitor reuse, and a record of how "
-        "it was trained (sklearn_gpcd.workflow.train_model). "
-        + TRAIN_RULE,
+        "it was trained (sklearn_gpcd.workflow.train_model). By default (--model auto) the "
+        "model is chosen among those the data allow -- P_f, SP_S, SP_P need --robot, SP_C "
+        "a target current that is a feed-forward -- by leave-one-recording-out error. "
+        + CHOICE_RULE + " Target current check: " + FEEDBACK_RULE + " " + TRAIN_RULE,
     )
     tra.add_argument("recordings", nargs="+",
                      help="recordings (files, folders or glob patterns)")
     add_recording_options(tra, "built-in name or URDF path (default: the robot named in "
-                          "the recordings' metadata; required when they name none)")
-    tra.add_argument("--model", choices=MODELS, default="sp_p",
-                     help="estimator: sp_p (proposed, default), sp_s, p_f, or sp_c (the "
-                     "controller's target current as mean; recordings must log it)")
+                          "the recordings' metadata); without one, only the models that "
+                          "need no rigid-body model are fitted (sp_c, gp)")
+    tra.add_argument("--model", choices=("auto",) + MODELS, default="auto",
+                     help="estimator: auto (default: the smallest leave-one-recording-out "
+                     "error among those the data allow), sp_p (the paper's proposed), sp_s, "
+                     "p_f (these three need --robot), sp_c (the controller's target current "
+                     "as mean; recordings must log it) or gp (the GP alone, no robot model)")
+    tra.add_argument("--signals", type=signals_arg, default="auto",
+                     help="controller signals the inputs use: auto (default: every one the "
+                     "recordings log, less a target current that follows the measured "
+                     "current), none (the model then calibrates and monitors logs without "
+                     "them), or a comma-separated list of target_q, target_qd, "
+                     "target_current (taken as given)")
     tra.add_argument("--sigma-v", type=positive_float, default=None,
-                     help="quasi-static velocity threshold [rad/s] (default 0.01 for sp_p; "
-                     "p_f and sp_s use the paper's unmasked friction unless given)")
+                     help="quasi-static velocity threshold [rad/s] (default 0.01 for sp_p "
+                     "and gp; p_f and sp_s use the paper's unmasked friction unless given)")
     tra.add_argument("--coulomb-width", type=positive_float, default=None, metavar="W",
                      help="Coulomb friction column tanh(qd / W) [rad/s] instead of the "
                      "paper's sign(qd), which flips on the velocity jitter of a still "
@@ -63,38 +95,140 @@ def add_parser(sub):
     tra.set_defaults(func=run)
 
 
+def _robot(args, recordings):
+    """``(robot or None, why none)``: ``--robot``, else the robot the recordings name."""
+    from ..robots import load_robot
+
+    if args.robot is not None:
+        return robot_for(args, recordings), None
+    names = sorted({str(rec.metadata.get("robot") or "") for rec in recordings})
+    if names == [""]:
+        return None, "no --robot and the recordings name no robot"
+    if "" in names or len(names) != 1:
+        return None, (f"no --robot and the recordings name {', '.join(n for n in names if n)}"
+                      + (" or none" if "" in names else ""))
+    try:
+        load_robot(names[0])
+    except ValueError:
+        return None, f"the recordings name robot {names[0]!r}, which gpcd cannot load"
+    return robot_for(args, recordings), None
+
+
+def _signals(args, recordings, model):
+    """``(signals for the inputs, target-current check or None)``.
+
+    The check runs whenever the inputs would use the target current; with
+    ``--signals auto`` a target that fails it leaves the inputs (an explicit
+    list is taken as given), and SP_C leaves ``--model auto``'s candidates
+    either way.
+    """
+    from ..workflow import check_target_current
+
+    if args.signals == "none" or model in ("p_f", "sp_s"):
+        return (), None
+    logged = tuple(s for s in SIGNALS if all(getattr(r, s) is not None for r in recordings))
+    signals = logged if args.signals == "auto" else args.signals
+    if "target_current" not in signals or "target_current" not in logged:
+        return signals, None
+    check = check_target_current(recordings)
+    if not check.usable and model != "sp_c" and args.signals == "auto":
+        signals = tuple(s for s in signals if s != "target_current")
+    return signals, check
+
+
 def run(args):
-    """``gpcd train``: fit the model on the recordings and save it with its inputs."""
+    """``gpcd train``: choose and fit the model on the recordings, save it with its inputs."""
     import numpy as np
 
-    from ..workflow import save_model, train_model
+    from ..gp import resolve_n_support
+    from ..robots import list_robots
+    from ..workflow import compare_models, save_model, train_model, training_set
+    from ..workflow.model_choice import candidate_models
 
     start = time.perf_counter()
     quiet = args.quiet
     recordings = read_recordings(args.recordings, args, "training recordings")
-    robot = robot_for(args, recordings)
-    n_recordings = len(recordings)
-    n_jobs = args.n_jobs if args.n_jobs is not None else min(robot.n_joints,
-                                                             os.cpu_count() or 1)
+    robot, no_robot = _robot(args, recordings)
+    model = args.model
+    if robot is None and model in ROBOT_MODELS:
+        raise ValueError(f"--model {model} needs the robot's rigid-body model ({no_robot}): "
+                         f"pass --robot with a built-in name ({', '.join(list_robots())}) or "
+                         "a URDF path; without one use --model auto, sp_c or gp")
+    if model == "sp_c":
+        if args.signals == "none" or (args.signals != "auto"
+                                      and "target_current" not in args.signals):
+            raise ValueError("--model sp_c needs the target current among the inputs; drop "
+                             "--signals or include target_current in it")
+        if (lacking := [r.name for r in recordings if r.target_current is None]):
+            raise ValueError(f"model sp_c needs the target current; {lacking[0]} does not "
+                             "log it")
+    n_recordings, n_joints = len(recordings), recordings[0].n_joints
+    n_jobs = args.n_jobs if args.n_jobs is not None else min(n_joints, os.cpu_count() or 1)
+    signals, check = _signals(args, recordings, model)
+    bars = lambda label, total: ProgressBar(label, total, enabled=not quiet)  # noqa: E731
+    data = training_set(recordings, args.inputs, progress=bars, signals=signals)
+    notes = []  # printed before the fits, which may take minutes
+    if robot is None:
+        notes.append(f"no robot model ({no_robot}): fitting only the models that need none "
+                     f"(SP_C, GP); P_f, SP_S and SP_P need --robot (built-in: "
+                     f"{', '.join(list_robots())}, or a URDF path)")
+    if check is not None:
+        notes.append(check.text())
+        if not check.usable and model == "sp_c":
+            notes.append("WARNING: --model sp_c asked for: its mean may absorb contacts")
+    for note in notes:
+        print(note, flush=True)
+    notes, comparison = [], None
+    if model == "auto":
+        models, left_out = candidate_models(robot, data.features.signals_, check)
+        if args.signals == "none":
+            left_out["sp_c"] = "--signals none: the inputs have no target current"
+        elif "sp_c" in left_out and not data.has_target_current:
+            left_out["sp_c"] = "the recordings do not all log the target current"
+        if len(models) == 1:
+            model = models[0]
+            notes.append(f"model choice (--model auto): {model.upper()}, the only model "
+                         "these recordings allow; " + "; ".join(
+                             f"{m.upper()} {why}" for m, why in left_out.items()))
+        else:
+            fold_support = min(FOLD_SUPPORT, resolve_n_support(args.n_support, len(data.y)))
+            comparison = compare_models(
+                data, robot, models, n_support=fold_support,
+                optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed,
+                n_jobs=n_jobs, coulomb_width=args.coulomb_width, progress=bars)
+            comparison.left_out = left_out
+            model = comparison.best
+    choice_seconds = time.perf_counter() - start
     trained = train_model(
-        recordings, robot, args.model, inputs=args.inputs, n_support=args.n_support,
-        optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed, n_jobs=n_jobs,
-        progress=lambda label, total: ProgressBar(label, total, enabled=not quiet),
-        coulomb_width=args.coulomb_width)
+        data, robot, model, n_support=args.n_support, optimizer=args.optimizer,
+        sigma_v=args.sigma_v, seed=args.seed, n_jobs=n_jobs, progress=bars,
+        coulomb_width=(args.coulomb_width if args.model != "auto" or model in ROBOT_MODELS
+                       else None))
+    if comparison is not None:
+        trained.training["model_choice"] = comparison.summary()
+    if check is not None:
+        trained.training["target_current_check"] = check.summary()
     fit_seconds = time.perf_counter() - start
     save_model(trained, args.output)
-    model, info = trained.regressor, trained.training
-    print(f"trained {args.model.upper()} for robot {robot.name} ({robot.n_joints} joints) on "
-          f"{n_recordings} recording(s), {info['n_rows']} rows, {info['inputs']} inputs"
+    regressor, info = trained.regressor, trained.training
+    for note in notes:
+        print(note)
+    if comparison is not None:
+        print("\n".join(comparison.text()))
+        print(f"  (model choice {choice_seconds:.1f} s)")
+    print(f"trained {model.upper()} "
+          + (f"for robot {robot.name} " if robot is not None else "without a robot model ")
+          + f"({n_joints} joints) on {n_recordings} recording(s), {info['n_rows']} rows, "
+          f"{info['inputs']} inputs"
           + (f" (1 row in {info['step']} used: {info['n_rows_used']})"
              if info["step"] > 1 else ""))
-    print(f"  GP support {info['n_support']} rows per joint, optimizer {model.optimizer_}, "
-          f"iterations per joint {np.atleast_1d(model.n_iter_).tolist()}, "
+    print(f"  GP support {info['n_support']} rows per joint, optimizer {regressor.optimizer_}, "
+          f"iterations per joint {np.atleast_1d(regressor.n_iter_).tolist()}, "
           f"sigma_v {info['sigma_v'] if info['sigma_v'] is not None else '-'}, "
           + (f"Coulomb tanh(qd / {info['coulomb_width']:g}), "
              if info.get("coulomb_width") is not None else "")
           + f"seed {info['seed']}, controller signals {', '.join(info['signals']) or 'none'}")
-    lml = np.atleast_1d(model.log_marginal_likelihood_value_)
+    lml = np.atleast_1d(regressor.log_marginal_likelihood_value_)
     print("  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml))
     print(f"  largest |qdd| of the training rows {info['acceleration_limit']:.3g} rad/s^2 "
           "(the braking limit of gpcd calibrate --braking)")

@@ -75,6 +75,8 @@ from .trajectory import JointTrajectory
 
 #: Servo ticks per reference/feed-forward chunk (memory vs. overhead).
 _CHUNK = 2000
+#: What a simulated log's ``target_current`` can be (``RobotSimulator(target_current=...)``).
+TARGET_CURRENTS = ("command", "feedforward")
 
 
 class RobotSimulator:
@@ -98,7 +100,13 @@ class RobotSimulator:
     ``target_q``, ``target_qd``, ``target_qdd``
         the reference;
     ``target_current``
-        the servo's commanded current ``i_c`` (paper Eq. 13);
+        with ``target_current="command"`` (the default) the servo's
+        commanded current ``i_c`` (paper Eq. 13): feed-forward *and*
+        feedback, so the current loop makes the measured current follow it
+        within the sensor noise, contacts included; with
+        ``"feedforward"`` only the model feed-forward current
+        ``i_ff = tau_ff / K_eq`` (what a UR logs as its target current: a
+        contact shows in ``current - target_current``);
     ``target_torque``
         the model feed-forward torque ``tau_ff`` (like UR's
         ``target_moment``);
@@ -132,6 +140,9 @@ class RobotSimulator:
         Servo and integration rate [Hz].
     sample_rate : float, default=125.0
         Log rate [Hz] (UR RTDE: 125 Hz); must divide ``servo_rate``.
+    target_current : {"command", "feedforward"}, default="command"
+        What the log's ``target_current`` is: the servo's full command
+        (feedback included) or its model feed-forward part only.
     random_state : int, RandomState instance or None, default=None
         Seeds the sensor noise.
 
@@ -161,7 +172,7 @@ class RobotSimulator:
     def __init__(self, robot="ur10", *, friction=None, gains=None, current_noise_std=0.03,
                  velocity_noise_std=0.0, position_resolution=2 * np.pi / 2**20,
                  current_time_constant=0.002, servo_rate=1000.0, sample_rate=125.0,
-                 random_state=None):
+                 target_current="command", random_state=None):
         self.robot = robot
         self.friction = friction
         self.gains = gains
@@ -171,6 +182,7 @@ class RobotSimulator:
         self.current_time_constant = current_time_constant
         self.servo_rate = servo_rate
         self.sample_rate = sample_rate
+        self.target_current = target_current
         self.random_state = random_state
 
     # ------------------------------------------------------------------ setup
@@ -213,6 +225,9 @@ class RobotSimulator:
             value = np.asarray(getattr(self, name), dtype=float)
             if value.ndim > 1 or (value.ndim == 1 and value.size != n) or np.any(value < 0):
                 raise ValueError(f"{name} must be >= 0, scalar or one per joint, got {value}")
+        if self.target_current not in TARGET_CURRENTS:
+            raise ValueError(f"target_current must be one of {TARGET_CURRENTS}, got "
+                             f"{self.target_current!r}")
         if not self.position_resolution >= 0:
             raise ValueError(f"position_resolution must be >= 0, got {self.position_resolution}")
         if not self.current_time_constant >= 0:
@@ -264,6 +279,7 @@ class RobotSimulator:
             dt=1.0 / float(self.servo_rate), decimation=decimation,
             resolution=float(self.position_resolution),
             current_time_constant=float(self.current_time_constant),
+            feedforward_target=self.target_current == "feedforward",
         )
         wall = _time.perf_counter() - wall
         self.real_time_factor_ = reference.duration / wall if wall > 0 else np.inf
@@ -284,6 +300,7 @@ class RobotSimulator:
             "sample_rate": float(self.sample_rate),
             "servo_rate": float(self.servo_rate),
             "current_noise_std": current_noise.tolist(),
+            "target_current": self.target_current,
             "contacts": contacts,
             "effects": effects,
             "phases": reference.phases,
@@ -411,7 +428,7 @@ def _hold_friction(v, v_free, f_slide, minv, dt, static, model, data, q):
 
 
 def _simulate(robot, reference, friction, gains, contacts, effects, *, dt, decimation,
-              resolution, current_time_constant):
+              resolution, current_time_constant, feedforward_target=False):
     """The servo loop. Returns a dict of logged arrays (noise free).
 
     Lean on purpose (about 30 small numpy operations and two or three
@@ -552,7 +569,7 @@ def _simulate(robot, reference, friction, gains, contacts, effects, *, dt, decim
                 out["target_q"][log_i] = q_ref[j]
                 out["target_qd"][log_i] = qd_ref[j]
                 out["target_qdd"][log_i] = qdd_ref[j]
-                out["target_current"][log_i] = i_c
+                out["target_current"][log_i] = i_ff[j] if feedforward_target else i_c
                 out["target_torque"][log_i] = tau_ff[j]
                 out["external_torque"][log_i] = tau_ext
                 out["friction_torque"][log_i] = f_total

@@ -663,8 +663,8 @@ class StreamingMonitor(VersionedStateMixin):
             for name in self._online.signals:
                 if signals[name] is None:
                     raise ValueError(
-                        f"{name} is missing, but the model was trained with it; pass it "
-                        "(or fit the features with allow_missing=True)"
+                        f"{name} is missing, but the model was trained with it; pass it, "
+                        "or train the model without it: gpcd train ... --signals none"
                     )
             self.n_ticks += 1
             return self._fault("missing or non-finite value in the raw sample")

@@ -186,8 +186,8 @@ def _require(value, name):
     if value is None:
         raise ValueError(
             f"{name} is missing, but the features were fitted on recordings that "
-            f"log it (the model uses it); pass {name}, or refit CausalFeatures "
-            "with allow_missing=True to fill it with zeros"
+            f"log it (the model uses it); pass {name}, or train the model without "
+            "it: gpcd train ... --signals none"
         )
 
 
@@ -370,9 +370,9 @@ default="target-minus-actual"
         if absent and not self.allow_missing:
             raise ValueError(
                 f"recording {_label(rec, index)} does not log {', '.join(absent)}, which "
-                "the features were fitted with (the model was trained on it); use "
-                "recordings that log it, or CausalFeatures(allow_missing=True) to fill "
-                "zeros (detection then degrades)"
+                "the model was trained with; use recordings that log it, or train the "
+                "model without it: gpcd train ... --signals none (or --signals with the "
+                "ones these recordings log)"
             )
         return tuple(s for s in self.signals_ if s not in absent), absent
 

@@ -1,10 +1,12 @@
 """From recordings to a running detector: the functions behind ``gpcd train``
 and ``gpcd calibrate``.
 
-* :func:`train_model` fits a model (P_f, SP_S, SP_P or SP_C) on
-  collision-free recordings with the causal features of its inputs
+* :func:`train_model` fits a model (P_f, SP_S, SP_P, SP_C or the GP alone)
+  on collision-free recordings with the causal features of its inputs
   (:mod:`~sklearn_gpcd.workflow.training`); :func:`save_model` /
   :func:`load_model` write and read it;
+* :func:`compare_models` and :func:`check_target_current` choose that model
+  (``gpcd train --model auto``, :mod:`~sklearn_gpcd.workflow.model_choice`);
 * :func:`calibrate_detector` chooses the detection thresholds of such a model
   across collision-free recordings (:mod:`~sklearn_gpcd.workflow.calibration`);
   :func:`save_detector` / :func:`load_detector` write and read the detector
@@ -32,6 +34,19 @@ from .calibration import (
     save_detector,
     split_recordings,
 )
+from .model_choice import (
+    CHOICE_RULE,
+    FEEDBACK_LIMIT,
+    FEEDBACK_MIN_WINDOWS,
+    FEEDBACK_RULE,
+    FEEDBACK_SPEED,
+    FEEDBACK_WINDOW,
+    ModelComparison,
+    TargetCurrentCheck,
+    candidate_models,
+    check_target_current,
+    compare_models,
+)
 from .training import (
     INPUTS,
     MAX_TRAIN_ROWS,
@@ -39,6 +54,7 @@ from .training import (
     MODEL_SIGNALS,
     MODELS,
     OPTIMIZERS,
+    ROBOT_MODELS,
     TRAIN_RULE,
     TrainedModel,
     TrainingSet,
@@ -51,11 +67,16 @@ from .training import (
 )
 
 __all__ = [
-    "DETECTOR_KIND", "DETECTOR_RULE", "INPUTS", "MAX_TRAIN_ROWS", "MIN_CALIBRATION_SECONDS",
-    "MIN_REGIME_SECONDS", "MOTION_ENVELOPE_SPEED", "MODELS", "MODEL_KIND",
-    "MODEL_SIGNALS", "OPTIMIZERS", "SELECT_GRID", "TRAIN_RULE", "CalibratedDetector",
-    "CalibrationWarning", "TrainedModel", "TrainingSet", "acceleration_limit", "band_label",
-    "band_settings", "calibrate_detector", "calibration_coverage", "calibration_report", "check_calibration_options", "load_detector", "load_model",
-    "recording_keys", "resolve_select", "save_detector", "save_model", "split_recordings", "train_model",
+    "CHOICE_RULE", "DETECTOR_KIND", "DETECTOR_RULE", "FEEDBACK_LIMIT",
+    "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE", "FEEDBACK_SPEED", "FEEDBACK_WINDOW", "INPUTS",
+    "MAX_TRAIN_ROWS", "MIN_CALIBRATION_SECONDS", "MIN_REGIME_SECONDS", "MODELS",
+    "MODEL_KIND", "MODEL_SIGNALS", "MOTION_ENVELOPE_SPEED", "OPTIMIZERS", "ROBOT_MODELS",
+    "SELECT_GRID", "TRAIN_RULE", "CalibratedDetector", "CalibrationWarning",
+    "ModelComparison", "TargetCurrentCheck", "TrainedModel", "TrainingSet",
+    "acceleration_limit", "band_label", "band_settings", "calibrate_detector",
+    "calibration_coverage", "calibration_report", "candidate_models",
+    "check_calibration_options", "check_target_current", "compare_models", "load_detector",
+    "load_model", "recording_keys", "resolve_select", "save_detector", "save_model",
+    "split_recordings", "train_model",
     "training_rows", "training_set",
 ]

@@ -2,7 +2,7 @@
 ``gpcd train``.
 
 :func:`train_model` turns collision-free recordings into a fitted estimator
-(P_f, SP_S, SP_P or SP_C) *together with* the fitted
+(P_f, SP_S, SP_P, SP_C or the GP alone) *together with* the fitted
 :class:`~sklearn_gpcd.features.CausalFeatures` that computes its inputs on
 the robot, and a record of how it was trained. ``gpcd calibrate`` and
 ``gpcd monitor`` reuse that transformer, so the detector sees exactly the
@@ -34,17 +34,24 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", "OPTIMIZERS",
-           "TRAIN_RULE", "TrainedModel", "TrainingSet", "acceleration_limit", "load_model",
-           "save_model", "train_model", "training_rows", "training_set"]
+           "ROBOT_MODELS", "TRAIN_RULE", "TrainedModel", "TrainingSet", "acceleration_limit",
+           "load_model", "save_model", "train_model", "training_rows", "training_set"]
 
-#: Estimators :func:`train_model` builds (``gpcd train --model``).
-MODELS = ("sp_p", "sp_s", "p_f", "sp_c")
+#: Estimators :func:`train_model` builds (``gpcd train --model``): the paper's
+#: three, SP_C (the controller's target current as mean) and ``"gp"``, the GP
+#: alone (SP_P's kernel on a constant mean, ``make_sp_p(None, ...)``: no
+#: rigid-body model).
+MODELS = ("sp_p", "sp_s", "p_f", "sp_c", "gp")
+#: Models whose mean is the rigid-body regressor: they need the robot's model
+#: (``gpcd train --robot``); SP_C and the GP alone need none.
+ROBOT_MODELS = ("sp_p", "sp_s", "p_f")
 #: Controller signals each model's inputs use (``CausalFeatures(signals=...)``):
-#: SP_P (the augmented inputs of Eq. 13) and SP_C (the target current) use
-#: every one the training recordings log; P_f and SP_S read only
+#: SP_P and the GP alone (the augmented inputs of Eq. 13) and SP_C (the
+#: target current) use the ones asked for (``train_model(signals=...)``, by
+#: default every one the training recordings log); P_f and SP_S read only
 #: ``[q, qd, qdd]``, so their model files do not require the controller's
 #: signals of the recordings they monitor.
-MODEL_SIGNALS = {"sp_p": "auto", "sp_s": (), "p_f": (), "sp_c": "auto"}
+MODEL_SIGNALS = {"sp_p": "auto", "sp_s": (), "p_f": (), "sp_c": "auto", "gp": "auto"}
 #: Training inputs (``gpcd train --inputs``); the first is the default.
 INPUTS = ("causal", "zero-phase")
 #: Hyperparameter optimizers (``gpcd train --optimizer``), see
@@ -115,6 +122,9 @@ class TrainingSet:
         One row in ``step`` entered ``X`` (:func:`training_rows`).
     has_target_current : bool
         Every recording logs the controller's target current (SP_C needs it).
+    sizes : tuple of int
+        Rows of ``X`` from each recording, in order (for splits by
+        recording, e.g. :func:`~sklearn_gpcd.workflow.compare_models`).
 
     Examples
     --------
@@ -136,6 +146,7 @@ class TrainingSet:
     n_rows: int
     step: int
     has_target_current: bool = True
+    sizes: tuple = ()
 
 
 def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
@@ -190,7 +201,8 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     n_rows = sum(rec.n_samples for rec in recordings)
     step = training_rows(n_rows, max_rows).step
     bar = _bar(progress, f"computing GP inputs ({inputs})", len(recordings))
-    X, y, offset = [], [], 0
+    unused = _unused_columns(features.signals_, features.n_joints_)
+    X, y, sizes, offset = [], [], [], 0
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         while recordings:  # thin each block to the global every-step-th row, free as we go
@@ -199,15 +211,30 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
                 Xr, yr = features.transform(rec), rec.current
             else:
                 Xr, yr = make_inputs([rec], augmented=True)
+                Xr[:, unused] = 0.0  # the columns of signals left out, as the causal path
             keep = slice((-offset) % step, None, step)
             X.append(Xr[keep].copy())
+            sizes.append(len(X[-1]))
             y.append(np.asarray(yr, dtype=float)[keep].copy())
             offset += rec.n_samples
             del rec, Xr, yr
             bar.update()
     _warn_once_per_kind(caught, len(names))
     return TrainingSet(X=np.vstack(X), y=np.vstack(y), features=features, inputs=inputs,
-                       names=names, n_rows=n_rows, step=step, has_target_current=has_ic)
+                       names=names, n_rows=n_rows, step=step, has_target_current=has_ic,
+                       sizes=tuple(sizes))
+
+
+def _unused_columns(signals, n_joints):
+    """Columns of the augmented layout that no signal of ``signals`` feeds."""
+    from ..layout import block_columns
+
+    blocks = [] if "target_current" in signals else ["i_c"]
+    if "target_q" not in signals:
+        blocks.append("e_q")
+        if "target_qd" not in signals:
+            blocks.append("de_q")
+    return [c for b in blocks for c in block_columns(b, n_joints)]
 
 
 @dataclass
@@ -249,17 +276,40 @@ def _build(model, robot, n_joints, params, coulomb_width=None):
     from ..dynamics import RigidBodyRegressor
     from ..gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
+    if model not in ROBOT_MODELS and coulomb_width is not None:
+        raise ValueError(f"coulomb_width is a column of the rigid-body regressor; model "
+                         f"{model!r} has none (use p_f, sp_s or sp_p)")
     if model == "sp_c":
-        if coulomb_width is not None:
-            raise ValueError("coulomb_width is a column of the rigid-body regressor; model "
-                             "'sp_c' has none (use p_f, sp_s or sp_p)")
         return make_sp_c(n_joints, **params)
+    if model == "gp":
+        return make_sp_p(None, n_joints, **params)
     if robot is None:
-        raise ValueError(f"model {model!r} needs the robot (its rigid-body regressor)")
+        raise ValueError(f"model {model!r} needs the robot (its rigid-body regressor); "
+                         "models without one: 'sp_c', 'gp'")
     phi = [RigidBodyRegressor(robot, joint=j, coulomb_width=coulomb_width)
            for j in range(n_joints)]
     return {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[model](
         phi, n_joints, **params)
+
+
+def _model_features(model, features):
+    """``features`` for ``model``: without controller signals when it reads none.
+
+    P_f and SP_S read only ``[q, qd, qdd]``; fitted on a :class:`TrainingSet`
+    whose features use signals, their model file would still require them.
+    A :class:`~sklearn_gpcd.features.CausalFeatures` using no signal depends
+    only on the joint count, so it is fitted on a two-sample stand-in.
+    """
+    from sklearn.base import clone
+
+    from ..io import Recording
+
+    if MODEL_SIGNALS[model] != () or not features.signals_:
+        return features
+    n = features.n_joints_
+    stand_in = Recording(time=[0.0, 1.0], q=np.zeros((2, n)), qd=np.zeros((2, n)),
+                         current=np.zeros((2, n)))
+    return clone(features).set_params(signals=()).fit([stand_in])
 
 
 def acceleration_limit(data):
@@ -301,8 +351,11 @@ def acceleration_limit(data):
 
 def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_support="auto",
                 optimizer="auto", sigma_v=None, seed=0, n_jobs=None,
-                max_rows=MAX_TRAIN_ROWS, progress=None, coulomb_width=None):
-    """Fit P_f, SP_S, SP_P or SP_C on collision-free recordings (:data:`TRAIN_RULE`).
+                max_rows=MAX_TRAIN_ROWS, progress=None, coulomb_width=None, signals="auto"):
+    """Fit P_f, SP_S, SP_P, SP_C or the GP alone on collision-free recordings.
+
+    The rule is :data:`TRAIN_RULE`; ``gpcd train --model auto`` chooses the
+    model first (:func:`~sklearn_gpcd.workflow.compare_models`).
 
     Parameters
     ----------
@@ -310,9 +363,11 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         Training recordings (emptied, see :func:`training_set`), or their
         inputs already computed (several models on the same data).
     robot : Robot or None, default=None
-        For the rigid-body regressor of P_f, SP_S and SP_P (SP_C needs none).
-    model : {"sp_p", "sp_s", "p_f", "sp_c"}, default="sp_p"
-        The estimator (:func:`~sklearn_gpcd.gp.make_sp_p` and its peers).
+        For the rigid-body regressor of P_f, SP_S and SP_P (:data:`ROBOT_MODELS`;
+        SP_C and the GP alone need none).
+    model : {"sp_p", "sp_s", "p_f", "sp_c", "gp"}, default="sp_p"
+        The estimator (:func:`~sklearn_gpcd.gp.make_sp_p` and its peers;
+        ``"gp"``: ``make_sp_p(None, ...)``, no parametric mean).
     inputs : {"causal", "zero-phase"}, default="causal"
         Ignored when ``recordings`` is a :class:`TrainingSet`.
     n_support : int or "auto", default="auto"
@@ -320,8 +375,9 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
     optimizer : {"auto", "adam", "fmin_l_bfgs_b"}, default="auto"
         Hyperparameter optimizer of the regressor ("auto": :data:`TRAIN_RULE`).
     sigma_v : float or None, default=None
-        Quasi-static velocity threshold; SP_P's default is 0.01 rad/s, P_f
-        and SP_S use the paper's unmasked friction unless given.
+        Quasi-static velocity threshold; SP_P's and the GP's default is
+        0.01 rad/s, P_f and SP_S use the paper's unmasked friction unless
+        given.
     seed : int, default=0
         ``random_state`` of the regressor (support rows, minibatches).
     n_jobs : int or None, default=None
@@ -336,6 +392,12 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         Coulomb column ``tanh(qd / coulomb_width)`` of the rigid-body
         regressor instead of the paper's ``sign(qd)`` (P_f, SP_S, SP_P; see
         :class:`~sklearn_gpcd.dynamics.RigidBodyRegressor`).
+    signals : "auto" or tuple of str, default="auto"
+        Controller signals the inputs of SP_P, SP_C and the GP alone use
+        (:class:`~sklearn_gpcd.features.CausalFeatures`): "auto", every one
+        the recordings log; ``()`` none, so that the model file calibrates
+        and monitors logs without them (``gpcd train --signals none``).
+        Ignored when ``recordings`` is a :class:`TrainingSet`.
 
     Returns
     -------
@@ -370,15 +432,18 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
             raise ValueError(f"model sp_c needs the target current; {lacking[0]} does not "
                              "log it")
         data = training_set(recordings, inputs, max_rows=max_rows, progress=progress,
-                            signals=MODEL_SIGNALS[model])
-    elif model == "sp_c" and not data.has_target_current:
-        raise ValueError("model sp_c needs the target current; the training recordings do "
-                         "not all log it")
+                            signals=signals if MODEL_SIGNALS[model] == "auto" else ())
+    if model == "sp_c" and "target_current" not in data.features.signals_:
+        raise ValueError("model sp_c needs the target current; "
+                         + ("the training recordings do not all log it"
+                            if not data.has_target_current else
+                            "the inputs were computed without it (signals)"))
+    features = _model_features(model, data.features)
     n = data.y.shape[1]
     n_support = resolve_n_support(n_support, len(data.y))
     params = dict(n_support=n_support, optimizer=optimizer,
                   batch_size=min(512, n_support), random_state=seed, n_jobs=n_jobs)
-    if sigma_v is not None or model == "sp_p":
+    if sigma_v is not None or model in ("sp_p", "gp"):
         params["sigma_v"] = 1e-2 if sigma_v is None else sigma_v
     regressor = _build(model, robot, n, params, coulomb_width)
     bar = _bar(progress, f"fitting {model.upper()} ({n} joints)", n)
@@ -389,12 +454,12 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "optimizer": optimizer, "optimizer_used": str(regressor.optimizer_),
         "batch_size": int(params["batch_size"]), "seed": seed,
         "sigma_v": params.get("sigma_v"), "coulomb_width": coulomb_width,
-        "signals": list(data.features.signals_),
+        "signals": list(features.signals_),
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
         "acceleration_limit": acceleration_limit(data),
     }
-    return TrainedModel(regressor=regressor, features=data.features, training=training)
+    return TrainedModel(regressor=regressor, features=features, training=training)
 
 
 def save_model(trained, path):
