@@ -1,16 +1,19 @@
 """scikit-learn transformer from joint states to rigid-body regressor features."""
 
 import hashlib
+import os
 from collections import OrderedDict
+from numbers import Integral, Real
 
 import numpy as np
-from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.base import BaseEstimator, TransformerMixin, _fit_context
 from sklearn.utils import Bunch, check_random_state
+from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._gate import check_sigma_v, check_velocity
 from ..layout import block_columns
 from .._persistence import VersionedStateMixin
+from ..robots import Robot
 from ..robots.loading import resolve_robot
 from .base_parameters import base_parameters
 from .regressor import (
@@ -200,6 +203,20 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     ['link1_mx', 'link1_my']
     """
 
+    _parameter_constraints = {
+        "robot": [str, os.PathLike, Robot],
+        "joint": [None, Interval(Integral, 0, None, closed="left")],
+        "friction": [None, str, list, tuple],
+        "rotor_inertia": ["boolean"],
+        "offset": ["boolean"],
+        "base_parameters": ["boolean"],
+        "rank_tol": [None, Interval(Real, 0, np.inf, closed="neither")],
+        "sigma_v": [None, Interval(Real, 0, np.inf, closed="neither")],
+        "currents": ["boolean"],
+        "random_state": ["random_state"],
+        "coulomb_width": [None, Interval(Real, 0, np.inf, closed="neither")],
+    }
+
     def __init__(self, robot="ur10", joint=None, friction=FRICTION_TERMS, rotor_inertia=True,
                  offset=False, base_parameters=True, rank_tol=None, sigma_v=None,
                  currents=False, random_state=0, coulomb_width=None):
@@ -217,17 +234,10 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
 
     # ------------------------------------------------------------ helpers
     def _check_params(self, robot):
+        """What ``_parameter_constraints`` cannot say: checks against the robot."""
         n = robot.n_joints
-        if self.joint is not None:
-            if not isinstance(self.joint, (int, np.integer)) or isinstance(self.joint, bool):
-                raise TypeError(f"joint must be an int or None, got {self.joint!r}")
-            if not 0 <= self.joint < n:
-                raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
-        check_sigma_v(self.sigma_v, type(self).__name__, allow_none=True)
-        check_velocity(self.coulomb_width, "coulomb_width", "velocity scale [rad/s]",
-                       type(self).__name__, allow_none=True)
-        if self.rank_tol is not None and not (np.isfinite(self.rank_tol) and self.rank_tol > 0):
-            raise ValueError(f"rank_tol must be a positive number or None, got {self.rank_tol!r}")
+        if self.joint is not None and self.joint >= n:
+            raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
         if self.currents and robot.torque_constants is None:
             raise ValueError(
                 f"currents=True needs torque constants, robot {robot.name!r} has none: "
@@ -253,6 +263,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
                               joints=joints, coulomb_width=self.coulomb_width)
 
     # ---------------------------------------------------------------- API
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y=None):
         """Resolve the robot and find the output columns.
 
