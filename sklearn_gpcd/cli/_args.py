@@ -136,6 +136,12 @@ class ProgressBar:
 
     On a terminal the bar is redrawn in place; otherwise (a log, a pipe) one
     line is printed at most every ``interval`` seconds and at the end.
+
+    Kept instead of tqdm (issue #34): written to a file that is not a
+    terminal (``gpcd train ... 2> train.log``, CI), tqdm either prints
+    nothing (``disable=None``) or joins every update with carriage returns
+    into one line (``disable=False``), while a log needs one readable line
+    per update.
     """
 
     def __init__(self, label, total, *, stream=None, interval=5.0, enabled=True):
