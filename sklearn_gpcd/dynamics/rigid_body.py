@@ -165,8 +165,10 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         The resolved robot.
     n_joints_ : int
     n_features_in_ : int
-        Columns of ``X`` seen in ``fit`` (at least ``3 * n_joints``; columns
-        past ``[q, qd, qdd]`` are ignored).
+        Columns of ``X`` seen in ``fit``: ``3 * n_joints`` (``[q, qd, qdd]``)
+        or ``6 * n_joints`` (the augmented inputs, whose last three blocks
+        are ignored). Any other count is refused: it is the layout of
+        another joint count (e.g. 7-joint logs against a 9-joint URDF).
     feature_names_in_ : ndarray of str
         Defined when ``X`` has string column names.
     parameter_names_ : list of str
@@ -188,8 +190,8 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
 
     Notes
     -----
-    The estimator needs at least ``3 * n_joints`` (18 for UR arms) input
-    columns in the :mod:`sklearn_gpcd.layout` order.
+    The estimator needs ``3 * n_joints`` or ``6 * n_joints`` (18 or 36 for
+    UR arms) input columns in the :mod:`sklearn_gpcd.layout` order.
 
     Examples
     --------
@@ -246,11 +248,17 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         return check_friction(self.friction)
 
     def _check_columns(self, X, n):
-        if X.shape[1] < 3 * n:
-            raise ValueError(
-                f"X has {X.shape[1]} columns, but robot {self.robot_.name!r} needs at least "
-                f"{3 * n}: [q, qd, qdd] of {n} joints (see sklearn_gpcd.layout)"
-            )
+        if X.shape[1] in (3 * n, 6 * n):
+            return
+        width = X.shape[1]
+        logged = width // 6 if width % 6 == 0 else width // 3 if width % 3 == 0 else None
+        fix = ("" if not logged else
+               f" (the inputs of {logged} joints); select the robot's joints the data has: "
+               f"--joints {logged} on the command line, load_robot(urdf, joints={logged}) "
+               "in Python")
+        raise ValueError(
+            f"X has {width} columns{fix}, but robot {self.robot_.name!r} has {n} joints and "
+            f"needs [q, qd, qdd] ({3 * n} columns) or x^a ({6 * n}; see sklearn_gpcd.layout)")
 
     def _split(self, X):
         n = self.n_joints_
