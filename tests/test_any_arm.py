@@ -216,3 +216,31 @@ def test_the_real_panda_log_and_a_gripper_urdf():
     with pytest.raises(ValueError, match=r"--joints 7.*'panda' has 9 joints"):
         RigidBodyRegressor(load_robot(urdf), joint=0).fit(X)
     assert RigidBodyRegressor(load_robot(urdf, joints=7), joint=0).fit(X).n_joints_ == 7
+
+
+# ------------------------------------------------------ units in the tables
+def test_torque_units_reach_the_calibration_and_monitoring_tables(tmp_path):
+    from sklearn_gpcd.monitoring import MonitorSession
+    from sklearn_gpcd.workflow import calibrate_detector, calibration_report, train_model
+
+    rng = np.random.default_rng(0)
+    t = np.arange(600) * 0.01
+
+    def rec(phase, units="Nm", push=0.0):
+        q = np.sin(t + phase)[:, None]
+        current = 2 * q + 0.05 * rng.normal(size=q.shape)
+        current[300:330] += push
+        return Recording(time=t, q=q, qd=np.cos(t + phase)[:, None], current=current,
+                         target_current=2 * q, units=units, name=f"run{phase}")
+
+    trained = train_model([rec(0.0)], model="sp_c", n_support=50)
+    calibrated = calibrate_detector(trained, [rec(1.0), rec(2.0), rec(3.0)],
+                                    robot=load_robot("ur10e"))
+    text = calibration_report(calibrated.calibration)
+    assert calibrated.calibration["units"] == "Nm"
+    assert "thresholds [Nm]:" in text and "torque constants" not in text
+    with pytest.raises(ValueError, match="in A and Nm|in Nm and A"):
+        calibrate_detector(trained, [rec(1.0), rec(2.0, "A")])
+    session = MonitorSession(calibrated.detector, calibrated.features)
+    session.run_recording(rec(4.0, push=3.0), "run4.csv")
+    assert session.events and "peak |m| [Nm]" in session.events_text()
