@@ -8,7 +8,8 @@
   count does not match the data, naming ``--joints``;
 * a layout guessed from a field count is said once, with its map;
 * degrees, milliseconds and too-short recordings stop ``gpcd`` unless
-  ``--accept``-ed; ``-o model.skops`` without skops fails before any work.
+  confirmed (``--units-confirmed``, ``--allow-short``); ``-o model.skops``
+  without skops fails before any work.
 
 Everything runs on files the tests write; the real Panda log (and pybullet's
 Panda URDF) are used only when present.
@@ -178,10 +179,10 @@ def test_skops_output_without_skops_fails_before_reading(monkeypatch, tmp_path, 
 
 
 @pytest.mark.parametrize("kind, make, flag", [
-    ("degrees", lambda r: r.replace(q=np.rad2deg(r.q) + 30.0), "--accept degrees"),
+    ("degrees", lambda r: r.replace(q=np.rad2deg(r.q) + 30.0), "--units-confirmed"),
     ("units", lambda r: r.replace(time=r.time * 1000.0), "--time-scale 1e-3"),
     ("short", lambda r: Recording(time=r.time[:5], q=r.q[:5], qd=r.qd[:5],
-                                  current=r.current[:5]), "--accept short"),
+                                  current=r.current[:5]), "--allow-short"),
 ])
 def test_suspect_recordings_stop_gpcd_unless_accepted(kind, make, flag, tmp_path, capsys):
     csv = tmp_path / f"{kind}.csv"
@@ -192,7 +193,8 @@ def test_suspect_recordings_stop_gpcd_unless_accepted(kind, make, flag, tmp_path
             "-o", str(tmp_path / "m.joblib")]
     assert main(args) == 2
     err = capsys.readouterr().err
-    assert str(csv) in err and flag in err and f"--accept {kind}" in err
+    confirm = "--allow-short" if kind == "short" else "--units-confirmed"
+    assert str(csv) in err and flag in err and confirm in err
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RecordingWarning)
         accepted = load_recordings([csv], accept=[kind])

@@ -147,10 +147,11 @@ def n_support_arg(value):
 # ---------------------------------------------------------------- recordings
 def read_recordings(paths, args, what="recordings", progress=True):
     """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``
-    and ``--accept``."""
+    ``--units-confirmed`` and ``--allow-short``."""
     from ..io import load_recordings
 
-    kwargs = {"accept": getattr(args, "accept", None) or ()}
+    kwargs = {"accept": ["degrees", "units"] * bool(getattr(args, "units_confirmed", False))
+              + ["short"] * bool(getattr(args, "allow_short", False))}
     if getattr(args, "time_scale", None) is not None:
         kwargs["time_scale"] = args.time_scale
     if select_joints(args) is not None:
@@ -212,13 +213,15 @@ def robot_for(args, recordings):
 
 
 def add_check_options(parser):
-    """``--time-scale`` and ``--accept``: what :func:`read_recordings` checks."""
+    """``--time-scale``, ``--units-confirmed``, ``--allow-short``: what
+    :func:`read_recordings` checks."""
     parser.add_argument("--time-scale", type=positive_float, default=None, metavar="S",
                         help="multiply the time column by S to get seconds (1e-3 for ms)")
-    parser.add_argument("--accept", action="append", default=[],
-                        choices=("degrees", "units", "short"),
-                        help="go on with recordings whose positions look like degrees, whose "
-                        "q, qd and time units disagree, or shorter than 1 s")
+    parser.add_argument("--units-confirmed", action="store_true",
+                        help="go on when positions look like degrees or q, qd and time units "
+                        "disagree (time in ms, deg/s; refused by default)")
+    parser.add_argument("--allow-short", action="store_true",
+                        help="go on with recordings shorter than 1 s (refused by default)")
 
 
 def add_recording_options(parser, robot_help):

@@ -239,7 +239,8 @@ def load_recordings(paths, format="auto", column_map=None, *, accept=None, progr
         :class:`RecordingWarning`). Otherwise each problem that
         :func:`~sklearn_gpcd.io.recording_problems` finds (``"degrees"``,
         ``"units"``, ``"short"``) is a ValueError naming the file, unless its
-        kind is in ``accept`` (``gpcd ... --accept KIND``).
+        kind is in ``accept`` (``gpcd --units-confirmed`` accepts degrees and
+        units, ``--allow-short`` short recordings).
     progress : callable, default=None
         ``progress(label, total)`` returning an object whose ``update()`` is
         called after each source (e.g. a progress bar).
@@ -275,8 +276,9 @@ def load_recordings(paths, format="auto", column_map=None, *, accept=None, progr
             if kind not in accept:
                 scale = re.search(r"time_scale=(\S+?)\)", note)
                 fix = f"--time-scale {scale[1]} (time_scale=), " if scale else ""
+                flag = "--allow-short" if kind == "short" else "--units-confirmed"
                 raise ValueError(f"{path}: {note} Fix it ({fix}or convert the file), or accept "
-                                 f"it as it is: --accept {kind} (accept=[{kind!r}])")
+                                 f"it as it is: {flag} (accept=[{kind!r}] in Python)")
         recordings.append(rec)
         if bar is not None:
             bar.update()
