@@ -9,7 +9,7 @@ checks cannot build, e.g. recordings or the augmented layout).
 import pytest
 from sklearn.utils.estimator_checks import check_param_validation
 
-from sklearn_gpcd.detection import CollisionDetector
+from sklearn_gpcd.detection import CollisionDetector, CollisionThresholdCV
 from sklearn_gpcd.diagnosis import DynamicsDiagnosis
 from sklearn_gpcd.dynamics import (
     ControllerCurrent,
@@ -31,6 +31,7 @@ ESTIMATORS = [
     ParametricMean(),
     SemiParametricGPRegressor(),
     CollisionDetector(),
+    CollisionThresholdCV(CollisionDetector(), {"rules__contamination": [0.01]}),
 ]
 
 
