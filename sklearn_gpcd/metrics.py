@@ -9,24 +9,28 @@ with ``max_delay``, the samples from its onset up to ``max_delay`` later
 alarm in the window detects the event, with delay = time from the onset.
 
 To score a :class:`~sklearn_gpcd.detection.CollisionDetector`, pass
-``alarms = detector.predict(X) == -1``, or use the scorers from
-:func:`make_detection_scorer` in a grid search.
+``alarms = detector.predict(X) == -1``, or use :class:`DetectionScorer`
+and :class:`DetectionRefit` in a grid search.
 """
 
+import warnings
+
 import numpy as np
-from sklearn.metrics import make_scorer
+from sklearn.utils.metadata_routing import MetadataRequest
 
 __all__ = [
     "alarm_onsets",
     "contact_events",
+    "DetectionRefit",
+    "DetectionScorer",
     "detection_delay",
-    "detection_scorers",
     "event_recall",
     "false_alarms_per_hour",
-    "make_detection_scorer",
+    "fold_means",
     "rate_upper_bound",
     "mean_detection_delay",
     "nmse",
+    "select_candidate",
 ]
 
 
@@ -515,92 +519,183 @@ def nmse(y_true, y_pred, *, mask=None, multioutput="raw_values"):
 
 
 # ------------------------------------------------------------------ scorers
-def _recall_from_predict(labels, y_pred, **kwargs):
-    return event_recall(labels, np.asarray(y_pred) == -1, **kwargs)
+class DetectionScorer:
+    """Scorer of an outlier detector on labelled recordings, for ``GridSearchCV``.
 
+    Called as ``scorer(estimator, X, labels, groups=None, time=None)``, it
+    takes the alarms ``estimator.predict(X, groups) == -1`` and returns the
+    three detection metrics at once (one ``predict`` per fold):
+    ``"recall"`` (:func:`event_recall`), ``"false_alarms_per_hour"``
+    (:func:`false_alarms_per_hour`) and ``"delay"``
+    (:func:`mean_detection_delay`, seconds), the last two negated (the
+    scikit-learn convention: greater is better). Pair it with
+    :class:`DetectionRefit` as ``refit``.
 
-def _delay_from_predict(labels, y_pred, **kwargs):
-    return mean_detection_delay(labels, np.asarray(y_pred) == -1, **kwargs)
-
-
-def _false_alarms_from_predict(labels, y_pred, **kwargs):
-    return false_alarms_per_hour(labels, np.asarray(y_pred) == -1, **kwargs)
-
-
-_SCORE_FUNCS = {
-    "recall": (_recall_from_predict, True),
-    "delay": (_delay_from_predict, False),
-    "false_alarms_per_hour": (_false_alarms_from_predict, False),
-}
-
-
-def make_detection_scorer(metric, *, sample_time=0.008, max_delay=None):
-    """A scikit-learn scorer for an outlier detector's ``predict`` output.
-
-    The scorer is called as ``scorer(estimator, X, labels)`` with the contact
-    labels as ``y``; an alarm is ``estimator.predict(X) == -1``. The rows of
-    ``X`` are taken as one time series sampled every ``sample_time``.
+    It requests the metadata ``groups`` (recording id per row: filters and
+    debounce restart, events and alarms never span two recordings) and
+    ``time`` (time stamps [s]), so under scikit-learn's metadata routing
+    (``sklearn.config_context(enable_metadata_routing=True)``) a grid search
+    hands it the held-out fold's rows of both.
 
     Parameters
     ----------
-    metric : {"recall", "delay", "false_alarms_per_hour"}
-        :func:`event_recall` (higher is better), :func:`mean_detection_delay`
-        in seconds or :func:`false_alarms_per_hour` (lower is better; the
-        scorer returns them negated, the scikit-learn convention).
-    sample_time : float, default=0.008
-        Sampling period in seconds.
     max_delay : float, default=None
-        Longest accepted detection delay in seconds.
-
-    Returns
-    -------
-    scorer : callable
+        Longest accepted detection delay in seconds (also the detection
+        window of each contact).
+    sample_time : float, default=None
+        Sampling period [s] when no ``time`` is given; None takes the
+        estimator's ``sample_time_``.
 
     Examples
     --------
     >>> import numpy as np
     >>> from sklearn.base import BaseEstimator, OutlierMixin
     >>> class AlarmEverywhere(OutlierMixin, BaseEstimator):
-    ...     def predict(self, X):
+    ...     sample_time_ = 1.0
+    ...     def predict(self, X, groups=None):
     ...         return -np.ones(len(X), dtype=int)
-    >>> scorer = make_detection_scorer("recall")
-    >>> scorer(AlarmEverywhere(), np.zeros((4, 2)), [0, 1, 1, 0])
-    1.0
+    >>> DetectionScorer()(AlarmEverywhere(), np.zeros((4, 2)), [0, 1, 1, 0])
+    {'recall': 1.0, 'false_alarms_per_hour': -1800.0, 'delay': -0.0}
     """
-    if metric not in _SCORE_FUNCS:
-        raise ValueError(f"metric must be one of {sorted(_SCORE_FUNCS)}, got {metric!r}")
-    func, greater_is_better = _SCORE_FUNCS[metric]
-    return make_scorer(
-        func,
-        greater_is_better=greater_is_better,
-        response_method="predict",
-        sample_time=sample_time,
-        max_delay=max_delay,
-    )
+
+    def __init__(self, max_delay=None, sample_time=None):
+        self.max_delay = max_delay
+        self.sample_time = sample_time
+
+    def __call__(self, estimator, X, labels, groups=None, time=None):
+        alarms = (estimator.predict(X) if groups is None else estimator.predict(X, groups)) == -1
+        kwargs = {"max_delay": self.max_delay, "groups": groups}
+        if time is None:
+            kwargs["sample_time"] = (estimator.sample_time_ if self.sample_time is None
+                                     else self.sample_time)
+        else:
+            kwargs["time"] = time
+        return {"recall": event_recall(labels, alarms, **kwargs),
+                "false_alarms_per_hour": -false_alarms_per_hour(labels, alarms, **kwargs),
+                "delay": -mean_detection_delay(labels, alarms, **kwargs)}
+
+    def get_metadata_routing(self):
+        """The metadata this scorer asks for: ``groups`` and ``time``.
+
+        Returns
+        -------
+        request : sklearn.utils.metadata_routing.MetadataRequest
+        """
+        request = MetadataRequest(owner=type(self).__name__)
+        for name in ("groups", "time"):
+            request.score.add_request(param=name, alias=True)
+        return request
 
 
-def detection_scorers(*, sample_time=0.008, max_delay=None):
-    """The three detection scorers as a ``scoring`` dict for a grid search.
+def select_candidate(recall, false_alarms, delay, max_delay=None):
+    """Index of the best candidate under the detection rule.
+
+    The rule, applied to cross-validated means:
+
+    1. keep the candidates whose mean delay is at most ``max_delay`` (all of
+       them when ``max_delay`` is None; when none qualifies, all of them,
+       with a warning);
+    2. among those, maximise the event recall;
+    3. among the ties, minimise the false alarms per hour;
+    4. among the ties, minimise the delay; then take the first.
+
+    NaN counts as the worst value of its metric.
 
     Parameters
     ----------
-    sample_time : float, default=0.008
-        Sampling period in seconds.
+    recall, false_alarms, delay : array-like of shape (n_candidates,)
+        Mean event recall, false alarms per hour and detection delay.
     max_delay : float, default=None
-        Longest accepted detection delay in seconds.
+        Bound on the delay, in the units of ``delay``.
 
     Returns
     -------
-    scoring : dict
-        Keys ``"recall"``, ``"delay"``, ``"false_alarms_per_hour"``; pair it
-        with :class:`~sklearn_gpcd.detection.DetectionRefit` as ``refit``.
+    index : int
 
     Examples
     --------
-    >>> sorted(detection_scorers())
-    ['delay', 'false_alarms_per_hour', 'recall']
+    >>> select_candidate([1.0, 1.0, 0.5], [3.0, 1.0, 0.0], [0.1, 0.3, 0.1])
+    1
+    >>> select_candidate([1.0, 1.0, 0.5], [3.0, 1.0, 0.0], [0.1, 0.3, 0.1],
+    ...                  max_delay=0.2)
+    0
     """
-    return {
-        metric: make_detection_scorer(metric, sample_time=sample_time, max_delay=max_delay)
-        for metric in _SCORE_FUNCS
-    }
+    recall = np.nan_to_num(np.asarray(recall, float), nan=-np.inf)
+    false_alarms = np.nan_to_num(np.asarray(false_alarms, float), nan=np.inf)
+    delay = np.nan_to_num(np.asarray(delay, float), nan=np.inf)
+    keep = np.ones(recall.shape, dtype=bool)
+    if max_delay is not None:
+        keep = delay <= max_delay
+        if not keep.any():
+            warnings.warn(
+                f"no candidate has a mean detection delay <= max_delay={max_delay}; "
+                "selecting among all candidates",
+                UserWarning,
+            )
+            keep[:] = True
+    for values, sign in ((recall, -1.0), (false_alarms, 1.0), (delay, 1.0)):
+        best = np.min(sign * values[keep])
+        keep &= sign * values <= best
+    return int(np.flatnonzero(keep)[0])
+
+
+def fold_means(cv_results, metric):
+    """Mean and std over the folds of a metric, ignoring NaN folds.
+
+    A fold without contacts has no recall or delay (NaN); the mean is over
+    the folds that have one (NaN when none has).
+
+    Parameters
+    ----------
+    cv_results : dict
+        ``cv_results_`` of a search with ``split<k>_test_<metric>`` keys.
+    metric : str
+
+    Returns
+    -------
+    mean, std : ndarray of shape (n_candidates,)
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> fold_means({"split0_test_recall": np.array([1.0, 0.5]),
+    ...             "split1_test_recall": np.array([np.nan, 1.0])}, "recall")
+    (array([1.  , 0.75]), array([0.  , 0.25]))
+    """
+    suffix = f"_test_{metric}"
+    folds = np.array([v for k, v in cv_results.items()
+                      if k.startswith("split") and k.endswith(suffix)], dtype=float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns
+        return np.nanmean(folds, axis=0), np.nanstd(folds, axis=0)
+
+
+class DetectionRefit:
+    """``refit`` callable for ``GridSearchCV`` with :class:`DetectionScorer`.
+
+    Picks the candidate by :func:`select_candidate` from the NaN-ignoring
+    fold means (:func:`fold_means`) of ``cv_results_`` (whose delay and
+    false-alarm scores are negated by the scorer).
+
+    Parameters
+    ----------
+    max_delay : float, default=None
+        Bound on the mean detection delay in seconds.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> results = {"split0_test_recall": np.array([1.0, 1.0]),
+    ...            "split0_test_false_alarms_per_hour": np.array([-2.0, -1.0]),
+    ...            "split0_test_delay": np.array([-0.1, -0.2])}
+    >>> DetectionRefit()(results)
+    1
+    """
+
+    def __init__(self, max_delay=None):
+        self.max_delay = max_delay
+
+    def __call__(self, cv_results):
+        recall, false_alarms, delay = (fold_means(cv_results, m)[0]
+                                       for m in ("recall", "false_alarms_per_hour", "delay"))
+        return select_candidate(recall, -false_alarms, -delay, self.max_delay)

@@ -304,6 +304,7 @@ class MonitorSession:
         self.band_labels = (list(band_labels) if band_labels is not None else
                             [band_label(band_settings(band.rule)) for band in self.bands])
         self.signals = tuple(features.signals_)
+        self.units = "A"  # of the currents (the last recording run: "Nm" for torques)
         self.thresholds = [band.thresholds for band in self.bands]
         self.regime_names = tuple(self.bands[0].rule.regime_names_)
         self.sample_time = float(detector.sample_time_)
@@ -354,7 +355,7 @@ class MonitorSession:
                    ("start [s]", ">9", lambda e: f"{e['start_s']:.3f}"),
                    ("end [s]", ">9", lambda e: f"{e['end_s']:.3f}"),
                    ("joints", "<12", lambda e: ",".join(map(str, e["joints"]))),
-                   ("peak |m| [A]", ">12", lambda e: f"{e['peak_A']:.3f}"),
+                   (f"peak |m| [{self.units}]", ">12", lambda e: f"{e['peak_A']:.3f}"),
                    ("delay [s]", ">9", lambda e: f"{e['delay_s']:.3f}")]
         if self.multiband:
             columns.insert(4, ("bands", "<6", lambda e: ",".join(map(str, e["bands"]))))
@@ -429,7 +430,7 @@ class MonitorSession:
         ax.plot(t, band, lw=0.7, color="C1",
                 label="threshold (" + "/".join(self.regime_names) + ")")
         ax.plot(t, -band, lw=0.7, color="C1")
-        return f"joint {j + 1} [A]"
+        return f"joint {j + 1} [{self.units}]"
 
     def _draw_ratios(self, ax, t, signal, regime, j):
         """Several bands: joint ``j``'s ``|m| / threshold`` per band, and 1; the y label."""
@@ -792,6 +793,7 @@ class MonitorSession:
             What :meth:`finish` returns.
         """
         self.start(name)
+        self.units = recording.units
         if speed is None:
             for t, fields in recording_samples(recording):
                 self.tick(t, fields)

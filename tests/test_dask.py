@@ -5,7 +5,7 @@ A two-process ``LocalCluster`` is started once for the module. Under
 
 1. the per-joint fits of SP_P (``SemiParametricGPRegressor(n_jobs=...)``),
 2. ``GridSearchCV`` over ``sigma_v`` of a Pipeline holding SP_P,
-3. ``CollisionThresholdCV`` (folds x regressor settings),
+3. ``CollisionThresholdCV`` (folds x candidates, GridSearchCV),
 
 must give bit-identical results to the default (loky) backend, and the
 scheduler's task stream must show that the work ran on the cluster's
@@ -166,8 +166,8 @@ def test_threshold_search_runs_on_the_workers(client, robot_data):
     )
     local = clone(search).fit(Z, labels, groups=groups)
     remote, calls = run_on_dask(client, lambda: clone(search).fit(Z, labels, groups=groups))
-    # 3 folds x 2 regressor settings (min_duration re-uses the fit), then the refit
-    assert calls == {"_evaluate_fold": 6, "_fit_output": (6 + 1) * N_JOINTS}
+    # GridSearchCV: 3 folds x 4 candidates, then the refit
+    assert calls == {"_fit_and_score": 12, "_fit_output": (12 + 1) * N_JOINTS}
     assert remote.best_params_ == local.best_params_
     assert_same_results(local.cv_results_, remote.cv_results_, list(local.cv_results_))
     assert np.all(remote.cv_results_["mean_test_recall"] > 0)  # the bumps are found

@@ -17,16 +17,15 @@ from sklearn_gpcd.detection import (
     AlarmRule,
     CollisionDetector,
     CollisionThresholdCV,
-    DetectionRefit,
     MonitorStatus,
     StreamingMonitor,
-    select_candidate,
     stack_currents,
 )
 from sklearn_gpcd.gp import compile_predictor
 from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor, make_sp_p
 from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate
-from sklearn_gpcd.metrics import contact_events, detection_scorers, event_recall
+from sklearn_gpcd.metrics import (DetectionRefit, DetectionScorer, contact_events,
+                                  event_recall, select_candidate)
 
 from _synthetic import augmented_run
 
@@ -504,17 +503,25 @@ def test_threshold_cv_needs_several_recordings(rng):
         )
 
 
-def test_grid_search_with_detection_scorers(rng):
+def test_grid_search_with_the_detection_scorer_and_routing(rng):
+    """Plain GridSearchCV + DetectionScorer under metadata routing == CollisionThresholdCV."""
+    from sklearn import config_context
+
     Z, labels, groups = _labelled_recordings(rng)
-    search = GridSearchCV(
-        CollisionDetector(LinearRegression(), rules=AlarmRule()),
-        {"rules__contamination": [0.001, 0.2]},
-        scoring=detection_scorers(max_delay=0.2),
-        refit=DetectionRefit(max_delay=0.2),
-        cv=GroupKFold(3),
-    ).fit(Z, labels, groups=groups, labels=labels)
-    assert search.best_params_ == {"rules__contamination": 0.001}
-    assert search.cv_results_["mean_test_recall"][search.best_index_] == 1.0
+    grid = {"rules__contamination": [0.001, 0.2], "rules__min_duration": [1, 3]}
+    with config_context(enable_metadata_routing=True):
+        detector = CollisionDetector(LinearRegression(), rules=AlarmRule()).set_fit_request(
+            labels=True, groups=True, time=False)
+        search = GridSearchCV(detector, grid, scoring=DetectionScorer(max_delay=0.2),
+                              refit=DetectionRefit(max_delay=0.2), cv=GroupKFold(3))
+        search.fit(Z, labels, groups=groups, labels=labels)
+    thin = CollisionThresholdCV(CollisionDetector(LinearRegression(), rules=AlarmRule()), grid,
+                                cv=3, max_delay=0.2).fit(Z, labels, groups=groups)
+    assert search.best_params_ == thin.best_params_ == {"rules__contamination": 0.001,
+                                                         "rules__min_duration": 3}
+    for k in range(3):
+        np.testing.assert_array_equal(-search.cv_results_[f"split{k}_test_false_alarms_per_hour"],
+                                      thin.cv_results_[f"split{k}_test_false_alarms_per_hour"])
 
 
 # ------------------------------------------------------- simulated robot

@@ -304,7 +304,7 @@ def test_not_fitted_raises():
 
 # ------------------------------------------------------------ bad input
 def test_too_few_columns_is_named(rng):
-    with pytest.raises(ValueError, match="X has 17 columns.*at least 18"):
+    with pytest.raises(ValueError, match="X has 17 columns.*robot .ur10. has 6 joints"):
         RigidBodyRegressor("ur10").fit(rng.normal(size=(4, 17)))
 
 
@@ -327,7 +327,8 @@ def test_nan_is_named(rng):
         ({"rank_tol": 0.0}, ValueError, "rank_tol"),
         ({"coulomb_width": 0.0}, ValueError, "coulomb_width"),
         ({"coulomb_width": np.inf}, ValueError, "coulomb_width"),
-        ({"coulomb_width": True}, ValueError, "coulomb_width"),
+        ({"coulomb_width": "0.1"}, ValueError, "coulomb_width"),
+        ({"friction": 3}, ValueError, "friction"),
         ({"robot": "ur99"}, ValueError, "ur99"),
         ({"robot": 3}, TypeError, "robot"),
     ],

@@ -115,8 +115,12 @@ def test_every_ur10e_file_loads(ur10e_dir):
         "validation_data": [11, 14692],
     }
     warned = {Path(str(w.message).split(":")[0]).name for w in caught
-              if issubclass(w.category, RecordingWarning)}
+              if issubclass(w.category, RecordingWarning)
+              and not str(w.message).startswith("headerless")}
     assert warned == {"ur-20_02_19_15harm50secLoad.csv", "ur-19_09_27-11_32_02.csv"}
+    guessed = {str(w.message).split(" fields")[0] for w in caught
+               if str(w.message).startswith("headerless")}   # said per layout, not per file
+    assert guessed == {f"headerless text with {n}" for n in (19, 25, 31)}
 
 
 @pytest.mark.realdata
@@ -283,7 +287,9 @@ def test_preset_unknown_field_count(tmp_path):
         read_csv(path, "nope")
     with pytest.raises(ValueError, match=r"u\.csv: headerless text with 3 fields; pass column_map"):
         load_recording(path)
-    assert set(COLUMN_PRESETS) == {"ur10e_mamedov"}
+    assert set(COLUMN_PRESETS) == {"ur10e_mamedov", "panda_gaz"}
+    with pytest.raises(ValueError, match="'panda_gaz' reads a folder of one-value-per-line"):
+        read_csv(path, "panda_gaz")
 
 
 def test_read_npz_default_and_key_map(tmp_path, rng):

@@ -9,11 +9,12 @@ from sklearn.base import BaseEstimator, OutlierMixin
 from sklearn_gpcd.metrics import (
     alarm_onsets,
     contact_events,
+    DetectionRefit,
+    DetectionScorer,
     detection_delay,
-    detection_scorers,
     event_recall,
     false_alarms_per_hour,
-    make_detection_scorer,
+    fold_means,
     mean_detection_delay,
     nmse,
 )
@@ -197,16 +198,29 @@ class _FixedAlarms(OutlierMixin, BaseEstimator):
         return np.where(np.asarray(X)[:, 0] == 1, -1, 1)
 
 
-def test_scorers_follow_sklearn_sign_conventions():
+def test_scorer_follows_sklearn_sign_conventions():
     X = np.array(ALARMS, dtype=float)[:, None]
-    scorers = detection_scorers(sample_time=360.0)
     est = _FixedAlarms()
-    assert scorers["recall"](est, X, LABELS) == pytest.approx(2 / 3)
-    assert scorers["false_alarms_per_hour"](est, X, LABELS) == pytest.approx(-2 / 0.9)
-    delay = make_detection_scorer("delay", sample_time=360.0)(est, X, LABELS)
-    assert delay == pytest.approx(-360.0 * (2 + 2 + 1) / 3)
-    with pytest.raises(ValueError, match="metric"):
-        make_detection_scorer("precision")
+    scores = DetectionScorer(sample_time=360.0)(est, X, LABELS)
+    assert scores["recall"] == pytest.approx(2 / 3)
+    assert scores["false_alarms_per_hour"] == pytest.approx(-2 / 0.9)
+    assert scores["delay"] == pytest.approx(-360.0 * (2 + 2 + 1) / 3)
+    # time stamps replace the sampling period; groups split the events
+    timed = DetectionScorer()(est, X, LABELS, time=360.0 * np.arange(len(LABELS)))
+    assert timed == pytest.approx(scores)
+    request = DetectionScorer().get_metadata_routing()
+    assert set(request.score.requests) == {"groups", "time"}
+
+
+def test_refit_rule_ignores_folds_without_events():
+    results = {"split0_test_recall": np.array([1.0, 0.5]),
+               "split1_test_recall": np.array([np.nan, np.nan]),
+               "split0_test_false_alarms_per_hour": np.array([-3.0, -1.0]),
+               "split1_test_false_alarms_per_hour": np.array([-1.0, -1.0]),
+               "split0_test_delay": np.array([-0.1, -0.1]),
+               "split1_test_delay": np.array([np.nan, np.nan])}
+    np.testing.assert_allclose(fold_means(results, "false_alarms_per_hour")[0], [-2.0, -1.0])
+    assert DetectionRefit()(results) == 0          # recall 1.0 beats 0.5 despite NaN fold
 
 
 @settings(max_examples=60, deadline=None)

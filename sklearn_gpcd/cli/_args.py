@@ -1,14 +1,15 @@
-"""What the ``gpcd`` verbs share: argument types checked at parse time, the
-progress bar, reading recordings and resolving the robot."""
+"""What the ``gpcd`` verbs share: argument types checked at parse time, reading
+recordings and resolving the robot (the progress bar is ``sklearn_gpcd._progress``)."""
 
 import argparse
+import importlib.util
 import json
 import math
 import os
-import sys
-import time
 import warnings
 from pathlib import Path
+
+from .._progress import ProgressBar
 
 
 # ---------------------------------------------------------------- arguments
@@ -17,9 +18,17 @@ def robot_arg(value):
     from ..robots import load_robot
 
     try:
-        return load_robot(value)
+        robot = load_robot(value)
     except (ValueError, OSError) as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+    robot.source = value  # for --joints, which reloads it
+    return robot
+
+
+def joints_arg(value):
+    """``--joints``: a count (the model's first N joints) or comma-separated names."""
+    text = value.strip()
+    return int(text) if text.isdigit() else [name.strip() for name in text.split(",")]
 
 
 def column_map_arg(value):
@@ -97,9 +106,14 @@ def model_file_arg(value):
     from ..persistence import PICKLE_EXTENSIONS, SKOPS_EXTENSION
 
     suffixes = (SKOPS_EXTENSION,) + tuple(PICKLE_EXTENSIONS)
-    if Path(value).suffix.lower() not in suffixes:
+    suffix = Path(value).suffix.lower()
+    if suffix not in suffixes:
         raise argparse.ArgumentTypeError(
             f"{value}: the extension chooses the format; use one of {', '.join(suffixes)}")
+    if suffix == SKOPS_EXTENSION and importlib.util.find_spec("skops") is None:
+        raise argparse.ArgumentTypeError(
+            f"{value}: writing .skops files needs skops, which is not installed: pip install "
+            "skops (or 'sklearn-gpcd[persist]'), or write -o with .joblib")
     return output_file_arg(value)
 
 
@@ -130,78 +144,40 @@ def n_support_arg(value):
     return "auto" if value.strip().lower() == "auto" else positive_int(value)
 
 
-# ---------------------------------------------------------------- progress
-class ProgressBar:
-    """A progress bar with an ETA on stderr.
-
-    On a terminal the bar is redrawn in place; otherwise (a log, a pipe) one
-    line is printed at most every ``interval`` seconds and at the end.
-    """
-
-    def __init__(self, label, total, *, stream=None, interval=5.0, enabled=True):
-        self.label, self.total, self.done = label, max(int(total), 1), 0
-        self.stream = sys.stderr if stream is None else stream
-        self.interval, self.enabled = interval, enabled
-        self.start = self._last = time.perf_counter()
-        self._tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self._draw(force=True)
-
-    def update(self, n=1):
-        self.done = min(self.done + n, self.total)
-        self._draw(force=self.done == self.total)
-
-    def _draw(self, force=False):
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        if not (force or self._tty or now - self._last >= self.interval):
-            return
-        self._last = now
-        elapsed = now - self.start
-        width = 24
-        filled = int(width * self.done / self.total)
-        if self.done == self.total:
-            tail = f"done in {seconds(elapsed)}"
-        elif self.done:
-            tail = f"{seconds(elapsed)} elapsed, ETA {seconds(elapsed * (self.total / self.done - 1))}"
-        else:
-            tail = "ETA after the first step"
-        line = f"{self.label} [{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} {tail}"
-        end = "\n" if (not self._tty or self.done == self.total) else ""
-        print(("\r" if self._tty else "") + line, end=end, file=self.stream, flush=True)
-
-
-def seconds(value):
-    value = int(round(value))
-    return f"{value // 60}m{value % 60:02d}s" if value >= 60 else f"{value}s"
-
-
 # ---------------------------------------------------------------- recordings
 def read_recordings(paths, args, what="recordings", progress=True):
-    """Load ``paths`` with ``--column-map`` (and ``n_joints`` of ``--robot`` when given)."""
-    from ..io import load_recording
-    from ..io.load import recording_paths
+    """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``
+    ``--units-confirmed`` and ``--allow-short``."""
+    from ..io import load_recordings
 
-    sources = recording_paths(paths)
-    if not sources:
-        raise ValueError(f"no {what} found in {' '.join(map(str, paths))}")
-    kwargs = {}
-    if getattr(args, "robot", None) is not None:
+    kwargs = {"accept": ["degrees", "units"] * bool(getattr(args, "units_confirmed", False))
+              + ["short"] * bool(getattr(args, "allow_short", False))}
+    if getattr(args, "time_scale", None) is not None:
+        kwargs["time_scale"] = args.time_scale
+    if select_joints(args) is not None:
         kwargs["n_joints"] = args.robot.n_joints
-    bar = ProgressBar(f"reading {what}", len(sources),
-                    enabled=progress and not getattr(args, "quiet", False))
-    recordings = []
-    for path in sources:
-        try:
-            rec = load_recording(path, column_map=getattr(args, "column_map", None), **kwargs)
-        except ValueError as exc:
-            if "column_map" not in str(exc):
-                raise
-            raise ValueError(f"{exc} -- on the command line: --column-map with a JSON object, "
-                             "a JSON file or a preset name") from None
-        recordings.append(rec)
-        bar.update()
-    return recordings
+    shown = progress and not getattr(args, "quiet", False)
+    try:
+        return load_recordings(paths, column_map=getattr(args, "column_map", None),
+                               progress=lambda _, total: ProgressBar(
+                                   f"reading {what}", total, enabled=shown), **kwargs)
+    except ValueError as exc:
+        if str(exc).startswith("no recordings found"):
+            raise ValueError(f"no {what} found in {' '.join(map(str, paths))}") from None
+        if "column_map" not in str(exc) or "--column-map" in str(exc):
+            raise
+        raise ValueError(f"{exc} -- on the command line: --column-map with a JSON object, "
+                         "a JSON file or a preset name") from None
+
+
+def select_joints(args):
+    """``--robot`` reduced to ``--joints`` (once); None without ``--robot``."""
+    from ..robots import load_robot
+
+    robot, joints = getattr(args, "robot", None), getattr(args, "joints", None)
+    if robot is not None and joints is not None and not getattr(args, "_joints_done", False):
+        args.robot, args._joints_done = load_robot(robot.source, joints=joints), True
+    return args.robot if robot is not None else None
 
 
 def robot_for(args, recordings):
@@ -209,7 +185,7 @@ def robot_for(args, recordings):
     from ..robots import load_robot
 
     names = sorted({str(rec.metadata.get("robot") or "") for rec in recordings})
-    if args.robot is not None:
+    if select_joints(args) is not None:
         named = [n for n in names if n]
         if named and named != [args.robot.name]:
             warnings.warn(f"the recordings name robot {', '.join(named)}; using --robot "
@@ -230,13 +206,30 @@ def robot_for(args, recordings):
     for rec in recordings:
         if rec.n_joints != robot.n_joints:
             raise ValueError(f"{rec.name}: {rec.n_joints} joints but robot {robot.name} has "
-                             f"{robot.n_joints}")
+                             f"{robot.n_joints}; keep the robot's joints the log has with "
+                             f"--joints {rec.n_joints} (its first ones) or --joints NAME,...")
     return robot
 
 
 
+def add_check_options(parser):
+    """``--time-scale``, ``--units-confirmed``, ``--allow-short``: what
+    :func:`read_recordings` checks."""
+    parser.add_argument("--time-scale", type=positive_float, default=None, metavar="S",
+                        help="multiply the time column by S to get seconds (1e-3 for ms)")
+    parser.add_argument("--units-confirmed", action="store_true",
+                        help="go on when positions look like degrees or q, qd and time units "
+                        "disagree (time in ms, deg/s; refused by default)")
+    parser.add_argument("--allow-short", action="store_true",
+                        help="go on with recordings shorter than 1 s (refused by default)")
+
+
 def add_recording_options(parser, robot_help):
     parser.add_argument("--robot", type=robot_arg, default=None, help=robot_help)
+    parser.add_argument("--joints", type=joints_arg, default=None, metavar="N|NAMES",
+                        help="keep only these joints of --robot (the first N, or comma-"
+                        "separated joint names), e.g. 7 for a Panda URDF with its fingers")
+    add_check_options(parser)
     parser.add_argument(
         "--column-map", type=column_map_arg, default=None,
         help="column layout of text/NPZ recordings: a preset name (ur10e_mamedov), a JSON "

@@ -40,9 +40,6 @@ def add_parser(sub):
                      help="write the report as JSON here")
     dia.add_argument("--plot", type=figure_file_arg, default=None,
                      help="write the figure here (PNG, PDF, ...)")
-    dia.add_argument("--units-confirmed", action="store_true",
-                     help="diagnose even when positions look like degrees or time like "
-                     "milliseconds (refused by default)")
     dia.set_defaults(func=run)
 
 

@@ -25,6 +25,7 @@ from ._args import (
     output_file_arg,
     positive_float,
     positive_int,
+    add_check_options,
     read_recordings,
 )
 
@@ -47,6 +48,7 @@ def add_parser(sub):
     mon.add_argument("recordings", nargs="*", help="recordings to monitor (offline)")
     mon.add_argument("--column-map", type=column_map_arg, default=None,
                      help="column layout of the recordings (as for gpcd train)")
+    add_check_options(mon)
     mon.add_argument("--replay", default=None, metavar="FILE",
                      help="replay one recording paced to its time stamps")
     mon.add_argument("--speed", type=non_negative_float, default=1.0,

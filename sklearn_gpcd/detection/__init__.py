@@ -11,8 +11,8 @@
 * :func:`calibrate_across_recordings` -- thresholds (and optionally the
   settings of the last rule) chosen across recordings (leave-one-recording-out
   margin, nested false alarms);
-* :class:`CollisionThresholdCV` -- tunes thresholds, ``sigma_v`` and filter
-  settings by grouped cross-validation over labelled recordings;
+* :class:`CollisionThresholdCV` -- ``GridSearchCV`` over labelled recordings
+  with the detection scorer of :mod:`sklearn_gpcd.metrics`;
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
 """
 
@@ -33,7 +33,7 @@ from .detector import (
     reads_currents,
     stack_currents,
 )
-from .model_selection import CollisionThresholdCV, DetectionRefit, select_candidate
+from .model_selection import CollisionThresholdCV
 from .rules import THRESHOLD_RULES, AlarmRule, Regimes
 from .streaming import BandState, MonitorStatus, StreamingMonitor
 
@@ -42,7 +42,6 @@ __all__ = [
     "BandState",
     "CollisionDetector",
     "CollisionThresholdCV",
-    "DetectionRefit",
     "MARGIN_RULES",
     "MonitorStatus",
     "REGIME_NAMES",
@@ -58,6 +57,5 @@ __all__ = [
     "reads_currents",
     "regime_excursions",
     "regime_levels",
-    "select_candidate",
     "stack_currents",
 ]

@@ -1,15 +1,18 @@
 """The diagnosis estimator: locate, name, model and show missing physics."""
 
-import numbers
+import os
 import time as _time
+from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.utils._param_validation import HasMethods, Interval
 from sklearn.utils.validation import check_is_fitted
 
 from scipy import stats as _stats
 
 from .._persistence import VersionedStateMixin
+from ..robots import Robot
 from ..io import degrees_note, units_note
 from ..metrics import nmse
 from .align import align_recordings
@@ -205,6 +208,23 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
     ['coulomb_friction']
     """
 
+    _parameter_constraints = {
+        "robot": [str, os.PathLike, Robot],
+        "torque_constants": [None, "array-like"],
+        "friction": "no_validation",            # None, dict, JointFriction-like or callable
+        "effects": [str, list, tuple],
+        "sigma_rest": [Interval(Real, 0, np.inf, closed="left")],
+        "rest_guard": [Interval(Real, 0, np.inf, closed="left")],
+        "sigma_v": [Interval(Real, 0, np.inf, closed="left")],
+        "n_splits": [Interval(Integral, 2, None, closed="left")],
+        "min_gain": [Interval(Real, 0, 1, closed="left")],
+        "min_t": [Interval(Real, 0, np.inf, closed="left")],
+        "max_effects": [None, Interval(Integral, 0, None, closed="left")],
+        "min_share": [Interval(Real, 0, 1, closed="left")],
+        "check_units": ["boolean"],
+        "base_model": [None, HasMethods(["predict_signals"])],
+    }
+
     def __init__(self, robot="ur10", torque_constants=None, friction=None, effects="all",
                  sigma_rest=1e-3, rest_guard=0.04, sigma_v=1e-2, n_splits=5,
                  min_gain=MIN_GAIN, min_t=MIN_T,
@@ -225,22 +245,6 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         self.base_model = base_model
 
     # ------------------------------------------------------------ helpers
-    def _check_params(self):
-        for name in ("sigma_rest", "rest_guard", "sigma_v", "min_t"):
-            value = getattr(self, name)
-            if not (isinstance(value, numbers.Real) and np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
-        for name in ("min_gain", "min_share"):
-            value = getattr(self, name)
-            if not (isinstance(value, numbers.Real) and 0 <= value < 1):
-                raise ValueError(f"{name} must be in [0, 1), got {value!r}")
-        if not (isinstance(self.n_splits, numbers.Integral) and self.n_splits >= 2):
-            raise ValueError(f"n_splits must be an integer >= 2, got {self.n_splits!r}")
-        if self.max_effects is not None and not (
-                isinstance(self.max_effects, numbers.Integral) and self.max_effects >= 0):
-            raise ValueError(f"max_effects must be None or an integer >= 0, got "
-                             f"{self.max_effects!r}")
-
     def _references(self, recordings, simulated, what):
         """Aligned simulated currents (or the base model's) for each recording."""
         if simulated is None:
@@ -304,11 +308,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         self : DynamicsDiagnosis
         """
         start = _time.perf_counter()
-        self._check_params()
+        self._validate_params()
         if self.base_model is not None:
-            if not hasattr(self.base_model, "predict_signals"):
-                raise TypeError("base_model must be a DiagnosedModel (e.g. an earlier "
-                                f"diagnosis' model_), got {type(self.base_model).__name__}")
             self.nominal_ = self.base_model.nominal
         else:
             self.nominal_ = NominalModel(self.robot, self.torque_constants, self.friction)

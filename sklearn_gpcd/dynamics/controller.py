@@ -14,10 +14,11 @@ This is our extension of the paper (which uses the rigid-body regressor
 there); :func:`~sklearn_gpcd.gp.make_sp_c` builds it.
 """
 
-import numbers
+from numbers import Integral
 
 import numpy as np
-from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin
+from sklearn.base import BaseEstimator, RegressorMixin, TransformerMixin, _fit_context
+from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..layout import AUGMENTED_BLOCKS, column_index
@@ -55,11 +56,18 @@ class ControllerFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
     [[11.0]]
     """
 
+    _parameter_constraints = {
+        "joint": [Interval(Integral, 0, None, closed="left")],
+        "n_joints": [Interval(Integral, 1, None, closed="left")],
+        "block": [StrOptions(set(AUGMENTED_BLOCKS))],
+    }
+
     def __init__(self, joint, n_joints, block="i_c"):
         self.joint = joint
         self.n_joints = n_joints
         self.block = block
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y=None):
         """Check the layout and find the column.
 
@@ -75,12 +83,8 @@ class ControllerFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         self : ControllerFeatures
         """
         X = validate_data(self, X, dtype=np.float64)
-        if not (isinstance(self.n_joints, numbers.Integral) and self.n_joints >= 1):
-            raise ValueError(f"n_joints must be an int >= 1, got {self.n_joints!r}")
-        if not (isinstance(self.joint, numbers.Integral) and 0 <= self.joint < self.n_joints):
-            raise ValueError(f"joint must be an int in [0, {self.n_joints}), got {self.joint!r}")
-        if self.block not in AUGMENTED_BLOCKS:
-            raise ValueError(f"block must be one of {AUGMENTED_BLOCKS}, got {self.block!r}")
+        if self.joint >= self.n_joints:
+            raise ValueError(f"joint must be in [0, {self.n_joints}), got {self.joint!r}")
         self.column_ = column_index(self.block, self.joint, self.n_joints)
         if self.column_ >= X.shape[1]:
             raise ValueError(
@@ -136,9 +140,12 @@ class ControllerCurrent(VersionedStateMixin, RegressorMixin, BaseEstimator):
     [[10.0, 11.0]]
     """
 
+    _parameter_constraints = {"n_joints": [Interval(Integral, 1, None, closed="left")]}
+
     def __init__(self, n_joints):
         self.n_joints = n_joints
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y):
         """Check the layout (nothing is learned).
 

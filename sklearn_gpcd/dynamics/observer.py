@@ -50,14 +50,17 @@ law is :math:`\tau_{f,\ell} = F_{c,\ell}\tanh(\dot q_\ell / w) + F_{v,\ell}
 """
 
 import numbers
+import os
 
 import numpy as np
 import pinocchio as pin
-from sklearn.base import BaseEstimator
+from sklearn.base import BaseEstimator, _fit_context
+from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from .._persistence import VersionedStateMixin
 from ..layout import block_columns
+from ..robots import Robot
 from ..robots.loading import resolve_robot
 from .regressor import full_regressor, parameter_vector
 from .rigid_body import RigidBodyRegressor
@@ -292,13 +295,13 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
     """
 
     _parameter_constraints = {
-        "robot": [object],
+        "robot": [str, os.PathLike, Robot],
         "gains": [None, numbers.Real, "array-like"],
-        "identify": [str],
-        "coulomb_width": [numbers.Real],
+        "identify": [StrOptions(set(_IDENTIFY))],
+        "coulomb_width": [Interval(numbers.Real, 0, np.inf, closed="neither")],
         "offset": ["boolean"],
-        "alpha": [numbers.Real],
-        "sample_time": [numbers.Real],
+        "alpha": [Interval(numbers.Real, 0, np.inf, closed="left")],
+        "sample_time": [Interval(numbers.Real, 0, np.inf, closed="neither")],
         "random_state": ["random_state"],
     }
 
@@ -314,17 +317,6 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
         self.random_state = random_state
 
     # ------------------------------------------------------------- fitting
-    def _check_params(self):
-        self._validate_params()
-        if self.identify not in _IDENTIFY:
-            raise ValueError(f"identify must be one of {_IDENTIFY}, got {self.identify!r}")
-        for name in ("coulomb_width", "sample_time"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-        if not (np.isfinite(self.alpha) and self.alpha >= 0):
-            raise ValueError(f"alpha must be a finite number >= 0, got {self.alpha!r}")
-
     def _gains(self, n):
         if self.gains is None:
             return np.array(UR_OBSERVER_GAINS if n == 6 else [50.0] * n)
@@ -333,6 +325,7 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
             raise ValueError(f"gains must be finite and > 0, got {self.gains!r}")
         return gains
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y, *, groups=None, time=None):
         """Identify the model on collision-free rows and measure the residual's spread.
 
@@ -353,7 +346,6 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
         -------
         self : MomentumObserver
         """
-        self._check_params()
         X, y = validate_data(self, X, y, multi_output=True, dtype=np.float64)
         robot = self.robot_ = resolve_robot(self.robot)
         n = self.n_joints_ = robot.n_joints

@@ -1,16 +1,19 @@
 """scikit-learn transformer from joint states to rigid-body regressor features."""
 
 import hashlib
+import os
 from collections import OrderedDict
+from numbers import Integral, Real
 
 import numpy as np
-from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.base import BaseEstimator, TransformerMixin, _fit_context
 from sklearn.utils import Bunch, check_random_state
+from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._gate import check_sigma_v, check_velocity
 from ..layout import block_columns
 from .._persistence import VersionedStateMixin
+from ..robots import Robot
 from ..robots.loading import resolve_robot
 from .base_parameters import base_parameters
 from .regressor import (
@@ -162,8 +165,10 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         The resolved robot.
     n_joints_ : int
     n_features_in_ : int
-        Columns of ``X`` seen in ``fit`` (at least ``3 * n_joints``; columns
-        past ``[q, qd, qdd]`` are ignored).
+        Columns of ``X`` seen in ``fit``: ``3 * n_joints`` (``[q, qd, qdd]``)
+        or ``6 * n_joints`` (the augmented inputs, whose last three blocks
+        are ignored). Any other count is refused: it is the layout of
+        another joint count (e.g. 7-joint logs against a 9-joint URDF).
     feature_names_in_ : ndarray of str
         Defined when ``X`` has string column names.
     parameter_names_ : list of str
@@ -185,8 +190,8 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
 
     Notes
     -----
-    The estimator needs at least ``3 * n_joints`` (18 for UR arms) input
-    columns in the :mod:`sklearn_gpcd.layout` order.
+    The estimator needs ``3 * n_joints`` or ``6 * n_joints`` (18 or 36 for
+    UR arms) input columns in the :mod:`sklearn_gpcd.layout` order.
 
     Examples
     --------
@@ -199,6 +204,20 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     >>> phi.get_feature_names_out()[:2].tolist()
     ['link1_mx', 'link1_my']
     """
+
+    _parameter_constraints = {
+        "robot": [str, os.PathLike, Robot],
+        "joint": [None, Interval(Integral, 0, None, closed="left")],
+        "friction": [None, str, list, tuple],
+        "rotor_inertia": ["boolean"],
+        "offset": ["boolean"],
+        "base_parameters": ["boolean"],
+        "rank_tol": [None, Interval(Real, 0, np.inf, closed="neither")],
+        "sigma_v": [None, Interval(Real, 0, np.inf, closed="neither")],
+        "currents": ["boolean"],
+        "random_state": ["random_state"],
+        "coulomb_width": [None, Interval(Real, 0, np.inf, closed="neither")],
+    }
 
     def __init__(self, robot="ur10", joint=None, friction=FRICTION_TERMS, rotor_inertia=True,
                  offset=False, base_parameters=True, rank_tol=None, sigma_v=None,
@@ -217,17 +236,10 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
 
     # ------------------------------------------------------------ helpers
     def _check_params(self, robot):
+        """What ``_parameter_constraints`` cannot say: checks against the robot."""
         n = robot.n_joints
-        if self.joint is not None:
-            if not isinstance(self.joint, (int, np.integer)) or isinstance(self.joint, bool):
-                raise TypeError(f"joint must be an int or None, got {self.joint!r}")
-            if not 0 <= self.joint < n:
-                raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
-        check_sigma_v(self.sigma_v, type(self).__name__, allow_none=True)
-        check_velocity(self.coulomb_width, "coulomb_width", "velocity scale [rad/s]",
-                       type(self).__name__, allow_none=True)
-        if self.rank_tol is not None and not (np.isfinite(self.rank_tol) and self.rank_tol > 0):
-            raise ValueError(f"rank_tol must be a positive number or None, got {self.rank_tol!r}")
+        if self.joint is not None and self.joint >= n:
+            raise ValueError(f"joint={self.joint} out of range for {n} joints (0-based)")
         if self.currents and robot.torque_constants is None:
             raise ValueError(
                 f"currents=True needs torque constants, robot {robot.name!r} has none: "
@@ -236,11 +248,17 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         return check_friction(self.friction)
 
     def _check_columns(self, X, n):
-        if X.shape[1] < 3 * n:
-            raise ValueError(
-                f"X has {X.shape[1]} columns, but robot {self.robot_.name!r} needs at least "
-                f"{3 * n}: [q, qd, qdd] of {n} joints (see sklearn_gpcd.layout)"
-            )
+        if X.shape[1] in (3 * n, 6 * n):
+            return
+        width = X.shape[1]
+        logged = width // 6 if width % 6 == 0 else width // 3 if width % 3 == 0 else None
+        fix = ("" if not logged else
+               f" (the inputs of {logged} joints); select the robot's joints the data has: "
+               f"--joints {logged} on the command line, load_robot(urdf, joints={logged}) "
+               "in Python")
+        raise ValueError(
+            f"X has {width} columns{fix}, but robot {self.robot_.name!r} has {n} joints and "
+            f"needs [q, qd, qdd] ({3 * n} columns) or x^a ({6 * n}; see sklearn_gpcd.layout)")
 
     def _split(self, X):
         n = self.n_joints_
@@ -253,6 +271,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
                               joints=joints, coulomb_width=self.coulomb_width)
 
     # ---------------------------------------------------------------- API
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y=None):
         """Resolve the robot and find the output columns.
 

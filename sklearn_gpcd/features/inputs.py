@@ -15,7 +15,8 @@ with the column layout fixed by :mod:`sklearn_gpcd.layout`.
 import warnings
 
 import numpy as np
-from sklearn.base import BaseEstimator, TransformerMixin
+from sklearn.base import BaseEstimator, TransformerMixin, _fit_context
+from sklearn.utils._param_validation import StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from ..layout import column_names
@@ -139,14 +140,12 @@ def targets(recordings):
 
 
 class _RecordingFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
-    """What the recording-to-inputs transformers share: checks, names, tags."""
+    """What the recording-to-inputs transformers share: constraints, names, tags."""
 
-    def _check_common(self):
-        """Validate ``augmented`` and ``sign`` (every subclass has both)."""
-        if not isinstance(self.augmented, (bool, np.bool_)):
-            raise ValueError(f"augmented must be a bool, got {self.augmented!r}")
-        if self.sign not in SIGN_CONVENTIONS:
-            raise ValueError(f"sign must be one of {SIGN_CONVENTIONS}, got {self.sign!r}")
+    _parameter_constraints = {
+        "augmented": ["boolean"],
+        "sign": [StrOptions(set(SIGN_CONVENTIONS))],
+    }
 
     def _fitted_recordings(self, recordings):
         """``recordings`` as a list with the fitted joint count (ValueError otherwise)."""
@@ -277,6 +276,13 @@ default="target-minus-actual"
     0.1
     """
 
+    _parameter_constraints = {
+        **_RecordingFeatures._parameter_constraints,
+        "acceleration": [StrOptions(set(ACCELERATION_SOURCES))],
+        "differentiation": [StrOptions(set(METHODS))],
+        "differentiation_options": [None, dict],
+    }
+
     def __init__(
         self,
         augmented=True,
@@ -290,24 +296,6 @@ default="target-minus-actual"
         self.differentiation = differentiation
         self.differentiation_options = differentiation_options
         self.sign = sign
-
-    def _check_params(self):
-        self._check_common()
-        if self.acceleration not in ACCELERATION_SOURCES:
-            raise ValueError(
-                f"acceleration must be one of {ACCELERATION_SOURCES}, "
-                f"got {self.acceleration!r}"
-            )
-        if self.differentiation not in METHODS:
-            raise ValueError(
-                f"differentiation must be one of {METHODS}, got {self.differentiation!r}"
-            )
-        options = self.differentiation_options
-        if options is not None and not isinstance(options, dict):
-            raise ValueError(
-                f"differentiation_options must be a dict or None, got {options!r}"
-            )
-        _check_options(self.differentiation, options or {})
 
     def _acceleration_source(self, rec, index):
         """Which signal gives qdd for ``rec`` (ValueError if unavailable)."""
@@ -326,6 +314,7 @@ default="target-minus-actual"
             return "qdd"
         return "differentiated qd"
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, recordings, y=None):
         """Check the parameters and the recordings; record what is missing.
 
@@ -341,7 +330,7 @@ default="target-minus-actual"
         self : InverseDynamicsFeatures
             Fitted transformer.
         """
-        self._check_params()
+        _check_options(self.differentiation, self.differentiation_options or {})
         recordings = _as_recordings(recordings)
         self.n_joints_ = _check_joint_counts(recordings)
         self.acceleration_sources_ = tuple(

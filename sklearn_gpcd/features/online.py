@@ -35,10 +35,12 @@ for training and batch evaluation); :meth:`CausalFeatures.online` returns an
 streaming rows are identical by construction.
 """
 
-import numbers
 import warnings
+from numbers import Real
 
 import numpy as np
+from sklearn.base import _fit_context
+from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from .inputs import (
@@ -273,6 +275,13 @@ default="target-minus-actual"
     ('target_q', 'target_qd', 'target_current')
     """
 
+    _parameter_constraints = {
+        **_RecordingFeatures._parameter_constraints,
+        "acceleration_cutoff": [Interval(Real, 0, np.inf, closed="neither")],
+        "allow_missing": ["boolean"],
+        "signals": [StrOptions({"auto"}), tuple, list],
+    }
+
     def __init__(self, augmented=True, acceleration_cutoff=5.0,
                  sign="target-minus-actual", allow_missing=False, signals="auto"):
         self.augmented = augmented
@@ -281,23 +290,13 @@ default="target-minus-actual"
         self.allow_missing = allow_missing
         self.signals = signals
 
-    def _check_params(self):
-        self._check_common()
-        cutoff = self.acceleration_cutoff
-        if not (isinstance(cutoff, numbers.Real) and np.isfinite(cutoff) and cutoff > 0):
-            raise ValueError(f"acceleration_cutoff must be a positive number (Hz), got {cutoff!r}")
-        if not isinstance(self.allow_missing, (bool, np.bool_)):
-            raise ValueError(f"allow_missing must be a bool, got {self.allow_missing!r}")
-        return self._requested_signals()
-
     def _requested_signals(self):
         """``signals`` checked: "auto", or a tuple of known names without repeats."""
         signals = self.signals
-        if isinstance(signals, str) and signals == "auto":
+        if isinstance(signals, str):
             return signals
-        names = tuple(signals) if isinstance(signals, (tuple, list)) else None
-        if names is None or not set(names) <= set(_AUGMENTED_SIGNALS) or (
-                len(set(names)) < len(names)):
+        names = tuple(signals)
+        if not set(names) <= set(_AUGMENTED_SIGNALS) or len(set(names)) < len(names):
             raise ValueError(
                 f"signals must be 'auto' or a tuple of distinct names among "
                 f"{_AUGMENTED_SIGNALS}, got {signals!r}"
@@ -307,6 +306,7 @@ default="target-minus-actual"
                              "no controller columns)")
         return names
 
+    @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, recordings, y=None):
         """Check the parameters; record the joint count and the signals logged.
 
@@ -321,7 +321,7 @@ default="target-minus-actual"
         -------
         self : CausalFeatures
         """
-        requested = self._check_params()
+        requested = self._requested_signals()
         recordings = _as_recordings(recordings)
         self.n_joints_ = _check_joint_counts(recordings)
         present = [
@@ -359,7 +359,7 @@ default="target-minus-actual"
             check_is_fitted(self)
             n_joints, signals = self.n_joints_, self.signals_
         else:
-            self._check_params()
+            self._validate_params()
             signals = ()
         sign = 1.0 if self.sign == "target-minus-actual" else -1.0
         return OnlineFeatures(n_joints, self.augmented, self.acceleration_cutoff, signals, sign)

@@ -4,7 +4,7 @@ with deterministic parameters, option (i) of Sec. III-A."""
 import numbers
 
 import numpy as np
-from sklearn.base import BaseEstimator, RegressorMixin, clone
+from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
@@ -118,6 +118,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
         self.alpha = alpha
         self.fit_intercept = fit_intercept
 
+    @_fit_context(prefer_skip_nested_validation=False)
     def fit(self, X, y):
         """Fit the parameters by (ridge) least squares.
 
@@ -137,7 +138,6 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
 
     def _fit(self, X, y):
         """Fit; return the design matrix of ``X`` (reused by :meth:`_fit_predict`)."""
-        self._validate_params()
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, dtype=np.float64)
         self.features_ = _fit_features(self.features, X)
         Phi = _apply_features(self.features_, X)
@@ -154,6 +154,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
 
     def _fit_predict(self, X, y):
         """``fit(X, y).predict(X)`` with the features of ``X`` computed once."""
+        self._validate_params()
         return self._fit(X, y) @ self.coef_.T + self.intercept_
 
     def design_matrix(self, X):

@@ -1,22 +1,25 @@
 """Robot recordings: one :class:`Recording` type, readers and writers.
 
-=========================  ==================================================
-:func:`load_recording`     any format, detected from suffix and content
-:func:`load_recordings`    many files, folders or glob patterns
-:func:`read_rtde_csv`      UR RTDE CSV (ur_rtde / UR ``record.py``)
-:func:`write_rtde_csv`     the same format, exact float round trip
-:func:`read_csv`           any delimited text through a column map or preset
-:func:`read_npz`           ``.npz`` archives through a key map
-:func:`read_rosbag`        ROS 1 / ROS 2 ``sensor_msgs/JointState`` (optional
-                           ``rosbags`` package)
-:class:`RTDEClient`        live UR controller data (RTDE protocol 2);
-                           :class:`LoopbackRTDEServer` replays a recording
-                           (and injects link faults); what can end a
-                           stream: :class:`RTDEProtocolError`,
-                           :class:`MalformedPackage`, :class:`StreamPaused`
-:func:`degrees_note`       unit sanity checks of a recording's signals,
-:func:`units_note`         as sentences for warnings
-=========================  ==================================================
+==========================  ==================================================
+:func:`load_recording`      any format, detected from suffix and content
+:func:`load_recordings`     many files, folders or glob patterns
+:func:`read_rtde_csv`       UR RTDE CSV (ur_rtde / UR ``record.py``)
+:func:`write_rtde_csv`      the same format, exact float round trip
+:func:`read_csv`            any delimited text through a column map or preset
+:func:`read_npz`            ``.npz`` archives through a key map
+:func:`read_value_files`    one value per line, one file per signal (the
+                            Franka Emika Panda logs, preset ``panda_gaz``)
+:func:`read_rosbag`         ROS 1 / ROS 2 ``sensor_msgs/JointState`` (optional
+                            ``rosbags`` package)
+:class:`RTDEClient`         live UR controller data (RTDE protocol 2);
+                            :class:`LoopbackRTDEServer` replays a recording
+                            (and injects link faults); what can end a
+                            stream: :class:`RTDEProtocolError`,
+                            :class:`MalformedPackage`, :class:`StreamPaused`
+:func:`degrees_note`        unit sanity checks of a recording's signals,
+:func:`units_note`          as sentences for warnings;
+:func:`recording_problems`  all of them (and too short) for a loaded one
+==========================  ==================================================
 
 All readers keep the logged (irregular) sampling, drop malformed rows,
 exact duplicates, absurd values, out-of-order time stamps and kinematic
@@ -27,7 +30,7 @@ file, column and row for input that cannot be repaired. The user guide page
 "Reading UR RTDE, CSV and ROS bag logs" lists every error and warning.
 """
 
-from ._checks import degrees_note, units_note
+from ._checks import degrees_note, recording_problems, units_note
 from ._rtde_live import (
     LoopbackRTDEServer,
     MalformedPackage,
@@ -43,6 +46,7 @@ from .recording import JOINT_SIGNALS, Recording
 from .rosbag import read_rosbag
 from .rtde import read_rtde_csv, write_rtde_csv
 from .table import read_csv
+from .value_files import read_value_files
 
 __all__ = [
     "COLUMN_PRESETS",
@@ -63,6 +67,8 @@ __all__ = [
     "read_npz",
     "read_rosbag",
     "read_rtde_csv",
+    "read_value_files",
+    "recording_problems",
     "units_note",
     "write_rtde_csv",
 ]

@@ -255,3 +255,48 @@ of 'q' 0.001; time looks like milliseconds (pass time_scale=1e-3)."
     more = f", ... ({off.size} joints)" if off.size > N_QUOTED else ""
     return (f"position steps disagree with the velocities: dq = g * qd * dt with gain g "
             f"(1 expected) of {cols}{more}; {cause}.")
+
+
+#: Shortest recording [s] :func:`recording_problems` accepts by default.
+MIN_DURATION = 1.0
+
+
+def recording_problems(recording, min_duration=MIN_DURATION):
+    """What makes a loaded recording suspect: degrees, other time units, too short.
+
+    A reader only warns about these (:class:`~sklearn_gpcd.io.RecordingWarning`);
+    a caller that should not go on (the ``gpcd`` command) turns them into
+    errors unless the user confirms.
+
+    Parameters
+    ----------
+    recording : Recording
+    min_duration : float, default=1.0
+        Shortest duration [s] that is not reported.
+
+    Returns
+    -------
+    problems : list of (str, str)
+        ``(kind, sentence)`` with kind ``"degrees"`` (:func:`degrees_note`),
+        ``"units"`` (:func:`units_note`: milliseconds, deg/s, ...) or
+        ``"short"``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(5) * 0.01
+    >>> rec = Recording(time=t, q=np.full((5, 1), 90.0), qd=np.zeros((5, 1)),
+    ...                 current=np.zeros((5, 1)))
+    >>> [kind for kind, _ in recording_problems(rec)]
+    ['degrees', 'short']
+    """
+    q_labels = [f"q[{j}]" for j in range(recording.n_joints)]
+    units = units_note(recording.time, recording.q, recording.qd, q_labels)
+    notes = {"degrees": [degrees_note(recording.q)], "units": [], "short": []}
+    notes["degrees" if units and "deg" in units.rpartition(";")[2] else "units"].append(units)
+    if recording.duration < min_duration:
+        notes["short"].append(f"{recording.n_samples} samples over {recording.duration:.3g} "
+                              f"s, shorter than {min_duration:g} s.")
+    return [(kind, " ".join(n for n in found if n)) for kind, found in notes.items()
+            if any(found)]

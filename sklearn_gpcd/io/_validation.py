@@ -576,10 +576,13 @@ def _check_joint_count(source, columns, column_labels, n_joints):
         if count != expected:
             names = ", ".join(column_labels[key])
             origin = "n_joints" if n_joints is not None else "q"
-            hint = "fewer" if count < expected else "more"
+            hint = f"{'fewer' if count < expected else 'more'} joints than the robot has?"
+            if count < expected and key == "q":
+                hint += (f" (keep the robot's joints the log has: gpcd --joints {count}, or "
+                         f"load_robot(..., joints={count}) in Python)")
             raise ValueError(
                 f"{source}: {key} has {count} joint column(s) ({names}), expected "
-                f"{expected} (from {origin}); {hint} joints than the robot has?"
+                f"{expected} (from {origin}); {hint}"
             )
 
 

@@ -10,9 +10,13 @@ to columns, each given as
 - a name *prefix* (``"actual_q"``) that expands to the header's consecutive
   ``actual_q_0, actual_q_1, ...`` columns, as UR RTDE names vector entries.
 
-``time``, ``q``, ``qd`` and ``current`` are required. A column map can also
-be the name of a preset from :data:`COLUMN_PRESETS`, which picks its layout
-from the file's field count.
+``time``, ``q``, ``qd`` and ``current`` are required. The optional key
+``"units"`` says what ``current`` (and ``target_current``) hold: ``"A"``
+(motor currents, the default) or ``"Nm"`` (joint torques); it becomes
+``recording.units``. A column map can also be the name of a preset from
+:data:`COLUMN_PRESETS`, which picks its layout from the file's field count,
+or, for logs written one file per signal (``panda_gaz``), names the files of
+a folder.
 """
 
 from dataclasses import dataclass, field
@@ -26,6 +30,38 @@ FIELDS = ("time",) + JOINT_SIGNALS + ("labels",)
 REQUIRED_FIELDS = ("time", "q", "qd", "current")
 #: Fields that are one column, not one per joint.
 SCALAR_FIELDS = ("time", "labels")
+#: Units a column map's ``"units"`` may give for the current columns.
+CURRENT_UNITS = ("A", "Nm")
+
+
+def split_units(column_map, default="A", source=""):
+    """``column_map`` without its ``"units"`` key, and the units it gives.
+
+    Parameters
+    ----------
+    column_map : dict
+        A column map, possibly with ``"units": "A"`` or ``"Nm"``.
+    default : str, default="A"
+        Units when the map gives none.
+    source : str, default=""
+        File name for the error message.
+
+    Returns
+    -------
+    column_map : dict
+    units : str
+
+    Examples
+    --------
+    >>> split_units({"time": 0, "q": 1, "qd": 2, "current": 3, "units": "Nm"})
+    ({'time': 0, 'q': 1, 'qd': 2, 'current': 3}, 'Nm')
+    """
+    column_map = dict(column_map)
+    units = column_map.pop("units", None) or default
+    if units not in CURRENT_UNITS:
+        raise ValueError(f"{source}: column map units must be one of {CURRENT_UNITS} (A for "
+                         f"motor currents, Nm for joint torques), got {units!r}")
+    return column_map, units
 
 
 @dataclass(frozen=True)
@@ -45,6 +81,14 @@ class ColumnPreset:
     ignored : dict, default={}
         Field count -> columns deliberately left unread (stored in
         ``metadata["ignored_columns"]``).
+    units : {"A", "Nm"}, default="A"
+        What the current columns hold.
+    files : dict, default={}
+        For logs written one value per line and one file per signal: field
+        -> file name pattern in the log's folder (``layouts`` is then
+        empty); see :func:`~sklearn_gpcd.io.read_value_files`.
+    n_joints : int, default=None
+        Values per sample in the files of a ``files`` preset.
 
     Examples
     --------
@@ -61,6 +105,9 @@ class ColumnPreset:
     robot: str = ""
     description: str = ""
     ignored: dict = field(default_factory=dict)
+    units: str = "A"
+    files: dict = field(default_factory=dict)
+    n_joints: int = None
 
     def layout(self, n_fields, source=""):
         """Column map for a file with ``n_fields`` fields per line.
@@ -76,6 +123,10 @@ class ColumnPreset:
         -------
         column_map : dict
         """
+        if self.files:
+            raise ValueError(
+                f"{source}: column preset {self.name!r} reads a folder of one-value-per-line "
+                f"files ({', '.join(self.files.values())}); give the folder, not one file")
         if n_fields not in self.layouts:
             known = ", ".join(str(n) for n in sorted(self.layouts))
             raise ValueError(
@@ -107,8 +158,26 @@ UR10E_MAMEDOV = ColumnPreset(
     ignored={25: list(range(19, 25))},
 )
 
-#: Named column maps for :func:`sklearn_gpcd.io.read_csv`.
-COLUMN_PRESETS = {UR10E_MAMEDOV.name: UR10E_MAMEDOV}
+#: Franka Emika Panda logs of Gaz et al. (RA-L 2019, github.com/marcocognetti/
+#: FrankaEmikaPandaDynModel, matlab/data/Exciting_Traj/*/rbt_log): one value
+#: per line, sample-major (7 lines per sample), one file per signal; the
+#: "current" file holds the link-side joint torques [Nm].
+PANDA_GAZ = ColumnPreset(
+    name="panda_gaz",
+    layouts={},
+    robot="panda",
+    description=("Franka Emika Panda (7 joints), a folder with *_time.txt [s], "
+                 "*_positions.txt [rad], *_velocity.txt [rad/s], *_torques.txt [Nm], one "
+                 "value per line"),
+    units="Nm",
+    files={"time": "*_time.txt", "q": "*_positions.txt", "qd": "*_velocity.txt",
+           "current": "*_torques.txt"},
+    n_joints=7,
+)
+
+#: Named column maps for :func:`sklearn_gpcd.io.read_csv` and, for logs
+#: written one file per signal, :func:`sklearn_gpcd.io.read_value_files`.
+COLUMN_PRESETS = {preset.name: preset for preset in (UR10E_MAMEDOV, PANDA_GAZ)}
 
 
 def get_preset(name):
@@ -285,7 +354,8 @@ def _joint_count_note(prefix, lookup, n_joints, given):
         return None  # a hole in the numbering, the listed names say it all
     if given:
         return (f"the file has {count} {prefix}_* column(s) but n_joints={n_joints}: "
-                "fewer joints than the robot has?")
+                f"fewer joints than the robot has? (keep the robot's joints the log has: gpcd "
+                f"--joints {count}, or load_robot(..., joints={count}) in Python)")
     return f"the file has {count} {prefix}_* column(s) but q has {n_joints}"
 
 

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from ._text import parse_columns, read_text_table
 from ._validation import finalize_recording
-from .columns import get_preset, resolve_column_map
+from .columns import get_preset, resolve_column_map, split_units
 
 
 def read_csv(
@@ -14,7 +14,7 @@ def read_csv(
     delimiter=None,
     *,
     n_joints=None,
-    units="A",
+    units=None,
     time_scale=1.0,
     name=None,
     max_dropped=0.05,
@@ -51,8 +51,9 @@ def read_csv(
         Field separator; None sniffs it from the first line.
     n_joints : int, default=None
         Joints the robot has; a column map giving another count is an error.
-    units : str, default="A"
-        Unit of the ``current`` columns (``"Nm"`` for torques).
+    units : {"A", "Nm"}, default=None
+        Unit of the ``current`` columns (``"Nm"`` for torques); None takes
+        the column map's ``"units"`` (or the preset's), else ``"A"``.
     time_scale : float, default=1.0
         Factor turning the time column into seconds (``1e-3`` for ms).
     name : str, default=None
@@ -88,10 +89,12 @@ def read_csv(
         metadata.update(column_map=preset.name, robot=preset.robot)
         if table.n_fields in preset.ignored:
             metadata["ignored_columns"] = list(preset.ignored[table.n_fields])
-        column_map = preset.layout(table.n_fields, source)
+        column_map = {**preset.layout(table.n_fields, source), "units": preset.units}
     elif not isinstance(column_map, dict):
         raise TypeError(
             f"column_map must be a dict or a preset name, got {type(column_map).__name__}")
+    column_map, map_units = split_units(column_map, source=source)
+    units = map_units if units is None else units
     return recording_from_table(
         table, column_map, n_joints=n_joints, units=units, time_scale=time_scale,
         name=Path(path).name if name is None else name, metadata=metadata,

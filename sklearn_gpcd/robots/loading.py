@@ -3,6 +3,7 @@
 import contextlib
 import os
 import sys
+from numbers import Integral
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,8 @@ from .robot import Robot
 from .ur import build_dh_model, list_ur_robots
 from .ur_parameters import UR_PARAMETERS
 
-_OVERRIDES = ("torque_constants", "gear_ratios", "rotor_inertias", "flange_frame", "name")
+_OVERRIDES = ("torque_constants", "gear_ratios", "rotor_inertias", "flange_frame", "name",
+              "joints")
 
 
 def list_robots():
@@ -59,6 +61,50 @@ def _load_urdf(path):
     }
 
 
+def _select_joints(model, joints, source="robot"):
+    """The model with only ``joints`` movable; the others locked at zero.
+
+    A URDF often has more joints than a log: a Franka Emika Panda URDF with
+    its gripper has 9 (7 arm joints and 2 finger joints) while its logs have
+    7. Keeping the arm's joints makes the model match the log.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+    joints : int or sequence of str
+        The first ``joints`` joints in the model's order, or joint names.
+    source : str, default="robot"
+        Name for the error messages.
+
+    Returns
+    -------
+    model : pinocchio.Model
+        A reduced model (the input when every joint is kept).
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.robots import load_robot
+    >>> _select_joints(load_robot("ur5").model, 3).nv
+    3
+    """
+    names = [model.names[i] for i in range(1, model.njoints)]
+    if isinstance(joints, Integral) and not isinstance(joints, bool):
+        if not 1 <= joints <= len(names):
+            raise ValueError(f"{source}: joints={joints}, but the model has {len(names)} "
+                             f"joints ({', '.join(names)})")
+        keep = names[:joints]
+    else:
+        keep = [str(name) for name in joints]
+        unknown = [name for name in keep if name not in names]
+        if unknown or not keep:
+            raise ValueError(f"{source}: no joint named {', '.join(unknown) or '(none given)'}; "
+                             f"its joints are {', '.join(names)}")
+    lock = [model.getJointId(name) for name in names if name not in keep]
+    if not lock:
+        return model
+    return pin.buildReducedModel(model, lock, pin.neutral(model))
+
+
 def _load_builtin(name):
     params = UR_PARAMETERS[name]
     model, dh = build_dh_model(params)
@@ -90,7 +136,10 @@ def load_robot(name_or_urdf, **overrides):
         file (meshes are not needed).
     **overrides
         ``torque_constants``, ``gear_ratios``, ``rotor_inertias`` (one value
-        per joint), ``flange_frame`` (frame name) or ``name``.
+        per joint), ``flange_frame`` (frame name), ``name``, or ``joints``:
+        the joints to keep, a count (the first ones) or joint names, the
+        others locked at zero (e.g. ``joints=7`` for
+        a Panda URDF with gripper fingers against 7-joint logs).
 
     Returns
     -------
@@ -109,6 +158,8 @@ def load_robot(name_or_urdf, **overrides):
     >>> robot = load_robot("UR10e", torque_constants=[13.5] * 6)
     >>> robot.name, robot.torque_constants.tolist()[:2]
     ('ur10e', [13.5, 13.5])
+    >>> load_robot("ur5", joints=3).n_joints
+    3
     """
     unknown = sorted(set(overrides) - set(_OVERRIDES))
     if unknown:
@@ -126,6 +177,13 @@ def load_robot(name_or_urdf, **overrides):
             f"unknown robot {str(name_or_urdf)!r}: known robots are {list_robots()}, "
             "or pass the path of a .urdf file"
         )
+    joints = overrides.pop("joints", None)
+    if joints is not None:
+        spec["model"] = _select_joints(spec["model"], joints, spec["name"])
+        spec.pop("dh", None)  # the DH table describes the full arm
+        if spec.get("torque_constants") is not None:
+            spec["torque_constants"] = spec["torque_constants"][:spec["model"].nv] if (
+                isinstance(joints, Integral)) else None
     spec.update({k: v for k, v in overrides.items()})
     return Robot(**spec)
 

@@ -348,6 +348,9 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
         raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
                          f"give at least 2 collision-free recordings, got {n_files} "
                          "(or cut a long one into pieces with --split SECONDS)")
+    if len(units := {rec.units for rec in recordings}) > 1:
+        raise ValueError(f"the calibration recordings log currents in {' and '.join(units)}; "
+                         "give recordings in one unit (the column map's \"units\")")
     model, features = trained.regressor, trained.features
     if features is None:
         raise ValueError("the model file holds no input features (written by an earlier "
@@ -381,6 +384,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     summary = _summary(result, trained, features, robot, keys=keys, split=split,
                        n_files=n_files, select=select, several=several,
                        chosen_band=bool(band_candidates))
+    summary["units"] = units.pop()  # of thresholds_A: "Nm" for torque logs
+    if summary["units"] != "A":
+        summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
+        for entry in summary.get("bands", []):
+            entry.pop("thresholds_Nm", None)
     summary["coverage"] = calibration_coverage(result, times, split=split is not None)
     _warn_coverage(summary)
     return CalibratedDetector(result.detector, features, summary)
@@ -782,7 +790,7 @@ def _false_alarm_line(summary, out, which=""):
 def _threshold_lines(entry, summary, pad, out):
     """The thresholds table(s) of ``entry`` (A, and Nm when known), one row per regime."""
     n = len(entry["thresholds_A"][0])
-    units = [("A", entry["thresholds_A"])]
+    units = [(summary.get("units", "A"), entry["thresholds_A"])]
     if "thresholds_Nm" in entry:
         units.append((f"Nm, torque constants of {summary['robot']}", entry["thresholds_Nm"]))
     for unit, table in units:
