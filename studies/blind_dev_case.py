@@ -1,6 +1,6 @@
 """Study: one *development* case of the blind protocol, with the selection's history.
 
-Only for development seeds (benchmarks/blind_protocol.py SEEDS["dev"]); never
+Only for development seeds (benchmarks/blind_protocol.py SEEDS["dev"], ["dev2"]); never
 run on the scoring set. ``python studies/blind_dev_case.py DIR case102 [label...]``
 """
 import json
@@ -15,7 +15,7 @@ import blind_protocol as bp  # noqa: E402
 from sklearn_gpcd.diagnosis import DynamicsDiagnosis  # noqa: E402
 
 out, case = Path(sys.argv[1]), sys.argv[2]
-assert int(case[4:]) in bp.SEEDS["dev"], "development cases only"
+assert int(case[4:]) in bp.SEEDS["dev"] + bp.SEEDS["dev2"], "development cases only"
 folder = out / "cases" / case
 nominal = json.loads((folder / "nominal.json").read_text())
 with tempfile.TemporaryDirectory() as tmp:

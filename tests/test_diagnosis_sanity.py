@@ -295,3 +295,39 @@ def test_no_friction_drift_on_simulator_output_without_drift():
     assert "friction_drift" not in [e.name for e in diag.effects_]
     for fitted in diag.effects_:  # every named effect is a practical and significant finding
         assert fitted.joint_share >= diag.min_share
+
+
+# ------------------------------------------------- significance that does not relax
+def _drifting(viscous_rate):
+    """Joint 2's dry friction drifts by 0.01 A/s; its viscous coefficient by ``viscous_rate``."""
+    rng = np.random.default_rng(0)
+    nominal = NominalModel("ur10")
+    n = 1000
+    X = np.hstack([rng.uniform(-1, 1, (n, 12)), np.zeros((n, 6))])
+    s = Signals.from_states(nominal, X)
+    s.time = np.linspace(0.0, 50.0, n)
+    s.current = s.reference + 1e-4 * rng.normal(size=(n, 6))
+    s.current[:, 1] += s.time * (0.01 * np.sign(s.qd[:, 1]) + viscous_rate * s.qd[:, 1])
+    candidates, design = build_candidates(s, nominal, effect_library(["friction_drift"]))
+    stats = fold_statistics(candidates, design, s.current - s.reference,
+                            np.ones((n, 6), dtype=bool), fold_index(s, 5), 5, s.current)
+    return stats, candidates
+
+
+def test_extra_columns_of_a_variant_pass_the_test_on_their_own():
+    """A dry-friction drift with a viscous drift worth ~0.03 % of the residual: the variant
+    with both rates wins the forward step (the noise is tiny), but its viscous column alone
+    is no finding; the backward pass keeps the dry-only variant and says why."""
+    stats, candidates = _drifting(viscous_rate=0.0002)
+    loose, _ = forward_selection(stats, candidates, min_share=0.0)
+    assert [s.candidate.settings["with_viscous"] for s in loose] == [True]
+    rejections = []
+    strict, _ = forward_selection(stats, candidates, rejections=rejections)
+    assert [s.candidate.settings["with_viscous"] for s in strict] == [False]
+    # the rate in Nm/s: 0.01 A/s times joint 2's torque constant
+    assert strict[0].theta[0] == pytest.approx(0.01 * 11.976, rel=0.05)
+    assert "simpler variant" in rejections[-1]["reason"]
+    # a viscous drift of its own size is kept
+    stats, candidates = _drifting(viscous_rate=0.01)
+    kept, _ = forward_selection(stats, candidates)
+    assert [s.candidate.settings["with_viscous"] for s in kept] == [True]

@@ -734,10 +734,70 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
         if not failing:
             thin = [s for s in evidence if s.share < min_share]
             if not thin:
-                return evidence, history
+                swap = _nested_swap(guarded_stats if _uses_guard(selected) else stats,
+                                    selected, candidates, banned, min_gain, min_t, min_share)
+                if swap is None:
+                    return evidence, history
+                k, simpler, extra = swap
+                rejections.append({
+                    "name": f"{selected[k].label} {selected[k].settings}",
+                    "effect": selected[k].effect.name,
+                    "joints": [int(j) for j in selected[k].joints], "implausible": False,
+                    "reason": f"its extra columns over the simpler variant {simpler.settings} "
+                              "do not pass the held-out test on their own (remove "
+                              f"{100 * extra.relative_gain:.2g} % of its joints' held-out "
+                              f"error, t = {extra.t:.2g}, {100 * extra.share:.2g} % of the "
+                              "nominal residual): the simpler variant is kept"})
+                selected[k] = simpler
+                continue
             weakest = min(thin, key=lambda s: s.share)
+        # the joint-wise account: a term picked and then dropped is reported with why
+        if all(r["name"] != weakest.candidate.label for r in rejections):
+            rejections.append({
+                "name": weakest.candidate.label, "effect": weakest.candidate.effect.name,
+                "joints": [int(j) for j in weakest.candidate.joints], "implausible": False,
+                "reason": "given the other effects it no longer passes the held-out test "
+                          f"(removes {100 * weakest.relative_gain:.2g} % of its joints' "
+                          f"held-out error, t = {weakest.t:.2g}, better in "
+                          f"{weakest.folds_improved}/{weakest.n_folds} folds, "
+                          f"{100 * weakest.share:.2g} % of the nominal residual; needs "
+                          f"{100 * min_gain:g} %, t >= {min_t:g} or every fold, "
+                          f"{100 * min_share:g} %)"})
         selected.remove(weakest.candidate)
     return [], history
+
+
+def _nested_swap(stats, selected, candidates, banned, min_gain, min_t, min_share):
+    """A selected variant whose extra columns fail the held-out test, or None.
+
+    A variant of an effect with more columns than another variant of the same
+    effect and target (a friction drift of the dry and the viscous level
+    against the dry level alone; a link mass with its centre of mass against
+    the mass alone) is kept only when its extra columns pass the same test as
+    any term (``min_gain``, ``min_t`` or every fold, ``min_share``) given the
+    simpler variant and every other effect. Returns ``(index, simpler, evidence)``
+    for the first one that fails.
+    """
+    all_cols = np.concatenate([c.columns for c in selected])
+    weights = _weights(stats, all_cols)
+    for k, cand in enumerate(selected):
+        if cand.parts:
+            continue
+        simpler = [c for c in candidates if not c.parts and id(c) not in banned
+                   and c.effect is cand.effect and c.target == cand.target
+                   and c.n_params < cand.n_params]
+        if not simpler:
+            continue
+        # the closest variant: most columns, then the most settings in common
+        simple = max(simpler, key=lambda c: (c.n_params, sum(
+            c.settings.get(key) == value for key, value in cand.settings.items())))
+        others = [c for c in selected if c is not cand]
+        base = np.concatenate([c.columns for c in (*others, simple)])
+        extra = _evaluate(stats, cand, base, cv_losses(stats, base, weights), weights,
+                          np.concatenate([base, cand.columns]), _yardstick(stats, others))
+        if not extra.eligible(min_gain, min_t, min_share):
+            return k, simple, extra
+    return None
 
 
 def _yardstick(stats, chosen):
