@@ -215,8 +215,7 @@ def test_a_push_that_moves_the_arm_does_not_relax_its_threshold(alarm_hold, n_ev
     rest thresholds; without, the arm is 'moving' at once and the push splits."""
     qd, current = _still_then_moving()
     rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.0, filter_cutoff=2.0,
-                     min_duration=3, regimes=Regimes(rest_reference=2.0,
-                                                     alarm_hold=alarm_hold))
+                     min_duration=3, regimes=Regimes(rest_reference=2.0, alarm_hold=alarm_hold))
     det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
                             velocity_columns=[0, 1], rules=rule).fit(stack_currents(qd, current))
     pushed_qd, pushed = qd.copy(), current.copy()
@@ -231,6 +230,28 @@ def test_a_push_that_moves_the_arm_does_not_relax_its_threshold(alarm_hold, n_ev
     assert np.array_equal(out.prediction, det.predict(Z))
     np.testing.assert_allclose(out.signal, det.monitoring_signal(Z).signal, rtol=1e-12,
                                atol=1e-12)
+
+
+@pytest.mark.parametrize("alarm_release, n_events", [(0.25, 1), (0.0, 2)])
+def test_a_contact_whose_force_dips_is_one_event(alarm_release, n_events):
+    """A push whose current dips below the threshold for 0.1 s: one alarm with a
+    0.25 s release (Regimes(alarm_release=...)), two without (the default);
+    streaming gives the same decisions."""
+    qd, current = _still_then_moving()
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=2.0, min_duration=3,
+                     regimes=Regimes(rest_reference=2.0, alarm_release=alarm_release))
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rule).fit(stack_currents(qd, current))
+    pushed = current.copy()
+    pushed[700:730, 1] += 1.0
+    pushed[740:770, 1] += 1.0                            # a 0.1 s dip in between
+    Z = stack_currents(qd, pushed)
+    alarm = det.predict(Z) == -1
+    onsets = np.flatnonzero(alarm[1:] & ~alarm[:-1]) + 1
+    assert np.count_nonzero((onsets >= 690) & (onsets < 800)) == n_events
+    assert not alarm[:700].any() and not alarm[850:].any()  # released 0.25 s after
+    out = StreamingMonitor(det).replay(Z)
+    assert np.array_equal(out.prediction, det.predict(Z))
 
 
 # ----------------------------------------------- raw samples on the simulator

@@ -269,7 +269,7 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
 
 
 def held_regime_pass(signal, motion, starts, settings, scales, level, min_duration,
-                     envelope=None):
+                     envelope=None, release=0):
     """:func:`regime_pass` with the alarm hold of :meth:`RegimeState.step`.
 
     Sample by sample, as a streaming monitor does: regime, debounce over the
@@ -297,6 +297,9 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
     envelope : ndarray of shape (n_samples, n_joints) or None, default=None
         Motion envelope of the moving thresholds (``AlarmRule.envelope``),
         frozen while an alarm lasts like the regime.
+    release : int, default=0
+        Samples the ratio must stay at or below ``level`` before an alarm
+        ends; meanwhile the joints that fired last stay in alarm.
 
     Returns
     -------
@@ -304,6 +307,9 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
         As for :func:`regime_pass`.
     ratio : ndarray of shape (n_samples, n_joints)
         Debounced ``|m|`` over the scale of each sample's regime.
+    alarms : ndarray of bool, shape (n_samples, n_joints)
+        Joints in alarm (those above ``level``, or during a release the
+        ones that fired last).
 
     Examples
     --------
@@ -315,19 +321,30 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
     >>> qd = np.array([[0.0], [0.0], [0.5], [0.5], [0.0]])
     >>> settings = dict(sigma_v=0.01, settle=5, beta=None, alarm_hold=100)
     >>> scales = np.array([[10.0], [10.0], [1.0]])       # moving, settling, rest
-    >>> _, regime, _, ratio = held_regime_pass(m, qd, np.array([0]), settings, scales, 1.0, 1)
-    >>> regime.tolist(), (ratio[:, 0] > 1.0).tolist()
+    >>> _, regime, _, _, alarms = held_regime_pass(m, qd, np.array([0]), settings, scales,
+    ...                                            1.0, 1)
+    >>> regime.tolist(), alarms[:, 0].tolist()
     ([2, 2, 2, 2, 1], [False, True, True, False, False])
+
+    A dip of one sample inside a contact does not end its alarm with a
+    release of 2 samples:
+
+    >>> m = np.array([[0.0], [2.0], [0.5], [2.0], [0.0], [0.0], [0.0]])
+    >>> alarms = held_regime_pass(m, np.zeros((7, 1)), np.array([0]), settings, scales, 1.0, 1,
+    ...                           release=2)[4]
+    >>> alarms[:, 0].astype(int).tolist()
+    [0, 1, 1, 1, 1, 1, 0]
     """
     n_joints = signal.shape[1]
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     ratio = np.empty_like(out)
+    alarms = np.zeros(signal.shape, dtype=bool)
     bounds = np.append(starts, signal.shape[0])
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         state = RegimeState(n_joints=n_joints, **settings)
         window = np.zeros((min_duration, n_joints))
-        alarmed, regime, factor = False, 0, 1.0
+        alarmed, regime, factor, below, fired = False, 0, 1.0, 0, None
         for i, k in enumerate(range(lo, hi)):
             regime = regimes[k] = state.step(motion[k], out[k], regime if alarmed else None)
             window[i % min_duration] = np.abs(out[k])
@@ -335,5 +352,46 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
             if envelope is not None and regime == MOVING:
                 factor = factor if alarmed else envelope[k]
                 ratio[k] /= factor
-            alarmed = bool(ratio[k].max() > level)
-    return out, regimes, signal - out, ratio
+            alarmed, below, fired = release_step(ratio[k], level, alarmed, below, fired,
+                                                 release)
+            if alarmed:
+                alarms[k] = fired
+    return out, regimes, signal - out, ratio, alarms
+
+
+def release_step(ratio, level, alarmed, below, fired, release):
+    """One sample of the alarm state with a release time.
+
+    Parameters
+    ----------
+    ratio : ndarray of shape (n_joints,)
+    level : float
+    alarmed : bool
+        In alarm after the previous sample.
+    below : int
+        Samples at or below ``level`` since the alarm's last sample above it.
+    fired : ndarray of bool or None
+        Joints above ``level`` at that sample.
+    release : int
+        Samples at or below ``level`` that end an alarm.
+
+    Returns
+    -------
+    alarmed, below, fired
+
+    Examples
+    --------
+    >>> state = (False, 0, None)
+    >>> out = []
+    >>> for r in (2.0, 0.5, 0.5, 0.5):
+    ...     state = release_step(np.array([r]), 1.0, *state, release=2)
+    ...     out.append(state[0])
+    >>> out
+    [True, True, True, False]
+    """
+    above = ratio > level
+    if above.any():
+        return True, 0, above
+    if alarmed and below < release:
+        return True, below + 1, fired
+    return False, 0, None

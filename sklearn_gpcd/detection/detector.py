@@ -772,8 +772,12 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         Returns
         -------
         y_pred : ndarray of shape (n_samples,)
+            -1 where some joint fired in some band: where
+            :meth:`decision_function` is negative, and during an alarm's
+            release time (``Regimes(alarm_release=...)``), when the score is
+            back above zero but the contact is still judged on.
         """
-        return np.where(self.decision_function(X, groups) < 0, -1, 1)
+        return np.where(self.monitoring_signal(X, groups).alarms.any(axis=1), -1, 1)
 
     def predict_joints(self, X, groups=None):
         """Which joints fired (in some band), per sample (the paper's per-component test).

@@ -99,6 +99,15 @@ class Regimes(BaseEstimator):
         of its onset: a push that moves a still arm is judged at the rest
         thresholds while it lasts instead of relaxing them (one push, one
         event). 0: the regime follows the motion during alarms too.
+    alarm_release : float, default=0.0
+        Seconds the ratio must stay below the level before an alarm ends: a
+        contact whose force dips for less is one event, its regime held
+        through the dip (the joints that fired last stay in alarm; the
+        score follows the ratio). 0: an alarm ends at the first sample below.
+        Not on by default: on the real UR10e a 0.25 s release also prolongs
+        the alarms that linger after a push at rest (the held rest reference
+        meets the push's new stiction offset), so that the next push starts
+        inside them (results page, issue 38).
     motion_envelope : float or None, default=None
         Moving thresholds that follow the motion
         (:mod:`sklearn_gpcd.detection._envelope`): joint ``l``'s band widens
@@ -127,16 +136,18 @@ class Regimes(BaseEstimator):
         "brake_limit": [None, Interval(Real, 0, None, closed="neither")],
         "brake_hold": [Interval(Real, 0, None, closed="left")],
         "alarm_hold": [Interval(Real, 0, None, closed="left")],
+        "alarm_release": [Interval(Real, 0, None, closed="left")],
         "motion_envelope": [None, Interval(Real, 0, None, closed="neither")],
     }
 
     def __init__(self, settle_time=0.5, rest_reference=None, brake_limit=None, brake_hold=0.5,
-                 alarm_hold=1.0, motion_envelope=None):
+                 alarm_hold=1.0, alarm_release=0.0, motion_envelope=None):
         self.settle_time = settle_time
         self.rest_reference = rest_reference
         self.brake_limit = brake_limit
         self.brake_hold = brake_hold
         self.alarm_hold = alarm_hold
+        self.alarm_release = alarm_release
         self.motion_envelope = motion_envelope
 
     @property
@@ -504,16 +515,17 @@ class AlarmRule(BaseEstimator):
         signal, regime, reference = self.signal(u, starts, motion)
         ratio = self.ratio(signal, regime, starts, motion)
         level = -self.offset_
-        if self.regimes is not None and (ratio > level).any():
-            signal, regime, reference, ratio = self._held(u, starts, motion, ratio > level,
-                                                          (signal, regime, reference, ratio))
+        alarms = ratio > level
+        if self.regimes is not None and alarms.any():
+            signal, regime, reference, ratio, alarms = self._held(
+                u, starts, motion, alarms, (signal, regime, reference, ratio, alarms))
         return {"signal": signal, "regime": regime, "reference": reference, "ratio": ratio,
-                "alarms": ratio > level}
+                "alarms": alarms}
 
     def _held(self, u, starts, motion, alarms, stages):
-        """``stages`` (signal, regime, reference, ratio) with the segments that
-        alarm run again with the alarm hold."""
-        signal, regime, reference, ratio = (np.array(a, copy=True) for a in stages)
+        """``stages`` (signal, regime, reference, ratio, alarms) with the segments
+        that alarm run again with the alarm hold and release."""
+        signal, regime, reference, ratio, held = (np.array(a, copy=True) for a in stages)
         filtered, motion = self._filtered(u, starts), self._motion(motion)
         scales = np.atleast_2d(self.scale_)
         factor = self.envelope(motion, u.shape[1], starts)
@@ -522,10 +534,18 @@ class AlarmRule(BaseEstimator):
             if not alarms[lo:hi].any():
                 continue
             rows = slice(lo, hi)
-            signal[rows], regime[rows], reference[rows], ratio[rows] = held_regime_pass(
+            (signal[rows], regime[rows], reference[rows], ratio[rows],
+             held[rows]) = held_regime_pass(
                 filtered[rows], motion[rows], np.array([0]), self.regime_settings(), scales,
-                -self.offset_, self.min_duration, None if factor is None else factor[rows])
-        return signal, regime, reference, ratio
+                -self.offset_, self.min_duration, None if factor is None else factor[rows],
+                self.release_samples())
+        return signal, regime, reference, ratio, held
+
+    def release_samples(self):
+        """Samples below the level that end an alarm (0 without regimes)."""
+        if self.regimes is None:
+            return 0
+        return int(round(self.regimes.alarm_release / self.sample_time_))
 
     # ------------------------------------------------------- calibration
     def calibrate(self, u, starts=None, motion=None, *, sample_time, sigma_v=None, std=None,

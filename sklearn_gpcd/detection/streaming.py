@@ -197,6 +197,7 @@ class BandState:
                           else np.ones((rule.envelope_hold(), n_joints)))
         self._envelope_position = 0
         self._factor = None
+        self._release = rule.release_samples()
         self._transition, self._zi_unit = _filter_transition(rule.filter_coefficients_)
         order = self._transition.shape[0] - 1
         # [u; z] -> [y; z']: filter input and state, output and next state
@@ -238,6 +239,7 @@ class BandState:
         """Forget the filter, regime and debounce history."""
         self._fresh = True
         self.alarmed = False
+        self._below = 0
         self._fresh_envelope = True
         self.alarms[:] = False
         self._window[:] = 0.0
@@ -299,9 +301,14 @@ class BandState:
                     self._factor = self._envelope.max(axis=0)
                 self.ratio /= self._factor
         top = max(self.ratio.tolist())
-        if top > self.level or self.alarmed:  # else alarms is all False already
+        if top > self.level:
             np.greater(self.ratio, self.level, out=self.alarms)
-            self.alarmed = top > self.level
+            self.alarmed, self._below = True, 0
+        elif self.alarmed and self._below < self._release:
+            self._below += 1  # released only after _release samples below: alarms stay
+        elif self.alarmed:
+            self.alarms[:] = False
+            self.alarmed, self._below = False, 0
         return top
 
     def fault(self):
@@ -310,6 +317,7 @@ class BandState:
         self.ratio[:] = np.nan
         self.alarms[:] = False
         self.alarmed = False
+        self._below = 0
 
     def non_finite_joints(self):
         """Joints whose filter input, output or state was not finite in the last step."""
