@@ -173,7 +173,7 @@ def run(args):
                      f"(SP_C, GP); P_f, SP_S and SP_P need --robot (built-in: "
                      f"{', '.join(list_robots())}, or a URDF path)")
     if check is not None:
-        notes.append(check.text())
+        notes.append(check.text(sp_c_asked=model == "sp_c"))
         if not check.usable and model == "sp_c":
             notes.append("WARNING: --model sp_c asked for: its mean may absorb contacts")
     for note in notes:

@@ -135,8 +135,14 @@ class TargetCurrentCheck:
         """The target current may serve as a mean: decided, and follows on no joint."""
         return self.decided and not self.follows
 
-    def text(self):
+    def text(self, sp_c_asked=False):
         """The verdict in one line.
+
+        Parameters
+        ----------
+        sp_c_asked : bool, default=False
+            SP_C was asked for by name (``--model sp_c``): it is fitted on the
+            target current whatever the verdict, and the line says so.
 
         Returns
         -------
@@ -151,16 +157,17 @@ class TargetCurrentCheck:
         """
         ratios = " ".join("-" if not np.isfinite(r) else f"{r:.1f}" for r in self.ratio)
         detail = f"slow part of i - i_target {ratios} times the sensor noise"
+        then = ("SP_C is fitted on it all the same (--model sp_c)" if sp_c_asked
+                else "SP_C is not fitted and the inputs leave it out")
         if self.follows:
             joints = ", ".join(map(str, self.joints))
             return (f"target current: FOLLOWS the measured current on joint(s) {joints} "
                     f"({detail}, below {self.limit:g}): it includes the servo's feedback, so "
-                    "a contact would show in it too; SP_C is not fitted and the inputs leave "
-                    "it out")
+                    f"a contact would show in it too; {then}")
         if not self.decided:
             return ("target current: cannot tell whether it includes the servo's feedback "
                     f"(no joint moves for {FEEDBACK_MIN_WINDOWS} windows of "
-                    f"{FEEDBACK_WINDOW:g} s); SP_C is not fitted and the inputs leave it out")
+                    f"{FEEDBACK_WINDOW:g} s); {then}")
         return (f"target current: a feed-forward ({detail}, at least {self.limit:g} where "
                 "measured): a contact shows in i - i_target, the target can serve as a mean")
 
