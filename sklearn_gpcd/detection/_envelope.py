@@ -97,6 +97,38 @@ def held_factor(factor, starts, hold):
     return out
 
 
+def over_envelope(debounced, moving, features, coef, starts, hold):
+    """``debounced`` over the held envelope on the moving rows (1 elsewhere).
+
+    What the levels of a rule with a motion envelope are taken on.
+
+    Parameters
+    ----------
+    debounced : ndarray of shape (n_samples, n_joints)
+    moving : ndarray of bool, shape (n_samples,)
+    features : ndarray of shape (n_samples, n_joints, 4)
+        :func:`envelope_features`.
+    coef : ndarray of shape (n_joints, 3)
+    starts : ndarray of int
+        Segment starts (the hold restarts).
+    hold : int
+        Samples the envelope holds its largest value (:func:`held_factor`).
+
+    Returns
+    -------
+    normalized : ndarray of shape (n_samples, n_joints)
+
+    Examples
+    --------
+    >>> f = np.array([[[1.0, 0.0, 2.0, 0.0]], [[1.0, 0.0, 2.0, 0.0]]])
+    >>> over_envelope(np.array([[3.0], [3.0]]), np.array([True, False]), f,
+    ...               np.array([[0.0, 0.5, 0.0]]), np.array([0]), 1)[:, 0].tolist()
+    [1.5, 3.0]
+    """
+    factor = held_factor(envelope_factor(features, coef), starts, hold)
+    return debounced / np.where(moving[:, None], factor, 1.0)
+
+
 def window_peaks(debounced, moving, features):
     """The envelope's constraints of one recording: the peak of each window of motion.
 

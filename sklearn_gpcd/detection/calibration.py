@@ -33,7 +33,7 @@ from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
 
 from ..metrics import alarm_onsets
-from ._envelope import envelope_factor, envelope_features, fit_envelope, held_factor, window_peaks
+from ._envelope import envelope_features, fit_envelope, over_envelope, window_peaks
 from ._regimes import MOVING
 from ._thresholds import (
     MARGIN_RULES,
@@ -528,9 +528,9 @@ def _enveloped_series(rule, residuals):
         _, coef = fit_envelope([constraints[k] for k in keys])
         out = {}
         for key, (signal, regime, debounced, features) in raw.items():
-            held = held_factor(envelope_factor(features, coef), np.array([0]), hold)
-            factor = np.where((regime == MOVING)[:, None], held, 1.0)
-            out[key] = _excursion(rule, signal, regime, debounced / factor)
+            normalized = over_envelope(debounced, regime == MOVING, features, coef,
+                                       np.array([0]), hold)
+            out[key] = _excursion(rule, signal, regime, normalized)
         return out
 
     keys = list(raw)

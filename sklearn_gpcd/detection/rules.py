@@ -36,6 +36,7 @@ from ._envelope import (
     envelope_features,
     fit_envelope,
     held_factor,
+    over_envelope,
     window_peaks,
 )
 from ._regimes import MOVING, held_regime_pass, regime_names, regime_pass
@@ -461,7 +462,8 @@ class AlarmRule(BaseEstimator):
     def envelope(self, motion, n_joints, starts=None):
         """:math:`e_\\ell(x)` of every sample (as if moving); None without an envelope.
 
-        The largest value over the last 0.25 s (``_envelope.HOLD_SECONDS``).
+        The largest value of :meth:`instant_envelope` over the last 0.25 s
+        (``_envelope.HOLD_SECONDS``).
 
         Parameters
         ----------
@@ -475,11 +477,27 @@ class AlarmRule(BaseEstimator):
         -------
         factor : ndarray of shape (n_samples, n_joints) or None
         """
+        factor = self.instant_envelope(motion, n_joints)
+        if factor is None:
+            return None
+        return held_factor(factor, _starts(motion, starts), self.envelope_hold())
+
+    def instant_envelope(self, motion, n_joints):
+        """:math:`e_\\ell(x)` of each sample on its own, before the hold; None
+        without an envelope (a streaming monitor holds it over its own ring).
+
+        Parameters
+        ----------
+        motion : ndarray of shape (n_samples, 2 * n_joints)
+        n_joints : int
+
+        Returns
+        -------
+        factor : ndarray of shape (n_samples, n_joints) or None
+        """
         if getattr(self, "envelope_", None) is None:
             return None
-        return self._hold_envelope(
-            envelope_factor(self._features(motion, n_joints), self.envelope_),
-            _starts(motion, starts))
+        return envelope_factor(self._features(motion, n_joints), self.envelope_)
 
     def envelope_hold(self):
         """Samples the envelope holds its largest value."""
@@ -487,9 +505,6 @@ class AlarmRule(BaseEstimator):
 
     def _features(self, motion, n_joints):
         return envelope_features(self._motion(motion), n_joints, self.regimes.motion_envelope)
-
-    def _hold_envelope(self, factor, starts):
-        return held_factor(factor, starts, self.envelope_hold())
 
     def stages(self, u, starts=None, motion=None):
         """Every stage from the residual to the alarms.
@@ -619,8 +634,8 @@ class AlarmRule(BaseEstimator):
         _, self.envelope_ = fit_envelope([
             window_peaks(debounced[lo:hi], moving[lo:hi], features[lo:hi])
             for lo, hi in zip(bounds[:-1], bounds[1:])])
-        factor = self._hold_envelope(envelope_factor(features, self.envelope_), starts)
-        return debounced / np.where(moving[:, None], factor, 1.0)
+        return over_envelope(debounced, moving, features, self.envelope_, starts,
+                             self.envelope_hold())
 
     def _margin(self, debounced, regimes, recordings, shape):
         """The given margin, checked against the levels' shape, or the LORO one."""

@@ -290,7 +290,7 @@ class BandState:
         np.minimum.reduce(self._window, axis=0, out=self.ratio)
         self.ratio /= self._scale_rows[self.regime]
         if self._envelope is not None:
-            factor = self.rule.envelope(motion[None, :], self.ratio.size)[0]
+            factor = self.rule.instant_envelope(motion[None, :], self.ratio.size)[0]
             if self._fresh_envelope:  # the first sample fills the ring, as in batch
                 self._envelope[:] = factor
                 self._fresh_envelope = False

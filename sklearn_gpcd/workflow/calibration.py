@@ -464,7 +464,7 @@ def _warn_coverage(summary):
             f"it bounds the false-alarm rate only by {bound:.0f} per hour (95 %); record at "
             f"least {MIN_CALIBRATION_SECONDS / 60:g} min of collision-free motion, in several "
             "recordings, and run gpcd calibrate on them", CalibrationWarning, stacklevel=3)
-    several = len({k.rsplit("#", 1)[0] for k in summary["recordings"]}) > 1
+    several = summary["n_files"] > 1
     for name, cov in summary["coverage"].items():
         if cov["seconds"] == 0.0:
             problem = (f"no calibration data in the {name} regime: its thresholds are the "
