@@ -23,12 +23,9 @@ class MonitorStatus(str, Enum):
     - ``COLLISION`` (``"collision"``): a valid sample and at least one joint
       fired (``monitor.alarms`` tells which); the batch detector's
       ``predict`` gives -1 for this sample.
-    - ``SENSOR_FAULT`` (``"sensor_fault"``): the sample was missing (None),
-      held a NaN / infinite value, came with a time stamp that does not
-      advance, or gave a non-finite prediction. It is skipped: no decision
-      is made (``alarms`` all False), the filter and debounce state are
-      held, and the next valid sample is processed as if the faulty one had
-      never arrived. It is neither a collision nor an all-clear.
+    - ``SENSOR_FAULT`` (``"sensor_fault"``): the sample could not be used
+      and is skipped (see :class:`StreamingMonitor`): neither a collision
+      nor an all-clear.
 
     ``str(status)`` is the value, so statuses stored in a NumPy array or
     written to a log keep it (``np.asarray([...])`` gives ``'collision'``,
@@ -305,55 +302,27 @@ class StreamingMonitor(VersionedStateMixin):
     Memory is bounded (the debounce window is a ring buffer of
     ``min_duration`` rows) and a tick allocates no array.
 
-    The regressor's prediction is compiled once into a single-sample path
-    (see :func:`~sklearn_gpcd.gp.compile_predictor`): for a
-    GP, the support points are pre-scaled per ARD block, the weights and
-    parametric-mean coefficients are cached and the gated (quasi-static)
-    block is skipped while every gate is closed. ``normalize="std"`` needs
-    the predictive std each tick, which costs a triangular solve with the
-    support set; that goes through ``regressor.predict(..., return_std=True)``
-    and is much slower.
+    The prediction is compiled once into a single-sample path
+    (:func:`~sklearn_gpcd.gp.compile_predictor`); ``normalize="std"`` goes
+    through ``regressor.predict(..., return_std=True)`` and is much slower.
 
-    **Sensor faults.** A tick is a sensor fault when the sample is missing
-    (``x=None``), holds a NaN or infinite value (in the inputs or the
-    currents), has a ``time`` that is not strictly after the last accepted
-    sample's (a repeated or out-of-order packet), or gives a non-finite
-    prediction or monitoring signal. :meth:`update` then returns
-    ``MonitorStatus.SENSOR_FAULT`` -- never ``COLLISION``, never an
-    exception -- and drops the sample: the filter state, the debounce window
-    and ``last_time`` keep the values of the last valid sample. The monitor
-    recovers on the next valid sample, which is processed exactly as if the
-    faulty ones had never arrived: the decisions on the valid samples equal
-    the batch ``predict`` on those rows alone, whatever the number of faults
-    in between. So a fault does not end an alarm either: if a contact is
-    still there at the next valid sample, it is reported at once (the
-    debounce window still holds the contact's samples; there is no new
-    ``min_duration`` wait). ``fault_reason`` says what was wrong and
-    ``n_consecutive_faults`` counts the faults in a row. What a run of faults
-    means is the caller's policy (e.g. stop the robot when no valid sample
-    came for a few control periods); call :meth:`reset` after an outage long
-    enough that the held filter state is stale.
+    **Sensor faults.** A missing sample (``x=None``), a NaN or infinite
+    value, a ``time`` not after the last valid sample's, or a non-finite
+    prediction or signal makes :meth:`update` return
+    ``MonitorStatus.SENSOR_FAULT`` (never ``COLLISION``, never an exception)
+    and drop the sample: the next valid sample is processed as if the faulty
+    ones had never arrived, so a fault does not end an alarm either. A sample
+    of the wrong length or with non-numeric values is a wiring error
+    (``ValueError``, state unchanged). What a run of faults means is the
+    caller's policy; see the user guide's streaming page.
 
-    A sample of the wrong length or with non-numeric values is a wiring
-    error, not a sensor fault: :meth:`update` raises ``ValueError`` and
-    leaves the state and the counters unchanged.
-
-    **Raw samples.** Given ``features`` (a fitted
-    :class:`~sklearn_gpcd.features.CausalFeatures`, the one whose
-    ``transform`` built the detector's training inputs),
-    :meth:`update_raw` takes what the robot logs -- time, ``q``, ``qd``,
-    currents and the controller's targets -- and builds the input row
-    causally (:class:`~sklearn_gpcd.features.OnlineFeatures`). The batch
-    equivalent of :meth:`replay_recording` is ``detector.predict`` on
-    ``stack_currents(features.transform(recording), recording.current)``,
-    sample for sample. A raw sample with a non-finite value or a time stamp
-    that does not advance is a sensor fault that leaves the feature state
-    untouched too.
-
-    **Regimes and rest reference** (``AlarmRule(regimes=Regimes(...))``) run
-    in the same :class:`~sklearn_gpcd.detection._regimes.RegimeState` as the
-    batch detector; ``regime`` holds the last tick's regime code (of the
-    first band).
+    **Raw samples.** Given ``features`` (the fitted
+    :class:`~sklearn_gpcd.features.CausalFeatures` that built the detector's
+    training inputs), :meth:`update_raw` takes what the robot logs and
+    builds the input row causally; :meth:`replay_recording` equals
+    ``detector.predict`` on ``stack_currents(features.transform(rec),
+    rec.current)``, sample for sample. The regimes run in the batch
+    detector's :class:`~sklearn_gpcd.detection._regimes.AlarmState`.
 
     Parameters
     ----------
