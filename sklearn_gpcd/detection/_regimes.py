@@ -1,42 +1,12 @@
-"""Motion regimes of the arm and the rest re-reference of the monitoring signal.
+"""Motion regimes of the arm, the rest re-reference and the per-sample alarm state.
 
-At rest a joint's current holds a history-dependent offset: dry friction
-keeps whatever torque the servo was applying when the motion stopped
-(stiction), so the same pose is held with different currents depending on
-the way it was reached. No function of the pose predicts that offset, which
-is why the paper adds the quasi-static GP on augmented inputs (Eq. 13-17).
-On the real UR10e this is not enough: the offset at rest differs by up to
-0.7 A between still poses that the pose features cannot tell apart (issue
-14). What does predict it is the *history*: the current the joint held when
-the arm came to rest.
-
-This module is our extension of the paper (not in Dalla Libera et al.). Per
-sample, the arm is in one of three regimes, read from the joint velocities
-with the paper's threshold :math:`\\sigma_v` (Eq. 15) applied to the whole
-arm:
-
-- ``moving``: some joint has :math:`|\\dot q_\\ell| \\ge \\sigma_v`;
-- ``settling``: every joint is below :math:`\\sigma_v`, for less than
-  ``settle`` samples since the arm stopped (the friction and servo
-  transient of a stop);
-- ``rest``: every joint below :math:`\\sigma_v` for at least ``settle``
-  samples, or since the stream started (an arm that is still when
-  monitoring begins is at rest at once).
-- ``braking`` (only with a braking limit): from a sample where some joint's
-  acceleration exceeds the limit, :math:`|\\ddot q_\\ell| > \\ddot q_{max}`,
-  until ``hold`` samples after the last such sample, whatever the other
-  rules say. A hard stop rings the current by several ampere for about
-  half a second, for the controller's own expected current too; with the
-  limit set to the largest acceleration of the model's training data
-  (``training["acceleration_limit"]`` of
-  :func:`~sklearn_gpcd.workflow.train_model`), these are the samples the
-  model never saw, and they get their own thresholds
-  instead of inflating those of motion.
-
-At rest the monitoring signal is re-referenced: at rest entry the
-reference :math:`b_\\ell` is set to the signal :math:`m_\\ell` of that
-sample, then follows it slowly (time constant :math:`\\tau`, sampling
-period :math:`T`)
+Our extension of the paper (the user guide's real-robot page: "History at
+rest"). Per sample the arm is ``moving`` (some :math:`|\\dot q_\\ell| \\ge
+\\sigma_v`), ``settling`` (all still for less than ``settle`` samples since
+it stopped), at ``rest`` (still for longer, or since the stream started) or,
+with a braking limit, ``braking`` (for ``hold`` samples after some
+:math:`|\\ddot q_\\ell|` exceeds it). At rest the monitoring signal is
+re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
 
 .. math::
 
@@ -44,11 +14,10 @@ period :math:`T`)
     b_{k+1,\\ell} = b_{k\\ell} + \\beta\\,\\tilde m_{k\\ell}, \\qquad
     \\beta = 1 - e^{-T/\\tau},
 
-so a contact (a change of tenths of a second) shows in full while the slow
-relaxation of the held current after a stop does not (``tau=inf`` keeps
-the reference fixed). Outside rest :math:`\\tilde m = m`. A contact that
-builds up over many :math:`\\tau` at rest is absorbed: the price of the
-re-reference, documented in the user guide.
+so a contact shows in full while the slow relaxation of the current held
+after a stop does not. :class:`AlarmState` is the per-sample decision of one
+band that the batch detector and :class:`~sklearn_gpcd.detection.StreamingMonitor`
+share.
 """
 
 import numpy as np
@@ -165,16 +134,10 @@ class RegimeState:
         The braking regime overrides the others for the thresholds only: the
         rest reference follows the motion regimes as without it.
 
-        **A contact never relaxes its own threshold.** While the band is in
-        alarm the caller passes the regime of the alarm's onset as ``hold``:
-        it is returned whatever the motion says, and at rest the reference is
-        frozen (subtracted, not tracked). A push on a still arm moves it; without
-        the hold the arm would be ``moving`` at once, with the loose thresholds
-        of motion, and one push would be reported as several events. The
-        counters still advance, so when the alarm clears a displaced arm
-        settles again before it is at rest. The hold lasts ``alarm_hold``
-        samples at most: an alarm that outlasts it (a contact that stays, an
-        arm that moves on) is judged by the regime of the motion again.
+        **A contact never relaxes its own threshold**: while the band is in
+        alarm the caller passes the regime of the alarm's onset as ``hold``; it
+        is returned (at rest the reference is subtracted, not tracked) for
+        ``alarm_hold`` samples at most, while the counters advance.
 
         Parameters
         ----------
