@@ -378,6 +378,35 @@ class MonitorSession:
             out.append("  ".join(f"{value(e):{spec}}" for _, spec, value in columns))
         return "\n".join(out)
 
+    def summary_text(self, live=False):
+        """:meth:`events_text`, then (``live``) the tick latency and drops, and the
+        faults and how the stream ended when the exit status is not 0.
+
+        Parameters
+        ----------
+        live : bool, default=False
+            A live or replayed stream: add :meth:`live_statistics`.
+
+        Returns
+        -------
+        text : str
+        """
+        out = [self.events_text()]
+        stats = self.live_statistics() if live else None
+        if stats is not None:
+            out.append(f"  {stats['n_ticks']} ticks; latency receive -> decision p50 "
+                       f"{stats['latency_ms_p50']:.3f} ms, p99 {stats['latency_ms_p99']:.3f} "
+                       f"ms, max {stats['latency_ms_max']:.3f} ms; dropped samples "
+                       f"{stats['dropped_samples']}; decisions at most "
+                       f"{stats['behind_stream_ms_max']:.1f} ms behind the stream's clock")
+        if self.exit_status:
+            blind = sum(f["blind_s"] or 0.0 for f in self.faults)
+            out.append(f"  {self.n_blind} fault(s): blind {blind:.3f} s in total"
+                       + (f"; the stream ended abnormally: {self.end_reason}"
+                          if self.abnormal_end else "")
+                       + f" (exit status {self.exit_status})")
+        return "\n".join(out)
+
     def plot(self, key, folder):
         """One figure of recording ``key`` (``keep_series``): one axis per joint,
         alarm events shaded, alarms marked.
@@ -805,7 +834,15 @@ class MonitorSession:
         -------
         summary : dict
             What :meth:`finish` returns.
+
+        Raises
+        ------
+        ValueError
+            When the recording has another number of joints than the detector.
         """
+        if recording.n_joints != self.monitor.n_joints:
+            raise ValueError(f"{recording.name}: {recording.n_joints} joints but the detector "
+                             f"has {self.monitor.n_joints}")
         self.start(name)
         self.units = recording.units
         if speed is None:
@@ -815,6 +852,37 @@ class MonitorSession:
             for received, t, fields in paced(recording_samples(recording), speed, duration):
                 self.tick(t, fields, received)
         return self.finish()
+
+    def connect_rtde(self, host, port=30004, frequency=None):
+        """A connected RTDE client of a live UR controller, for :meth:`run_rtde`.
+
+        Parameters
+        ----------
+        host : str
+        port : int, default=30004
+        frequency : float or None, default=None
+            Output rate [Hz]; None: the detector's, ``1 / sample_time``.
+
+        Returns
+        -------
+        client : RTDEClient
+
+        Raises
+        ------
+        ValueError
+            When the detector does not have the 6 joints RTDE streams.
+        OSError
+            When no stream can be started.
+        """
+        from .io import RTDEClient
+
+        if self.monitor.n_joints != 6:
+            raise ValueError(f"RTDE streams 6 joints; the detector has {self.monitor.n_joints}")
+        client = RTDEClient(host, port, frequency or round(1.0 / self.sample_time, 6))
+        try:
+            return client.connect()
+        except (OSError, ConnectionError) as exc:
+            raise OSError(f"cannot start an RTDE stream from {host}:{port}: {exc}") from None
 
     def run_rtde(self, client, name, duration=None, reconnect_timeout=30.0):
         """Monitor a connected :class:`~sklearn_gpcd.io.RTDEClient` until the stream ends.
