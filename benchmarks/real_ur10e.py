@@ -323,7 +323,8 @@ def monitor_result(trained, options, blocks, unseen, pushes, push_blocks, labels
         result["candidates"] = [dict(c, params={k.removesuffix("_s"): v for k, v in
                                                 c["params"].items()})
                                 for c in summary["candidates"]] or None
-        result["fold_settings"] = None
+        result["fold_settings"] = {k: {n.removesuffix("_s"): v for n, v in p.items()}
+                                   for k, p in summary["fold_settings"].items()} or None
     else:
         result = {
             "margin": np.array([band["margin"] for band in summary["bands"]]),

@@ -128,7 +128,8 @@ def test_quick_run_on_real_data(bench, ur10e_dir, tmp_path):
                                       "P_f sel", "SP_S sel", "SP_C sel", *bench.BANDED.values(),
                                       "observer", "observer +R", "observer sel"}
     chosen = saved["monitors"]["SP_C sel"]
-    assert len(chosen["candidates"]) == 12
+    assert len(chosen["candidates"]) == 12 and len(chosen["fold_settings"]) == len(
+        saved["unseen_collision_free"])
     assert saved["unseen_minutes"] > 10
     assert not set(saved["train_files"]) & set(bench.HELD_OUT)
     for result in saved["monitors"].values():
