@@ -556,8 +556,8 @@ def print_row(row):
         return
     c, r = row["calibration"], row["result"]
     print(f"    model {row['model']}; margin {c['margin']:.2f}; settle "
-          f"{fmt(c['settle_time_s'], 'g')} s, rest ref {fmt(c['rest_reference_s'], 'g')} s; expected FA/h (nested) "
-          f"{fmt(c['false_alarms_per_hour'])}")
+          f"{fmt(c['settle_time_s'], 'g')} s, rest ref {fmt(c['rest_reference_s'], 'g')} s; "
+          f"expected FA/h (nested) {fmt(c['false_alarms_per_hour'])}")
     print(f"    unseen collision-free: {r['free_onsets']} onset(s) in {r['free_minutes']:.1f} min"
           f" = {r['false_alarms_per_hour']:.1f} per hour; "
           + (f"same task as calibrated: {r['same_task_onsets']} in "
