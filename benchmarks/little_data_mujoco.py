@@ -448,13 +448,24 @@ def analyse(det, features, summary, cal_path, logs, result, series):
             "peak_joint": int(j) + 1, "peak_ratio": float(r[i, j]), "regime": names[g],
             "threshold_A": float(thresholds[g, j]),
             "peak_A": float(r[i, j] * thresholds[g, j])})
-    for f in logs["free"]:
-        t, ratio, regime = series[Path(f["path"]).name]
+    for kind in ("free", "free_same"):
+        for f in logs.get(kind, []):
+            t, ratio, regime = series[Path(f["path"]).name]
+            worst = np.full(thresholds.shape, np.nan)
+            for g in np.unique(regime):
+                worst[g] = ratio[regime == g].max(axis=0)
+            out["free_logs"].append({"log": Path(f["path"]).name, "kind": kind,
+                                     "max_ratio_per_regime_joint": np.round(worst, 4).tolist()})
+    for log in logs["pushes"]:  # outside the pushes (and the second after each)
+        t, ratio, regime = series[Path(log["path"]).name]
+        free = np.ones(len(t), dtype=bool)
+        for p in log["pushes"]:
+            free &= ~((t >= p["start"]) & (t <= p["stop"] + CATCH_AFTER))
         worst = np.full(thresholds.shape, np.nan)
-        for g in np.unique(regime):
-            worst[g] = ratio[regime == g].max(axis=0)
-        out["free_logs"].append({"log": Path(f["path"]).name,
-                                 "max_ratio_per_regime_joint": np.round(worst, 3).tolist()})
+        for g in np.unique(regime[free]):
+            worst[g] = ratio[free & (regime == g)].max(axis=0)
+        out["free_logs"].append({"log": Path(log["path"]).name, "kind": "push_outside",
+                                 "max_ratio_per_regime_joint": np.round(worst, 4).tolist()})
     # which piece set the margin: the leave-one-piece-out factors of the pieces
     split = summary.get("split_s")
     cal = load_recording(cal_path)
@@ -598,19 +609,48 @@ def print_row(row):
         print(f"    false alarms by {regime} joint {joint}: {len(ms)} (threshold "
               f"{worst['threshold_A']:.3f} A); worst {worst['peak_A']:.3f} A = "
               f"{worst['peak_ratio']:.2f}x ({worst['log']} at {worst['start_s']:.2f} s)")
-    if a.get("free_logs"):
-        with warnings.catch_warnings():  # a regime no log reached: nan
-            warnings.simplefilter("ignore", RuntimeWarning)
-            worst = np.nanmax([np.where(np.isfinite(f["max_ratio_per_regime_joint"]),
-                                        f["max_ratio_per_regime_joint"], np.nan)
-                               for f in a["free_logs"]], axis=0)
-        print("    unseen logs, largest peak / threshold per regime (j1..j6): " + "; ".join(
-            f"{name} " + " ".join(fmt(v) for v in row)
-            for name, row in zip(row_regimes(row), worst)))
+    window = margin_window(row)
+    for kind, label in (("free", "unseen logs"), ("free_same", "same-task logs"),
+                        ("push_outside", "push logs outside the pushes")):
+        worst = window.get(f"worst_{kind}")
+        if worst is not None:
+            print(f"    {label}, largest debounced |m| / threshold per regime (j1..j6): "
+                  + "; ".join(f"{name} " + " ".join(fmt(v) for v in r)
+                              for name, r in zip(row_regimes(row), worst)))
+    if window:
+        need = max(window["need_free"], window.get("need_push_logs", 0.0))
+        print(f"    thresholds x f: no alarm on the unseen logs needs f > {window['need_free']:.2f}"
+              + (f", on the push logs outside the pushes f > {window['need_push_logs']:.2f}"
+                 if "need_push_logs" in window else "")
+              + (f" (same-task logs: f > {window['need_same']:.2f})" if "need_same" in window
+                 else "")
+              + f"; every push caught needs f < {window['push_min']:.2f}: "
+              + ("a window exists" if need < window["push_min"]
+                 else "NO factor does both"))
     if a.get("pushes"):
         ratios = sorted(m["peak_ratio"] for m in a["pushes"])
         print(f"    push peak / threshold (best joint): min {ratios[0]:.2f}, median "
               f"{np.median(ratios):.2f}")
+
+
+def margin_window(row):
+    """By how much the thresholds (all at once) must grow for 0 alarms on the unseen
+    logs, and may grow before the first push is missed (debounced ratios)."""
+    a = row.get("analysis") or {}
+    if not a.get("free_logs") or not a.get("pushes"):
+        return {}
+    out = {"push_min": min(m["peak_ratio"] for m in a["pushes"])}
+    names = {"free": "need_free", "free_same": "need_same", "push_outside": "need_push_logs"}
+    for kind in ("free", "free_same", "push_outside"):
+        tables = [f["max_ratio_per_regime_joint"] for f in a["free_logs"]
+                  if f.get("kind", "free") == kind]
+        if tables:
+            with warnings.catch_warnings():  # a regime no log reached: nan
+                warnings.simplefilter("ignore", RuntimeWarning)
+                worst = np.nanmax(np.array(tables, dtype=float), axis=0)
+            out[f"worst_{kind}"] = worst.tolist()
+            out[names[kind]] = float(np.nanmax(worst))
+    return out
 
 
 def setter(row):
@@ -621,6 +661,44 @@ def setter(row):
     top = max(pieces["factors"], key=lambda f: f["factor"])
     return (f"{top['piece'].rsplit('#', 1)[-1]} of {len(pieces['factors'])} pieces: "
             f"{top['regime']} j{top['joint']}")
+
+
+def print_summary(results):
+    """One line per case, monitor and calibration length."""
+    print(f"{'case':<9} {'monitor':<9} {'cal':>5} {'margin':>7} {'FA/h exp':>8} {'FA/h':>6} "
+          f"{'same/h':>6} {'push-log FA':>11} {'pushes':>7} {'med delay':>9} {'f for 0 FA':>10} "
+          f"{'f max':>6}  margin set by")
+    for case, r in results["cases"].items():
+        for row in r["rows"]:
+            if "error" in row:
+                print(f"{case:<9} {row['monitor']:<9} {row['length_s']:>5g} failed")
+                continue
+            c, s, w = row["calibration"], row["result"], margin_window(row)
+            print(f"{case:<9} {row['monitor']:<9} {row['length_s']:>5g} {c['margin']:>7.2f} "
+                  f"{fmt(c['false_alarms_per_hour'], '.1f'):>8} "
+                  f"{s['false_alarms_per_hour']:>6.1f} "
+                  f"{fmt(s.get('same_task_per_hour'), '.1f'):>6} "
+                  f"{len(s['push_log_false_alarms']):>11d} "
+                  f"{s['caught']:>3d}/{s['n_pushes']:<3d} {fmt(s['median_delay_s'], '.3f'):>9} "
+                  f"{fmt(max(w.get('need_free', 0), w.get('need_push_logs', 0)) or None):>10} "
+                  f"{fmt(w.get('push_min')):>6}  {setter(row)}")
+
+
+def reprint(path):
+    """The tables of a results JSON written by ``--output``, without running anything."""
+    results = json.loads(Path(path).read_text())
+    for case, r in results["cases"].items():
+        print(f"\n== case {case}: injected {json.dumps(r['truth']) or '-'} ==")
+        for row in r["rows"]:
+            print_row(row)
+        for run in r["short_check"]:
+            print(f"  gpcd calibrate on {SHORT_LENGTH:g} s, flags {run['flags']}: "
+                  + (f"refused: {run['error']}" if run["status"] else
+                     f"{len(run['warnings'])} warning(s)"))
+            for w in run["warnings"]:
+                print(f"    warning: {w}")
+    print(f"\nsummary (seed {results['seed']}; {results.get('seconds', 0):.0f} s)")
+    print_summary(results)
 
 
 def main(argv=None):
@@ -653,7 +731,13 @@ def main(argv=None):
                         help="simulate the training logs and train, then stop (with "
                         "--workdir, for a later --reuse)")
     parser.add_argument("--output", default=None, help="write the results as JSON here")
+    parser.add_argument("--print-json", default=None, metavar="JSON",
+                        help="print the tables of a results file written by --output, "
+                        "and stop")
     args = parser.parse_args(argv)
+    if args.print_json:
+        reprint(args.print_json)
+        return 0
     try:
         import mujoco  # noqa: F401
     except ImportError:
@@ -750,21 +834,7 @@ def main(argv=None):
         results["cases"][case] = {"truth": logs["truth"], "rows": rows, "short_check": short,
                                   "seconds": time.perf_counter() - t0}
     print(f"\nsummary (seed {args.seed}; {time.perf_counter() - start:.0f} s)")
-    print(f"{'case':<9} {'monitor':<9} {'cal':>5} {'margin':>7} {'FA/h exp':>8} {'FA/h':>6} "
-          f"{'same/h':>6} {'push-log FA':>11} {'pushes':>7} {'med delay':>9}  margin set by")
-    for case, r in results["cases"].items():
-        for row in r["rows"]:
-            if "error" in row:
-                print(f"{case:<9} {row['monitor']:<9} {row['length_s']:>5g} failed")
-                continue
-            c, s = row["calibration"], row["result"]
-            print(f"{case:<9} {row['monitor']:<9} {row['length_s']:>5g} {c['margin']:>7.2f} "
-                  f"{fmt(c['false_alarms_per_hour'], '.1f'):>8} "
-                  f"{s['false_alarms_per_hour']:>6.1f} "
-                  f"{fmt(s.get('same_task_per_hour'), '.1f'):>6} "
-                  f"{len(s['push_log_false_alarms']):>11d} "
-                  f"{s['caught']:>3d}/{s['n_pushes']:<3d} {fmt(s['median_delay_s'], '.3f'):>9}"
-                  f"  {setter(row)}")
+    print_summary(results)
     results["seconds"] = time.perf_counter() - start
     if args.output:
         from _common import write_json
