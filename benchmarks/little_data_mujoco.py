@@ -44,14 +44,23 @@ Protocol, fixed before any result was looked at:
    UR does (``target_q``, ``target_qd`` and ``target_current``, the servo's
    feed-forward over the nominal torque constants); the peer model
    (:class:`~sklearn_gpcd.dynamics.ControllerCurrent`) is saved in a model
-   file and calibrated and monitored by the same commands and flags.
+   file and calibrated and monitored by the same commands and flags. Added
+   after the first full run, to measure what a regime decided from the
+   commanded motion (the issue's deliverable 3) would do: ``i-i_des cmd``,
+   the peer on copies of the logs with ``q, qd := target_q, target_qd``
+   (its prediction reads ``target_current`` alone, so only its regimes and
+   rest reference change; ``--no-commanded-peer`` skips it).
 
 Why pushes are missed and false alarms raised (``analysis`` in the JSON):
 per push, the best joint's peak of the debounced ``|m|`` over its threshold
 in the regime it was in; per false alarm, the same; per unseen log, the
 largest ratio per regime; and which calibration piece set the margin (the
 leave-one-piece-out factors, from the public ``regime_excursions`` and
-``loro_margin`` on the same pieces).
+``loro_margin`` on the same pieces); per false alarm, the regime at its
+onset and what the controller commanded then (``target_qd``: moving,
+stopped less than 0.5 s before, still); and the factor window: by how much
+all thresholds must grow for no false alarm, and may grow before the first
+push is missed.
 
 Run ``python benchmarks/little_data_mujoco.py --output little_data.json``
 (about 15 min on a loaded 2-core machine; ``--quick`` for a smoke run:
@@ -107,6 +116,8 @@ PUSH_MIN_TORQUE = 30.0           # Nm on some joint at the reference pose
 #: An alarm event starting in [start, stop + CATCH_AFTER] catches the push.
 CATCH_AFTER = 1.0
 FALLBACK_SPLIT = 30.0
+#: The peer with regimes from the commanded motion (``commanded_copies``).
+PEER_COMMANDED = "i-i_des cmd"
 
 
 # -- the plant and its logs ---------------------------------------------------
@@ -252,6 +263,27 @@ def make_training(folder, seed, setup, quick, log_targets):
     return paths
 
 
+def commanded_copies(logs, folder, length):
+    """The logs with ``q, qd := target_q, target_qd``: the regimes then follow the
+    commanded motion. Only for the peer, whose prediction reads ``target_current``
+    alone, so that nothing but its regimes (and rest reference) changes."""
+    from sklearn_gpcd.io import load_recording, write_rtde_csv
+
+    folder.mkdir(parents=True, exist_ok=True)
+
+    def copy(path):
+        out = folder / Path(path).name
+        if not out.exists():
+            rec = load_recording(path)
+            write_rtde_csv(rec.replace(q=rec.target_q, qd=rec.target_qd), out,
+                           robot_comment=True)
+        return str(out)
+
+    return {**logs, "calibration": {length: copy(logs["calibration"][length])},
+            **{kind: [{**e, "path": copy(e["path"])} for e in logs.get(kind, [])]
+               for kind in ("free", "free_same", "pushes")}}
+
+
 # -- the commands ---------------------------------------------------------------
 def gpcd(*args):
     """Run ``python -m sklearn_gpcd.cli ARGS`` from the repository: (status, out, err, s)."""
@@ -329,7 +361,10 @@ def score(report, logs):
         for p in log["pushes"]:
             hits = [e for e in events if p["start"] <= e["start_s"] <= p["stop"] + CATCH_AFTER]
             first = min(hits, key=lambda e: e["start_s"]) if hits else None
+            ends = [e["end_s"] for e in events
+                    if e["end_s"] >= p["start"] and e["start_s"] <= p["stop"] + CATCH_AFTER]
             pushes.append({"log": Path(log["path"]).name, **p, "caught": bool(hits),
+                           "alarm_end_s": max(ends) if ends else None,
                            "delay_s": None if first is None else first["start_s"] - p["start"],
                            "joints": None if first is None else first["joints"]})
         for e in events:
@@ -412,7 +447,20 @@ def batch_run(det, features, logs, recs):
     return {"events": events}, series
 
 
-def analyse(det, features, summary, cal_path, logs, result, series):
+def commanded(rec, t0, before=0.5):
+    """What the controller commanded at ``t0``: "moving" (some ``target_qd`` nonzero),
+    "stopped < 0.5 s" (it was within ``before`` s), "still", or None without the signal."""
+    if rec.target_qd is None:
+        return None
+    cmd = np.abs(rec.target_qd).max(axis=1) > 1e-6
+    k = min(int(np.searchsorted(rec.time, t0)), len(cmd) - 1)
+    if cmd[k]:
+        return "moving"
+    recent = (rec.time >= t0 - before) & (rec.time <= t0)
+    return f"stopped < {before:g} s" if cmd[recent].any() else "still"
+
+
+def analyse(det, features, summary, cal_path, logs, result, series, recs):
     """Per push / false alarm / unseen log: peak debounced |m| over its threshold;
     which calibration piece set the margin."""
     from sklearn_gpcd.detection import loro_margin, regime_excursions, stack_currents
@@ -447,7 +495,9 @@ def analyse(det, features, summary, cal_path, logs, result, series):
             "log": e["recording"], "start_s": e["start_s"], "joints": e["joints"],
             "peak_joint": int(j) + 1, "peak_ratio": float(r[i, j]), "regime": names[g],
             "threshold_A": float(thresholds[g, j]),
-            "peak_A": float(r[i, j] * thresholds[g, j])})
+            "peak_A": float(r[i, j] * thresholds[g, j]),
+            "onset_regime": names[int(regime[w][0])],
+            "commanded": commanded(recs[e["recording"]], e["start_s"])})
     for kind in ("free", "free_same"):
         for f in logs.get(kind, []):
             t, ratio, regime = series[Path(f["path"]).name]
@@ -456,11 +506,14 @@ def analyse(det, features, summary, cal_path, logs, result, series):
                 worst[g] = ratio[regime == g].max(axis=0)
             out["free_logs"].append({"log": Path(f["path"]).name, "kind": kind,
                                      "max_ratio_per_regime_joint": np.round(worst, 4).tolist()})
-    for log in logs["pushes"]:  # outside the pushes (and the second after each)
-        t, ratio, regime = series[Path(log["path"]).name]
+    alarm_end = {(p["log"], p["start"]): p.get("alarm_end_s") for p in result["pushes"]}
+    for log in logs["pushes"]:  # outside the pushes, the second after and their alarms
+        key = Path(log["path"]).name
+        t, ratio, regime = series[key]
         free = np.ones(len(t), dtype=bool)
         for p in log["pushes"]:
-            free &= ~((t >= p["start"]) & (t <= p["stop"] + CATCH_AFTER))
+            end = max(p["stop"] + CATCH_AFTER, alarm_end.get((key, p["start"])) or 0.0)
+            free &= ~((t >= p["start"]) & (t <= end))
         worst = np.full(thresholds.shape, np.nan)
         for g in np.unique(regime[free]):
             worst[g] = ratio[free & (regime == g)].max(axis=0)
@@ -497,7 +550,7 @@ def run_monitor(name, model, logs, recs, folder, length, args, pickle, store, cl
     """Calibrate ``model`` on the ``length`` log (gpcd calibrate), score the test logs
     in batch with the detector file and, with ``cli``, with gpcd monitor too."""
     cal_log = logs["calibration"][length]
-    stem = name.replace(" ", "")
+    stem = "".join(c if c.isalnum() or c in "-_" else "" for c in name)
     det_path = folder / f"{stem}_{length:g}s.{'joblib' if pickle else 'skops'}"
     runs = calibrate(model, cal_log, length, det_path, args.calibrate_args,
                      args.fallback_split, pickle)
@@ -530,7 +583,7 @@ def run_monitor(name, model, logs, recs, folder, length, args, pickle, store, cl
     if not args.no_analysis:
         try:
             row["analysis"] = analyse(det, features, summary, cal_log, logs, row["result"],
-                                      series)
+                                      series, recs)
         except Exception as exc:  # the analysis reads detector internals that may move
             row["analysis"] = {"error": f"{type(exc).__name__}: {exc}"}
     return row
@@ -554,7 +607,7 @@ def row_regimes(row):
 def print_row(row):
     flags = row["calibrate_runs"][-1]["flags"]
     refused = [r for r in row["calibrate_runs"][:-1] if r["status"]]
-    head = f"  {row['monitor']:<9} cal {row['length_s']:>4g} s  gpcd calibrate {flags}"
+    head = f"  {row['monitor']:<11} cal {row['length_s']:>4g} s  gpcd calibrate {flags}"
     if "scored_by" in row:
         head += f"; scored by {row['scored_by']}"
         if "cli_equals_batch" in row:
@@ -609,6 +662,14 @@ def print_row(row):
         print(f"    false alarms by {regime} joint {joint}: {len(ms)} (threshold "
               f"{worst['threshold_A']:.3f} A); worst {worst['peak_A']:.3f} A = "
               f"{worst['peak_ratio']:.2f}x ({worst['log']} at {worst['start_s']:.2f} s)")
+    kinds = {}
+    for m in a.get("false_alarms", []):
+        if m.get("commanded") is not None:
+            key = f"{m['onset_regime']} while commanded {m['commanded']}"
+            kinds[key] = kinds.get(key, 0) + 1
+    if kinds:
+        print("    false alarms by regime at onset and the commanded motion (target_qd): "
+              + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items(), key=lambda kv: -kv[1])))
     window = margin_window(row)
     for kind, label in (("free", "unseen logs"), ("free_same", "same-task logs"),
                         ("push_outside", "push logs outside the pushes")):
@@ -665,16 +726,16 @@ def setter(row):
 
 def print_summary(results):
     """One line per case, monitor and calibration length."""
-    print(f"{'case':<9} {'monitor':<9} {'cal':>5} {'margin':>7} {'FA/h exp':>8} {'FA/h':>6} "
+    print(f"{'case':<9} {'monitor':<11} {'cal':>5} {'margin':>7} {'FA/h exp':>8} {'FA/h':>6} "
           f"{'same/h':>6} {'push-log FA':>11} {'pushes':>7} {'med delay':>9} {'f for 0 FA':>10} "
           f"{'f max':>6}  margin set by")
     for case, r in results["cases"].items():
         for row in r["rows"]:
             if "error" in row:
-                print(f"{case:<9} {row['monitor']:<9} {row['length_s']:>5g} failed")
+                print(f"{case:<9} {row['monitor']:<11} {row['length_s']:>5g} failed")
                 continue
             c, s, w = row["calibration"], row["result"], margin_window(row)
-            print(f"{case:<9} {row['monitor']:<9} {row['length_s']:>5g} {c['margin']:>7.2f} "
+            print(f"{case:<9} {row['monitor']:<11} {row['length_s']:>5g} {c['margin']:>7.2f} "
                   f"{fmt(c['false_alarms_per_hour'], '.1f'):>8} "
                   f"{s['false_alarms_per_hour']:>6.1f} "
                   f"{fmt(s.get('same_task_per_hour'), '.1f'):>6} "
@@ -720,6 +781,12 @@ def main(argv=None):
     parser.add_argument("--no-targets", action="store_true",
                         help="the plant logs no controller signals (then no peer)")
     parser.add_argument("--no-analysis", action="store_true")
+    parser.add_argument("--commanded-peer", action=argparse.BooleanOptionalAction,
+                        default=True,
+                        help="also the peer with regimes from the commanded motion, emulated "
+                        "(logs with q, qd := target_q, target_qd; the peer reads only "
+                        "target_current): what issue 38's 'regime from the commanded "
+                        "motion' would do for it (default: on)")
     parser.add_argument("--cli-monitor", choices=("model", "all", "none"), default="model",
                         help="which 2-min rows gpcd monitor scores (default: the trained "
                         "model's; the others are scored in batch with the same detector "
@@ -823,6 +890,16 @@ def main(argv=None):
                 print_row(row)
                 sys.stdout.flush()
                 rows.append(row)
+        if peer and args.commanded_peer:
+            cmd_logs = commanded_copies(logs, folder / "commanded", MAIN_LENGTH)
+            cmd_recs = {Path(e["path"]).name: load_recording(e["path"])
+                        for e in cmd_logs["free"] + cmd_logs["free_same"] + cmd_logs["pushes"]}
+            row = run_monitor(PEER_COMMANDED, peer_path, cmd_logs, cmd_recs, folder, MAIN_LENGTH,
+                              args, True, {}, False)
+            print_row(row)
+            sys.stdout.flush()
+            rows.append(row)
+            del cmd_recs
         del recs, stores
         short = short_check(model, logs, folder, args)
         for r in short:
