@@ -305,7 +305,7 @@ def calibrate(model, log, seconds, out, extra, fallback_split, pickle):
     args = [model, log, "-o", out, "-q", *trust, *extra]
     status, stdout, stderr, secs = gpcd("calibrate", *args)
     runs.append({"flags": " ".join(extra) or "(defaults)", "status": status,
-                 "stdout": stdout, "warnings": warnings_of(stderr),
+                 "warnings": warnings_of(stderr),
                  "error": stderr.strip().splitlines()[-1] if status else None,
                  "seconds": secs})
     if status and "--split" not in extra:
@@ -313,7 +313,7 @@ def calibrate(model, log, seconds, out, extra, fallback_split, pickle):
         flags = [*extra, "--split", f"{split:g}"]
         status, stdout, stderr, secs = gpcd("calibrate", model, log, "-o", out, "-q", *trust,
                                             *flags)
-        runs.append({"flags": " ".join(flags), "status": status, "stdout": stdout,
+        runs.append({"flags": " ".join(flags), "status": status,
                      "warnings": warnings_of(stderr),
                      "error": stderr.strip().splitlines()[-1] if status else None,
                      "seconds": secs})
@@ -577,7 +577,6 @@ def run_monitor(name, model, logs, recs, folder, length, args, pickle, store, cl
         cli_onsets = sorted((e["recording"], round(e["start_s"], 6))
                             for e in cli_report["events"])
         row["cli_equals_batch"] = batch_onsets == cli_onsets
-        row["batch_result"] = row["result"]
         row["result"] = score(cli_report, logs)
         row["scored_by"] = "gpcd monitor"
     if not args.no_analysis:
@@ -916,7 +915,9 @@ def main(argv=None):
     if args.output:
         from _common import write_json
 
-        write_json(args.output, results)
+        write_json(args.output, results)  # numpy and NaN made plain, then compact:
+        compact = json.loads(Path(args.output).read_text())
+        Path(args.output).write_text(json.dumps(compact, separators=(",", ":")))
         print(f"wrote {args.output}")
     return 0
 
