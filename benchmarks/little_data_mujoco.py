@@ -63,8 +63,10 @@ all thresholds must grow for no false alarm, and may grow before the first
 push is missed.
 
 Run ``python benchmarks/little_data_mujoco.py --output little_data.json``
-(about 15 min on a loaded 2-core machine; ``--quick`` for a smoke run:
-2 training runs, 2 unseen logs of 60 s, 2 push logs, 2 cases). Flags pass
+(measured on 2 cores shared at a load average of about 13: training 12.7
+min wall, 3 min CPU; the three cases 22 min wall, 8 min CPU, plus 2 min per
+case to simulate; ``--quick`` for a smoke run: 2 training runs, 2 unseen
+logs of 60 s, 2 push logs, 2 cases, 13 min wall). Flags pass
 through to the commands: ``--train-args``, ``--calibrate-args``,
 ``--monitor-args`` (one string each, shell-split). ``--workdir`` keeps the
 logs and the model; ``--reuse`` takes them from there instead of simulating
