@@ -115,7 +115,7 @@ def mjcf(robot, armature, injection=None):
 
 
 def simulate(robot, torque_constants, armature, injection=None, n_targets=8,
-             random_state=0, name=None):
+             random_state=0, name=None, *, reference=None, contacts=(), log_targets=False):
     """One logged run of the plant following a D1-like reference.
 
     Parameters
@@ -128,6 +128,20 @@ def simulate(robot, torque_constants, armature, injection=None, n_targets=8,
     n_targets : int, default=8
     random_state : int, default=0
         Seeds the reference and the noise.
+    reference : JointTrajectory, default=None
+        The joint reference to follow instead of the D1-like one (then
+        ``n_targets`` is ignored; ``random_state`` still seeds the noise).
+    contacts : sequence of sklearn_gpcd.datasets.Contact, default=()
+        External pushes: each one's force (frame "world") acts at its
+        ``point`` of link ``link`` (the MuJoCo body ``link{k}``, whose frame
+        is the package's joint frame) with its time profile, through
+        MuJoCo's ``mj_applyFT``; ``labels`` then mark them (0 free, k in the
+        k-th contact) and ``metadata["contacts"]`` gives their start and
+        stop in the recording's time.
+    log_targets : bool, default=False
+        Also log the controller's signals, as a UR does: ``target_q``,
+        ``target_qd`` (the reference) and ``target_current``, the servo's
+        feed-forward over the nominal torque constants (no feedback).
 
     Returns
     -------
@@ -151,7 +165,8 @@ def simulate(robot, torque_constants, armature, injection=None, n_targets=8,
     data, ff_data = mujoco.MjData(plant), mujoco.MjData(nominal)
     nominal.dof_frictionloss[:] = 0.0  # the servo's feed-forward has no friction model
     rng = np.random.default_rng(random_state)
-    ref = reference_d1(robot, n_targets=n_targets, random_state=random_state)
+    ref = (reference_d1(robot, n_targets=n_targets, random_state=random_state)
+           if reference is None else reference)
     n_steps = int(ref.duration / STEP)
     t_all = np.arange(n_steps) * STEP
     q_ref, qd_ref, qdd_ref = ref.sample(t_all)
@@ -164,6 +179,9 @@ def simulate(robot, torque_constants, armature, injection=None, n_targets=8,
     for j, o in inj.offset.items():
         offset[j] = o
     log_t, log_q, log_qd, cur_t, cur_i = [], [], [], [], []
+    log_k, ff_i = [], []
+    bodies = [mujoco.mj_name2id(plant, mujoco.mjtObj.mjOBJ_BODY, f"link{c.link}")
+              for c in contacts]
     for k in range(n_steps):
         t = t_all[k]
         for j, rate in inj.drift.items():
@@ -180,15 +198,41 @@ def simulate(robot, torque_constants, armature, injection=None, n_targets=8,
         data.ctrl[:] = 0.0
         data.qfrc_actuator[:] = 0.0
         data.qfrc_applied[:] += tau
+        for contact, body in zip(contacts, bodies):
+            s = float(contact.profile(t))
+            if s > 0.0:  # kinematics of the last step (1 ms old)
+                point = data.xpos[body] + data.xmat[body].reshape(3, 3) @ contact.point
+                mujoco.mj_applyFT(plant, data, s * contact.force, s * contact.moment, point,
+                                  body, data.qfrc_applied)
         # the logged current drives the joints: i = tau / K_true
         cur_t.append(t)
         cur_i.append(tau / (torque_constants * scale) + offset)
+        if log_targets:
+            ff_i.append(ff_data.qfrc_inverse / torque_constants)
         if k % LOG_EVERY == 0:
             log_t.append(t)
             log_q.append(data.qpos.copy())
             log_qd.append(data.qvel.copy())
+            log_k.append(k)
         mujoco.mj_step(plant, data)
-    return logged(log_t, log_q, log_qd, cur_t, cur_i, inj.delay, rng, name)
+    rec = logged(log_t, log_q, log_qd, cur_t, cur_i, inj.delay, rng, name)
+    if not (log_targets or len(contacts)):
+        return rec
+    # the samples logged() kept: the last rec.n_samples, shifted to start at 0
+    kept = np.array(log_k[len(log_k) - rec.n_samples:])
+    t0 = t_all[kept[0]]
+    extra = {}
+    if log_targets:
+        extra.update(target_q=q_ref[kept], target_qd=qd_ref[kept],
+                     target_current=np.array(ff_i)[kept])
+    if len(contacts):
+        from sklearn_gpcd.datasets import contact_labels
+
+        extra["labels"] = contact_labels(t_all[kept], contacts)
+        extra["metadata"] = {**rec.metadata, "contacts": [
+            {"link": c.link, "start": c.start - t0, "stop": c.stop - t0,
+             "force": c.force.tolist()} for c in contacts]}
+    return rec.replace(**extra)
 
 
 def logged(log_t, log_q, log_qd, cur_t, cur_i, delay, rng, name=None):
