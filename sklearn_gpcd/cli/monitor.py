@@ -173,7 +173,7 @@ def _monitor_rtde(args, session):
         client.connect()
     except (OSError, ConnectionError) as exc:
         raise OSError(f"cannot start an RTDE stream from {args.rtde}:{args.port}: "
-                      f"{exc}") from None
+                      f"{exc} (check --rtde HOST and --port)") from None
     print(f"monitoring {args.rtde}:{args.port} at {frequency:g} Hz (Ctrl-C stops)",
           flush=True)
     session.run_rtde(client, f"rtde://{args.rtde}:{args.port}", duration=args.duration,

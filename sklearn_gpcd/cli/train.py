@@ -160,8 +160,10 @@ def run(args):
             raise ValueError("--model sp_c needs the target current among the inputs; drop "
                              "--signals or include target_current in it")
         if (lacking := [r.name for r in recordings if r.target_current is None]):
-            raise ValueError(f"model sp_c needs the target current; {lacking[0]} does not "
-                             "log it")
+            raise ValueError(f"model sp_c needs the target current; {', '.join(lacking)} "
+                             f"do{'es' * (len(lacking) == 1)} not log it: leave "
+                             f"{'it' if len(lacking) == 1 else 'them'} out, or use --model "
+                             "auto (or gp)")
     n_recordings, n_joints = len(recordings), recordings[0].n_joints
     n_jobs = args.n_jobs if args.n_jobs is not None else min(n_joints, os.cpu_count() or 1)
     signals, check = _signals(args, recordings, model)
@@ -175,7 +177,8 @@ def run(args):
     if check is not None:
         notes.append(check.text(sp_c_asked=model == "sp_c"))
         if not check.usable and model == "sp_c":
-            notes.append("WARNING: --model sp_c asked for: its mean may absorb contacts")
+            notes.append("WARNING: --model sp_c asked for: its mean may absorb contacts "
+                         "(--model auto leaves SP_C out)")
     for note in notes:
         print(note, flush=True)
     notes, comparison = [], None
