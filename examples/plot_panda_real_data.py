@@ -32,22 +32,16 @@ pushes below are **simulated**: a torque added to the real measurements.
 # --------------------------
 import importlib.metadata
 import json
-import os
+import sys
 import tempfile
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-
-def find_data(name="panda_gaz"):
-    """``$GPCD_REAL_DATA/<name>`` if set, else ``../shared/data/real/<name>``; None if absent."""
-    if os.environ.get("GPCD_REAL_DATA"):
-        root = Path(os.environ["GPCD_REAL_DATA"]).expanduser()
-    else:
-        here = Path(__file__).resolve().parent if "__file__" in globals() else Path.cwd()
-        root = here.parent.parent / "shared" / "data" / "real"
-    return root / name if (root / name).is_dir() else None
+sys.path.insert(0, str(Path(__file__).resolve().parent if "__file__" in globals()
+                       else Path.cwd()))
+from _real_data import find_data  # noqa: E402  (examples/_real_data.py)
 
 
 def panda_urdf():
@@ -62,7 +56,7 @@ def panda_urdf():
     return None
 
 
-DATA, URDF = find_data(), panda_urdf()
+DATA, URDF = find_data("panda_gaz"), panda_urdf()
 if DATA is None:
     print("The Panda log was not found (set GPCD_REAL_DATA to the folder that holds "
           "panda_gaz/). Skipping this example.")
