@@ -188,9 +188,9 @@ def _first_joints(rec, n):
 
 
 def _bump(rec):
-    """A hard push on joint 2 in the middle of the run."""
+    """A hard push on joint 2 early in the run (the hook has the rest to end)."""
     current = rec.current.copy()
-    current[rec.n_samples // 2:rec.n_samples // 2 + 100, 1] += 200.0
+    current[rec.n_samples // 4:rec.n_samples // 4 + 100, 1] += 200.0
     return rec.replace(current=current)
 
 
@@ -352,6 +352,9 @@ T = {
     "hook-failed": lambda s, t, mp: dict(
         argv=["monitor", s["det"], _rtde(_bump(s["rec"]), t / "bump.csv"), "--hook", "false",
               "--json", t / "events.json", "-q"]),
+    "hook-not-started": lambda s, t, mp: dict(
+        argv=["monitor", s["det"], _rtde(_bump(s["rec"]), t / "bump.csv"), "--hook",
+              t / "no_such_command", "-q"]),
     "matplotlib-missing": lambda s, t, mp: _hide_matplotlib(mp) or dict(
         argv=["monitor", s["det"], s["d1"], "--plot", t / "figures", "-q"]),
 }
