@@ -34,7 +34,11 @@ Protocol
    cell calibrated on ``C`` without ``r`` is exceeded on ``r`` by a factor;
    the cell's margin is the largest such factor over ``r`` (at least 1), so
    that no left-out recording would have alarmed. The operating point is
-   ``CollisionDetector(margin=M)`` calibrated on all of ``C``.
+   ``CollisionDetector(margin=M)`` calibrated on all of ``C``. Every main
+   monitor is calibrated by ``sklearn_gpcd.workflow.calibrate_detector``,
+   the function of ``gpcd calibrate`` (``PLAIN``, ``REST``, ``SELECTED``,
+   ``banded_options``: ``--rest-reference 0 --no-select``, ``--rest-reference
+   5 --no-select``, ``--select``, and the bands' options).
 5. **false alarms, nested**: for each ``r`` in ``C``, margins and levels are
    chosen as in 4 on ``C`` without ``r`` only, and the alarm onsets on ``r``
    counted: the false-alarm figure never saw ``r``, not even through the
@@ -44,7 +48,7 @@ Protocol
    pairs with the fewest nested alarm onsets on the calibration recordings,
    the one with the smallest time-weighted thresholds at its own LORO
    margin; for the nested false alarms of ``r`` the pair is chosen without
-   ``r`` too (``calibrate_across_recordings(param_grid=...)``).
+   ``r`` too.
 6. **events**: at the operating point, every
    labelled push of ``collision_push_pose`` scored (detected, delay) with
    the labels of ``benchmarks/labels/ur10e_events.json`` (made from the data
@@ -67,9 +71,9 @@ task too). The "bands" monitors (our extension, ``BANDED``) run the
 peer, SP_C and P_f~ (P_f with a smooth Coulomb column, ``COULOMB_WIDTH``)
 with two alarm rules (a fast second band beside the rule's, alarm when
 either fires) and the braking regime (``brake_limit`` at the training runs'
-largest causal ``|qdd|``), calibrated by ``calibrate_across_recordings``
-with the fast band chosen among ``FAST_BANDS`` across the recordings
-(``param_grid`` of the last rule): each recording's nested
+largest causal ``|qdd|``), calibrated with the fast band chosen among
+``FAST_BANDS`` across the recordings (``gpcd calibrate --band-candidate``):
+each recording's nested
 false alarms are counted with the band, margins and levels chosen on the
 other recordings alone; P_f~ on the 2020 task too, each file with the band
 chosen on its own calibration pool.
@@ -108,13 +112,14 @@ from sklearn_gpcd.detection import (
     REGIME_NAMES,
     Regimes,
     calibrate_across_recordings,
+    nested_alarms,
     regime_excursions,
     regime_levels,
     stack_currents,
 )
 from sklearn_gpcd.detection import loro_margin as _loro_margin  # noqa: E402
 from sklearn_gpcd.detection import nested_false_alarms as _nested_false_alarms  # noqa: E402
-from sklearn_gpcd.workflow import SELECT_GRID, band_label, band_settings  # noqa: E402
+from sklearn_gpcd.workflow import band_label, band_settings  # noqa: E402
 from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
 from sklearn_gpcd.experiments.paper import Progress, split_nmse  # noqa: E402
 from sklearn_gpcd.features import contiguous_segments  # noqa: E402
@@ -158,8 +163,9 @@ BANDED_SETTINGS = {"settle_time": 3.0, "rest_reference": 2.0}
 #: union, then the smallest thresholds, is chosen without the recording scored.
 FAST_BANDS = ((4.0, 2, 5), (6.0, 1, 5), (8.0, 1, 3), (10.0, 1, 3), (10.0, 2, 3),
               (10.0, 1, 2), (15.0, 1, 3), (20.0, 1, 3))
-BAND_GRID = [{"filter_cutoff": [c], "filter_order": [o], "min_duration": [d]}
-             for c, o, d in FAST_BANDS]
+BAND_CANDIDATES = [{"filter_cutoff": c, "filter_order": o, "min_duration": d}
+                   for c, o, d in FAST_BANDS]
+BAND_GRID = [{k: [v] for k, v in c.items()} for c in BAND_CANDIDATES]
 #: The banded monitors: model name -> shown name.
 BANDED = {PEER: PEER + " bands", "P_f~": "P_f~ bands", "SP_C": "SP_C bands"}
 TABLES = "real_ur10e_tables.rst.inc"
@@ -270,54 +276,94 @@ def band_text(rule):
     return band_label(band_settings(rule))
 
 
-def flat(params):
-    """Candidate settings with the regimes' names unnested, as the JSON keeps them."""
-    return {k.removeprefix("regimes__"): v for k, v in params.items()}
+#: The main monitors' ``calibrate_detector`` options (``gpcd calibrate``): the
+#: rule at its 0.5 s settle time without rest reference (plain), with the rest
+#: reference ("+R"), and with both chosen from ``SELECT_GRID`` ("sel").
+PLAIN = {"rest_reference": 0, "select": False}
+REST = {"rest_reference": REST_TAU, "select": False}
+SELECTED = {"select": True}
 
 
-def banded_result(model, limit, blocks, unseen, pushes, push_blocks, labels):
-    """A banded monitor (:func:`banded_detector`, ``BANDED_SETTINGS``) on ``C``:
-    every band calibrated across the recordings, the fast one chosen from
-    ``BAND_GRID``, nested false alarms of the union of the bands
-    (``calibrate_across_recordings``), pushes scored at the operating
-    point. The result has the keys of the other monitors; ``thresholds`` are
-    the first (2 Hz) band's, ``band_thresholds`` every band's, ``fold_settings``
-    the fast band chosen without each recording."""
-    calibration = calibrate_across_recordings(
-        banded_detector(model, limit, **BANDED_SETTINGS), blocks, times_of(unseen),
-        rule=MARGIN_RULE, param_grid=BAND_GRID)
-    det = calibration.detector
-    return {
-        "margin": np.array([np.max(band.margin) for band in calibration.bands]),
-        "thresholds": np.atleast_2d(det.rules_[0].thresholds_),
-        "band_thresholds": [np.atleast_2d(rule.thresholds_) for rule in det.rules_],
-        "bands": [band_text(rule) for rule in det.rules_], "brake_limit": limit,
-        "onsets_by_margin_rule": {MARGIN_RULE: calibration.n_false_alarms},
-        "candidates": [{"params": c["params"], "n_false_alarms": c["n_false_alarms"],
-                        "score": c["score"], "rank": c["rank"]}
-                       for c in calibration.candidates],
-        "fold_settings": calibration.fold_settings or None,
-        **operating_point(det, calibration.folds, pushes, push_blocks, labels),
-    }
+def trained_model(model, features):
+    """A fitted ``model`` of the causal inputs ``features``, as ``train_model`` returns it."""
+    return TrainedModel(regressor=model, features=features)
 
 
-def monitor_result(model, tau, grid, blocks, unseen, pushes, push_blocks, labels):
-    """One monitor of the main table: ``detector(model, tau)`` calibrated across the
-    unseen recordings (settings chosen from ``grid`` when given), nested false
-    alarms by every margin rule, pushes scored. Returns ``(result, calibration)``."""
-    calibration = calibrate_across_recordings(
-        detector(model, tau), blocks, times_of(unseen), rule=MARGIN_RULE, param_grid=grid)
-    det = calibration.detector
-    by_rule = {rule: sum(len(f["onsets"]) for f in nested_false_alarms(
-        calibration.series, unseen, rule).values()) for rule in MARGIN_RULES}
-    return {
-        "margin": calibration.margin, "thresholds": np.atleast_2d(det.thresholds_),
-        "onsets_by_margin_rule": by_rule,
-        "candidates": ([dict(c, params=flat(c["params"])) for c in calibration.candidates]
-                       if grid else None),
-        "fold_settings": {k: flat(v) for k, v in calibration.fold_settings.items()} or None,
-        **operating_point(det, calibration.folds, pushes, push_blocks, labels),
-    }, calibration
+def banded_options(limit):
+    """The banded monitors' ``calibrate_detector`` options: ``BANDED_SETTINGS``,
+    braking above ``limit`` and a fast band chosen among ``FAST_BANDS``."""
+    return {**BANDED_SETTINGS, "braking": limit, "band_candidates": BAND_CANDIDATES}
+
+
+def monitor_result(trained, options, blocks, unseen, pushes, push_blocks, labels):
+    """One monitor: ``calibrate_detector(trained, C, **options)`` (``gpcd
+    calibrate``) on the unseen recordings ``C``, pushes scored at its
+    operating point. ``margin`` is the first band's (per band with several
+    bands), ``onsets_by_margin_rule`` the nested onsets of the chosen settings
+    by every margin rule (one band; the union's by ``MARGIN_RULE`` with
+    bands), ``band_thresholds`` every band's and ``fold_settings`` the
+    fast band chosen without each recording."""
+    calibrated, _ = _recipe(trained, list(unseen.values()), list(unseen), options)
+    det, summary = calibrated.detector, calibrated.calibration
+    times = times_of(unseen)
+    series = band_series(det, blocks, times)
+    alarms = [nested_alarms(s, MARGIN_RULE) for s in series]
+    folds = {}
+    for key, onsets in summary["nested_onsets_s"].items():
+        t = times[key] - times[key][0]
+        alarm = np.logical_or.reduce([a[key] for a in alarms])
+        folds[key] = {"onsets": onsets, "hours": float(t[-1] / 3600.0),
+                      "first_second_alarm_samples": int(alarm[t < 1.0].sum())}
+    result = {"margin": det.rules_[0].margin, "thresholds": np.atleast_2d(det.thresholds_)}
+    if "bands" not in summary:
+        result["onsets_by_margin_rule"] = {
+            rule: sum(len(f["onsets"]) for f in nested_false_alarms(series[0], unseen,
+                                                                     rule).values())
+            for rule in MARGIN_RULES}
+        result["candidates"] = [dict(c, params={k.removesuffix("_s"): v for k, v in
+                                                c["params"].items()})
+                                for c in summary["candidates"]] or None
+        result["fold_settings"] = {k: {n.removesuffix("_s"): v for n, v in p.items()}
+                                   for k, p in summary["fold_settings"].items()} or None
+    else:
+        result = {
+            "margin": np.array([band["margin"] for band in summary["bands"]]),
+            "thresholds": result["thresholds"],
+            "band_thresholds": [np.atleast_2d(rule.thresholds_) for rule in det.rules_],
+            "bands": [band_text(rule) for rule in det.rules_],
+            "brake_limit": options.get("braking"),
+            "onsets_by_margin_rule": {MARGIN_RULE: summary["n_false_alarms_nested"]},
+            "candidates": [dict(c, params=band_params(c["params"]))
+                           for c in summary["band_candidates"]],
+            "fold_settings": {k: band_params(s) for k, s in
+                              summary["fold_band_settings"].items()} or None}
+    return {**result, **operating_point(det, folds, pushes, push_blocks, labels)}
+
+
+def band_params(settings):
+    """:class:`AlarmRule` parameters of a band from ``band_settings``.
+
+    >>> band_params({"filter_cutoff_hz": 10.0, "filter_order": 1, "debounce_samples": 2})
+    {'filter_cutoff': 10.0, 'filter_order': 1, 'min_duration': 2}
+    """
+    return {"filter_cutoff": settings["filter_cutoff_hz"],
+            "filter_order": settings["filter_order"],
+            "min_duration": settings["debounce_samples"]}
+
+
+def band_series(det, blocks, times):
+    """:func:`regime_excursions` of each band of the fitted ``det`` (the others
+    through a detector of that band alone, fitted on ``blocks``)."""
+    series = [regime_excursions(det, blocks)]
+    if len(det.rules_) > 1:
+        keys = list(blocks)
+        Z = np.concatenate([blocks[k] for k in keys])
+        groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
+        time = np.concatenate([times[k] for k in keys])
+        for rule in det.rules[1:]:
+            alone = clone(det).set_params(rules=rule).fit(Z, groups=groups, time=time)
+            series.append(regime_excursions(alone, blocks))
+    return series
 
 
 def operating_point(det, folds, pushes, push_blocks, labels):
@@ -544,8 +590,7 @@ def same_task_recipes(data, models, unseen, pushes, labels, progress):
     monitored; nested onsets, pushes detected, delays."""
     out = {}
     for name in ("P_f", "SP_S", "SP_C"):
-        trained = TrainedModel(regressor=models[name], features=data.features,
-                               training={"model": MODELS[name]})
+        trained = trained_model(models[name], data.features)
         for recipe in SAME_TASK_RECIPES:
             tic = time.perf_counter()
             calibrated, messages = _recipe(trained, list(unseen.values()), list(unseen),
@@ -653,12 +698,12 @@ def observer_rows(root, train, features, blocks, unseen, pushes, push_blocks, la
              f"s, sample time {observer.sample_time:g} s, residual RMS [A] "
              f"{np.round(observer.residual_std_, 3).tolist()}")
     # the rule of every monitor; "+R" and "sel" as for the peer and the GP monitors
-    variants = {OBSERVER: (None, None), OBSERVER + " +R": (REST_TAU, None),
-                OBSERVER + " sel": (REST_TAU, SELECT_GRID)}
-    for name, (tau, grid) in variants.items():
+    trained = trained_model(observer, features)
+    variants = {OBSERVER: PLAIN, OBSERVER + " +R": REST, OBSERVER + " sel": SELECTED}
+    for name, options in variants.items():
         tic = time.perf_counter()
-        res = results[name] = monitor_result(observer, tau, grid, blocks, unseen, pushes,
-                                             push_blocks, labels)[0]
+        res = results[name] = monitor_result(trained, options, blocks, unseen, pushes,
+                                             push_blocks, labels)
         progress(f"{name}: settle {res['settle_time_s']:g} s, rest reference "
                  f"{seconds_text(res['rest_reference_s'], unit=' s')}; {res['onsets']} alarm "
                  f"onset(s) on unseen collision-free data (nested LORO; by margin rule "
@@ -802,25 +847,23 @@ def main(argv=None):
 
     blocks = {k: stack_currents(features.transform(r), r.current) for k, r in unseen.items()}
     push_blocks = {k: stack_currents(features.transform(r), r.current) for k, r in pushes.items()}
-    # name -> (model, rest reference, settings chosen across the recordings or None)
-    monitors = {name: (model, None, None) for name, model in models.items()}
-    monitors[PEER + " +R"] = (models[PEER], REST_TAU, None)
-    monitors["SP_C +R"] = (models["SP_C"], REST_TAU, None)
+    # name -> (model, calibrate_detector options)
+    monitors = {name: (model, PLAIN) for name, model in models.items()}
+    monitors[PEER + " +R"] = (models[PEER], REST)
+    monitors["SP_C +R"] = (models["SP_C"], REST)
     for name in (PEER, "P_f", "SP_S", "SP_C"):
-        monitors[name + " sel"] = (models[name], REST_TAU, SELECT_GRID)
+        monitors[name + " sel"] = (models[name], SELECTED)
 
     # -- margins by leave-one-recording-out, nested false alarms, events -------
     results = {}
-    for name, (model, tau, grid) in monitors.items():
+    for name, (model, options) in monitors.items():
         tic = time.perf_counter()
-        res, calibration = monitor_result(model, tau, grid, blocks, unseen, pushes,
-                                          push_blocks, labels)
-        results[name] = res
+        res = results[name] = monitor_result(trained_model(model, features), options,
+                                             blocks, unseen, pushes, push_blocks, labels)
         by_rule = res["onsets_by_margin_rule"]
         tau_text = seconds_text(res["rest_reference_s"], unit=" s")
-        n_distinct = len(set(map(str, calibration.fold_settings.values())))
-        chosen = (f"settings chosen: settle {res['settle_time_s']:g} s, rest reference {tau_text} "
-                  f"({n_distinct} distinct in the nested folds); " if grid else "")
+        chosen = (f"settings chosen: settle {res['settle_time_s']:g} s, rest reference "
+                  f"{tau_text}; " if options is SELECTED else "")
         progress(f"{name}: {chosen}{res['onsets']} alarm onset(s) on unseen collision-free "
                  f"data (nested LORO; by margin rule {by_rule}), {res['n_detected']}/"
                  f"{res['n_events']} pushes detected, "
@@ -843,8 +886,9 @@ def main(argv=None):
              f"{BANDED_SETTINGS['rest_reference']:g} s")
     for name, shown in BANDED.items():
         tic = time.perf_counter()
-        res = results[shown] = banded_result(models[name], limit, blocks, unseen, pushes,
-                                             push_blocks, labels)
+        res = results[shown] = monitor_result(
+            trained_model(models[name], features), banded_options(limit), blocks, unseen,
+            pushes, push_blocks, labels)
         chosen = Counter(band_text(AlarmRule(**s)) for s in res["fold_settings"].values())
         progress(f"{shown}: fast band {res['bands'][-1]} (chosen on all; in the nested "
                  f"folds {dict(chosen)}); {res['onsets']} alarm onset(s) of the union of the "

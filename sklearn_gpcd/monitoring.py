@@ -44,7 +44,7 @@ import numpy as np
 
 from .workflow.calibration import band_label, band_settings
 
-__all__ = ["BLIND", "MONITORING", "RECOVERING", "HookWarning", "MonitorSession",
+__all__ = ["BLIND", "EVENT_GAP", "MONITORING", "RECOVERING", "HookWarning", "MonitorSession",
            "paced", "recording_samples", "stall_bound"]
 
 #: State of a session whose decisions are those of the detector.
@@ -63,6 +63,12 @@ FAULT_EXIT_STATUS = 3
 MAX_FAULT_RECORDS = 1000
 #: Line colours of the bands in a multi-band figure (C3, red, shades the events).
 BAND_COLORS = ("C0", "C2", "C4", "C1", "C5", "C6", "C8", "C9")
+
+
+#: Quiet time [s] below which two alarms are one event (MonitorSession):
+#: a contact's signal can flicker about its threshold for a few tenths of a
+#: second (gaps of 60 and 120 ms inside real UR10e pushes).
+EVENT_GAP = 0.25
 
 
 class HookWarning(UserWarning):
@@ -239,6 +245,13 @@ class MonitorSession:
     stall_timeout : float, default=None
         Stall bound [s]; None: :func:`stall_bound` of the detector's sample
         time.
+    event_gap : float, default=EVENT_GAP
+        An alarm that starts less than this [s] after the last alarm sample
+        extends the open event (no new ``ALARM`` line, no second hook): a
+        contact whose signal flickers about its threshold is one event
+        (:func:`~sklearn_gpcd.metrics.alarm_onsets` with the same
+        ``event_gap`` counts the events of a recording). 0 closes an event
+        at the first sample without alarm.
 
     Attributes
     ----------
@@ -294,7 +307,7 @@ class MonitorSession:
     """
 
     def __init__(self, detector, features, *, hook=None, keep_series=False, echo=False,
-                 band_labels=None, stall_timeout=None):
+                 band_labels=None, stall_timeout=None, event_gap=EVENT_GAP):
         from .detection import StreamingMonitor
 
         self.monitor = StreamingMonitor(detector, features=features)
@@ -312,6 +325,7 @@ class MonitorSession:
                               else float(stall_timeout))
         self.warmup_s = max(self._warmup(band.rule) for band in self.bands)
         self.hook, self.keep_series, self.echo = hook, keep_series, echo
+        self.event_gap = float(event_gap)
         self.events, self.recordings, self.faults = [], [], []
         self.n_blind, self.hook_failures = 0, 0
         self.end_reason, self.abnormal_end = None, False
@@ -362,6 +376,35 @@ class MonitorSession:
         out.append("  ".join(f"{name:{spec}}" for name, spec, _ in columns))
         for e in self.events:
             out.append("  ".join(f"{value(e):{spec}}" for _, spec, value in columns))
+        return "\n".join(out)
+
+    def summary_text(self, live=False):
+        """:meth:`events_text`, then (``live``) the tick latency and drops, and the
+        faults and how the stream ended when the exit status is not 0.
+
+        Parameters
+        ----------
+        live : bool, default=False
+            A live or replayed stream: add :meth:`live_statistics`.
+
+        Returns
+        -------
+        text : str
+        """
+        out = [self.events_text()]
+        stats = self.live_statistics() if live else None
+        if stats is not None:
+            out.append(f"  {stats['n_ticks']} ticks; latency receive -> decision p50 "
+                       f"{stats['latency_ms_p50']:.3f} ms, p99 {stats['latency_ms_p99']:.3f} "
+                       f"ms, max {stats['latency_ms_max']:.3f} ms; dropped samples "
+                       f"{stats['dropped_samples']}; decisions at most "
+                       f"{stats['behind_stream_ms_max']:.1f} ms behind the stream's clock")
+        if self.exit_status:
+            blind = sum(f["blind_s"] or 0.0 for f in self.faults)
+            out.append(f"  {self.n_blind} fault(s): blind {blind:.3f} s in total"
+                       + (f"; the stream ended abnormally: {self.end_reason}"
+                          if self.abnormal_end else "")
+                       + f" (exit status {self.exit_status})")
         return "\n".join(out)
 
     def plot(self, key, folder):
@@ -516,7 +559,7 @@ class MonitorSession:
             self.cross_start = None
         if mon.alarms.any():
             self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
-        elif self.open is not None:
+        elif self.open is not None and rel - self.open["end_s"] >= self.event_gap:
             self._close()
         if self.keep_series:
             s = self.series
@@ -793,7 +836,15 @@ class MonitorSession:
         -------
         summary : dict
             What :meth:`finish` returns.
+
+        Raises
+        ------
+        ValueError
+            When the recording has another number of joints than the detector.
         """
+        if recording.n_joints != self.monitor.n_joints:
+            raise ValueError(f"{recording.name}: {recording.n_joints} joints but the detector "
+                             f"has {self.monitor.n_joints}")
         self.start(name)
         self.units = recording.units
         if speed is None:
@@ -803,6 +854,38 @@ class MonitorSession:
             for received, t, fields in paced(recording_samples(recording), speed, duration):
                 self.tick(t, fields, received)
         return self.finish()
+
+    def connect_rtde(self, host, port=30004, frequency=None):
+        """A connected RTDE client of a live UR controller, for :meth:`run_rtde`.
+
+        Parameters
+        ----------
+        host : str
+        port : int, default=30004
+        frequency : float or None, default=None
+            Output rate [Hz]; None: the detector's, ``1 / sample_time``.
+
+        Returns
+        -------
+        client : RTDEClient
+
+        Raises
+        ------
+        ValueError
+            When the detector does not have the 6 joints RTDE streams.
+        OSError
+            When no stream can be started.
+        """
+        from .io import RTDEClient
+
+        if self.monitor.n_joints != 6:
+            raise ValueError(f"RTDE streams 6 joints; the detector has {self.monitor.n_joints}")
+        client = RTDEClient(host, port, frequency or round(1.0 / self.sample_time, 6))
+        try:
+            return client.connect()
+        except (OSError, ConnectionError) as exc:
+            raise OSError(f"cannot start an RTDE stream from {host}:{port}: {exc} (check "
+                          "--rtde HOST and --port)") from None
 
     def run_rtde(self, client, name, duration=None, reconnect_timeout=30.0):
         """Monitor a connected :class:`~sklearn_gpcd.io.RTDEClient` until the stream ends.

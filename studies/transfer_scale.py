@@ -19,6 +19,18 @@ labels of ``benchmarks/labels/ur10e_events.json``.
   ``|qd_l| < v0``; arm acceleration below or above ``acc``) with the margin
   shared globally, per regime or per cell.
 
+- ``ceiling``: for each band (filter, debounce), with and without the motion
+  envelope, how many 2020 collisions rise above the largest value the 2020
+  event-free segments reach on the same joint (an oracle threshold with 0
+  onsets there: what no calibration can beat);
+- ``bands``: the 2 Hz band plus a fixed fast band (10 or 20 Hz), with the
+  envelope, at the two settle / rest settings, calibrated on the cross-task
+  recordings and on the 21 unseen ones alone: margins, nested onsets, 2020
+  collisions, pushes;
+- ``refclip``: the rest reference clipped to the largest ``|b|`` of the
+  calibration data (gpcd calibrate's default settings, the 21 unseen
+  recordings): alarm episodes per push with and without the clip.
+
 Trained models and residuals are cached in ``--cache`` (default
 ``/tmp/transfer_scale.joblib``).
 """
@@ -252,9 +264,102 @@ def study_cells(cache, labels):
               f"{np.round(T[0], 2)}", flush=True)
 
 
+def calibrated_rules(cache, keys, rules, param_grid=None):
+    det = CollisionDetector(FrozenEstimator(cache["model"]), n_joints=J, sample_time="auto",
+                            rules=rules)
+    return calibrate_across_recordings(det, {k: cache["blocks"][k] for k in keys},
+                                       {k: cache["times"][k] for k in keys},
+                                       param_grid=param_grid)
+
+
+def study_ceiling(cache, labels):
+    keys = cache["calibration"]
+    root = B.real_data_path(B.DATASET, None)
+    recs = {key: B.load(root / key) for key in B.COLLISIONS}
+    fits = dict(groups=np.repeat(np.arange(len(keys)), [len(cache["blocks"][k]) for k in keys]),
+                time=np.concatenate([cache["times"][k] for k in keys]))
+    Z = np.concatenate([cache["blocks"][k] for k in keys])
+    for envelope in (None, 0.05):
+        over = {}
+        for cutoff, order, debounce in ((2.0, 1, 5), (4.0, 2, 5), (10.0, 1, 2), (20.0, 1, 3)):
+            rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=cutoff,
+                             filter_order=order, min_duration=debounce,
+                             regimes=Regimes(rest_reference=5.0, motion_envelope=envelope))
+            det = CollisionDetector(FrozenEstimator(cache["model"]), n_joints=J,
+                                    sample_time="auto", rules=rule).fit(Z, **fits)
+            peaks, free = [], np.zeros(J)
+            for key in B.COLLISIONS:
+                t = cache["times"][key] - cache["times"][key][0]
+                ratio = det.monitoring_signal(cache["blocks"][key]).bands[0].ratio
+                ratio = np.min([np.roll(ratio, k, axis=0) for k in range(debounce)], axis=0)
+                for a, b in B.free_segments(recs[key], labels[key]):
+                    free = np.maximum(free, ratio[a + debounce:b].max(axis=0))
+                peaks += [ratio[(t >= e["start_s"]) & (t <= e.get("tail_stop_s", e["stop_s"])
+                                                       + 0.5)].max(axis=0)
+                          for e in labels[key]["events"]]
+            over[cutoff] = (np.array(peaks) / free).max(axis=1)
+            print(f"envelope {envelope}, {cutoff:g} Hz order {order} debounce {debounce}: "
+                  f"{int((over[cutoff] > 1).sum())}/{len(peaks)} collisions above the "
+                  f"event-free maximum; weakest {np.round(np.sort(over[cutoff])[:4], 2)}",
+                  flush=True)
+
+
+def study_bands(cache, labels):
+    cross = cache["calibration"]
+    for cutoff, debounce in ((10.0, 2), (20.0, 3)):
+        for settle, tau in ((0.5, 5.0), (3.0, 2.0)):
+            for name, keys in (("cross-task", cross), ("21 unseen", cross[:-1])):
+                rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
+                                 min_duration=5, regimes=Regimes(
+                                     settle_time=settle, rest_reference=tau,
+                                     motion_envelope=0.05))
+                fast = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=cutoff,
+                                 min_duration=debounce, regimes=rule.regimes)
+                cal = calibrated_rules(cache, keys, [rule, fast])
+                print(f"+{cutoff:g} Hz band, settle {settle}, rest ref. {tau}, {name}: margins "
+                      f"{[round(float(np.max(b.margin)), 2) for b in cal.bands]}, nested "
+                      f"onsets {cal.n_false_alarms}, {score(cal.detector, cache, labels)}",
+                      flush=True)
+
+
+def study_refclip(cache, labels):
+    from sklearn_gpcd.detection import _regimes
+    from sklearn_gpcd.workflow import SELECT_GRID
+
+    keys = cache["calibration"][:-1]
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
+                     regimes=Regimes(rest_reference=5.0))
+    det = calibrated_rules(cache, keys, rule, SELECT_GRID).detector
+    fitted = det.rules_[0]
+    limit = np.zeros(J)
+    for key in keys:
+        r = det.residuals(cache["blocks"][key])
+        _, regime, reference = fitted.signal(r.residual, motion=r.motion)
+        limit = np.maximum(limit, np.abs(reference[regime == 2]).max(axis=0, initial=0.0))
+    print(f"largest |b| of the calibration data {np.round(limit, 2)}")
+    original = _regimes.RegimeState._reference
+
+    def clipped(self, regime, signal):  # b clipped after each step (entry sample: m - m)
+        original(self, regime, signal)
+        if regime == 2 and self.beta is not None:
+            np.clip(self.reference, -limit, limit, out=self.reference)
+    for name, method in (("as is", original), ("clipped", clipped)):
+        _regimes.RegimeState._reference = method
+        for key in B.PUSHES:
+            t = cache["times"][key] - cache["times"][key][0]
+            alarm = det.monitoring_signal(cache["blocks"][key]).alarms.any(axis=1)
+            starts = np.flatnonzero(alarm & ~np.r_[False, alarm[:-1]])
+            ends = np.flatnonzero(alarm & ~np.r_[alarm[1:], False])
+            episodes = [(round(float(t[a]), 2), round(float(t[b]), 2)) for a, b in zip(starts, ends)]
+            print(f"{name}, {Path(key).name}: alarms {episodes}; pushes "
+                  f"{[(e['start_s'], e['stop_s']) for e in labels[key]['events']]}")
+    _regimes.RegimeState._reference = original
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--study", choices=("peaks", "scale", "cells"), required=True)
+    parser.add_argument("--study", required=True,
+                        choices=("peaks", "scale", "cells", "ceiling", "bands", "refclip"))
     parser.add_argument("--cache", default="/tmp/transfer_scale.joblib")
     args = parser.parse_args()
     root = B.real_data_path(B.DATASET, None)
@@ -265,7 +370,8 @@ def main():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cache = load_cache(args.cache)
-        {"peaks": study_peaks, "scale": study_scale, "cells": study_cells}[args.study](
+        {"peaks": study_peaks, "scale": study_scale, "cells": study_cells,
+         "ceiling": study_ceiling, "bands": study_bands, "refclip": study_refclip}[args.study](
             cache, labels)
 
 

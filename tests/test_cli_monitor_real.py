@@ -7,8 +7,8 @@ benchmark's recordings, and compares margin, thresholds, nested false alarms and
 per-push detections and delays exactly (SP_C +R and SP_P);
 ``test_cli_reproduces_the_published_full_run`` does the same against the full run
 published in ``docs/_static/results/real_ur10e.json`` (SP_C +R).
-``test_cli_workflow_matches_the_benchmark_rule_on_real_logs`` is the quicker check of
-the calibration rule on part of the logs.
+``test_cli_workflow_matches_the_benchmark_rule_on_real_logs`` is the quicker check on
+part of the logs: ``gpcd calibrate`` and the benchmark's ``calibrate_detector`` options.
 """
 
 import importlib.util
@@ -142,31 +142,23 @@ def test_cli_workflow_matches_the_benchmark_rule_on_real_logs(bench, ur10e_dir, 
     capsys.readouterr()
     detector, features, calibration = load_detector(det_path)
 
-    # the benchmark's functions on the same model and recordings
+    # the benchmark's path (calibrate_detector, "+R") on the same model and recordings
     unseen = {k: bench.load(ur10e_dir / k) for k in cal_keys}
+    pushes = {k: bench.load(ur10e_dir / k) for k in bench.PUSHES}
     trained = load_model(model)
     assert features.signals_ == trained.features.signals_  # the model's own inputs
-    blocks = {k: stack_currents(features.transform(r), r.current) for k, r in unseen.items()}
-    Z = np.concatenate(list(blocks.values()))
-    groups = np.repeat(np.arange(len(unseen)), [r.n_samples for r in unseen.values()])
-    time = np.concatenate([r.time for r in unseen.values()])
-    regressor = trained.regressor
-    base = bench.detector(regressor, bench.REST_TAU).fit(Z, groups=groups, time=time)
-    series = bench.excursions(base, blocks)
-    margin = bench.loro_margin({k: v[2] for k, v in series.items()}, list(series))
-    det = bench.detector(regressor, bench.REST_TAU, margin).fit(Z, groups=groups, time=time)
-    folds = bench.nested_false_alarms(series, unseen)
-    np.testing.assert_allclose(detector.thresholds_, det.thresholds_)
-    assert calibration["margin"] == pytest.approx(np.max(margin))
-    assert calibration["n_false_alarms_nested"] == sum(len(f["onsets"])
-                                                       for f in folds.values())
+    blocks, push_blocks = ({k: stack_currents(features.transform(r), r.current)
+                            for k, r in recs.items()} for recs in (unseen, pushes))
+    labels = json.loads(bench.LABELS.read_text())["files"]
+    res = bench.monitor_result(trained, bench.REST, blocks, unseen, pushes, push_blocks,
+                               labels)
+    np.testing.assert_allclose(detector.thresholds_, res["thresholds"])
+    assert calibration["margin"] == pytest.approx(np.max(res["margin"]))
+    assert calibration["n_false_alarms_nested"] == res["onsets"]
     saved = json.loads(events_json.read_text())["events"]
-    for key in bench.PUSHES:
-        rec = bench.load(ur10e_dir / key)
-        block = stack_currents(features.transform(rec), rec.current)
-        _, _, mon = bench.score_events(det, block, rec, [])
+    for key, rec in pushes.items():
         t = rec.time - rec.time[0]
-        expected = bench.alarm_onsets(mon.alarms.any(axis=1), t)
+        expected = bench.alarm_onsets(res["monitors"][key].alarms.any(axis=1), t)
         got = [e["start_s"] for e in saved if e["recording"] == Path(key).name]
         assert got == pytest.approx(expected), key
         assert expected  # the pushes do raise alarms

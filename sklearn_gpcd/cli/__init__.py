@@ -1,22 +1,9 @@
 """The ``gpcd`` command.
 
-Subcommands
------------
-``gpcd reproduce [--quick] -o DIR``
-    The paper's experiments end to end on the built-in simulator (the main job).
-``gpcd simulate --robot ROBOT --scenario NAME -o FILE.csv``
-    Write a simulated recording as a UR RTDE CSV.
-``gpcd robots``
-    List the built-in robot models.
-``gpcd train RECORDINGS... [--robot ROBOT] --model sp_p|sp_s|p_f|sp_c -o MODEL.skops``
-    Fit the paper's estimator on a user's own recordings, on causal inputs by
-    default (:func:`sklearn_gpcd.workflow.train_model`, rule ``TRAIN_RULE``).
-``gpcd diagnose TRAIN... [--test TEST]... [--robot ROBOT]``
-    Name the physics the robot model misses in real recordings.
-``gpcd calibrate MODEL COLLISION_FREE... -o DETECTOR.skops``
-    Detection thresholds chosen across recordings (:func:`sklearn_gpcd.workflow.calibrate_detector`).
-``gpcd monitor DETECTOR RECORDINGS... | --replay FILE | --rtde HOST``
-    Alarm events through the causal streaming path, offline or live.
+Subcommands: ``reproduce``, ``simulate`` and ``robots`` (the built-in
+simulator), ``train``, ``diagnose``, ``calibrate`` and ``monitor`` (a user's
+own recordings); ``gpcd COMMAND --help`` and the CLI page of the
+documentation describe each.
 
 Every option that names a robot (``--robot``) takes a built-in name (``ur10``,
 ``ur10e``, ...) or the path of a URDF file. Commands that read recordings take
@@ -164,22 +151,7 @@ def main(argv=None):
 
 
 def _one_line(message):
-    """``message`` as one line: runs of whitespace, newlines included, become a space.
-
-    Parameters
-    ----------
-    message : object
-        An exception or warning message.
-
-    Returns
-    -------
-    text : str
-
-    Examples
-    --------
-    >>> _one_line(ValueError("a.csv: bad\\n  line 3"))
-    'a.csv: bad line 3'
-    """
+    """``message`` (an exception or warning) on one line: whitespace runs become a space."""
     return " ".join(str(message).split())
 
 

@@ -217,7 +217,6 @@ def robot_for(args, recordings):
     return robot
 
 
-
 def add_check_options(parser):
     """``--time-scale``, ``--units-confirmed``, ``--allow-short``, ``--max-joint-speed``:
     what :func:`read_recordings` checks."""
@@ -247,8 +246,6 @@ def add_recording_options(parser, robot_help):
         "\"current\": [13, 14, 15, 16, 17, 18]}' or, with a header, '{\"time\": \"t\", "
         "\"q\": \"q\", \"qd\": \"qd\", \"current\": \"i\"}' (prefixes of q_0 .. q_5; "
         "see sklearn_gpcd.io.columns)")
-
-
 
 
 def existing_file(value):

@@ -115,7 +115,11 @@ def run(args):
     plots = []
     try:
         if args.rtde is not None:
-            _monitor_rtde(args, session)
+            client = session.connect_rtde(args.rtde, args.port, args.frequency)
+            print(f"monitoring {args.rtde}:{args.port} at {client.frequency:g} Hz (Ctrl-C "
+                  "stops)", flush=True)
+            session.run_rtde(client, f"rtde://{args.rtde}:{args.port}",
+                             duration=args.duration, reconnect_timeout=args.reconnect_timeout)
         else:
             paths = [args.replay] if args.replay is not None else args.recordings
             args.robot = None
@@ -123,9 +127,6 @@ def run(args):
                                           progress=not (args.quiet or live))
             keys = recording_keys(recordings)
             for key, rec in zip(keys, recordings):
-                if rec.n_joints != session.monitor.n_joints:
-                    raise ValueError(f"{rec.name}: {rec.n_joints} joints but the detector "
-                                     f"has {session.monitor.n_joints}")
                 session.run_recording(rec, key, duration=args.duration,
                                       speed=args.speed if args.replay is not None else None)
                 if args.plot is not None:
@@ -137,19 +138,7 @@ def run(args):
                         else f"error: {' '.join(str(exc).split())}", abnormal=True)
             _write_report(args, session, calibration, plots)
         raise
-    print(session.events_text())
-    stats = session.live_statistics() if live else None
-    if stats is not None:
-        print(f"  {stats['n_ticks']} ticks; latency receive -> decision p50 "
-              f"{stats['latency_ms_p50']:.3f} ms, p99 {stats['latency_ms_p99']:.3f} ms, max "
-              f"{stats['latency_ms_max']:.3f} ms; dropped samples {stats['dropped_samples']}; "
-              f"decisions at most {stats['behind_stream_ms_max']:.1f} ms behind the stream's "
-              "clock")
-    if session.exit_status:
-        blind = sum(f["blind_s"] or 0.0 for f in session.faults)
-        print(f"  {session.n_blind} fault(s): blind {blind:.3f} s in total"
-              + (f"; the stream ended abnormally: {session.end_reason}"
-                 if session.abnormal_end else "") + f" (exit status {session.exit_status})")
+    print(session.summary_text(live))
     if args.json is not None:
         _write_report(args, session, calibration, plots)
         print(f"wrote {args.json}")
@@ -158,26 +147,6 @@ def run(args):
             print(f"wrote {path}")
     print(f"done in {time.perf_counter() - start:.1f} s")
     return session.exit_status
-
-
-def _monitor_rtde(args, session):
-    """``gpcd monitor --rtde``: connect, then :meth:`MonitorSession.run_rtde`."""
-    from ..io import RTDEClient
-
-    if session.monitor.n_joints != 6:
-        raise ValueError(f"RTDE streams 6 joints; the detector has "
-                         f"{session.monitor.n_joints}")
-    frequency = args.frequency or round(1.0 / session.sample_time, 6)
-    client = RTDEClient(args.rtde, args.port, frequency)
-    try:
-        client.connect()
-    except (OSError, ConnectionError) as exc:
-        raise OSError(f"cannot start an RTDE stream from {args.rtde}:{args.port}: "
-                      f"{exc} (check --rtde HOST and --port)") from None
-    print(f"monitoring {args.rtde}:{args.port} at {frequency:g} Hz (Ctrl-C stops)",
-          flush=True)
-    session.run_rtde(client, f"rtde://{args.rtde}:{args.port}", duration=args.duration,
-                     reconnect_timeout=args.reconnect_timeout)
 
 
 def _write_report(args, session, calibration, plots):

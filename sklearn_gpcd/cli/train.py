@@ -5,7 +5,7 @@ chosen by leave-one-recording-out error by default (:func:`sklearn_gpcd.workflow
 import os
 import time
 
-from ..workflow.model_choice import CHOICE_RULE, FEEDBACK_RULE
+from ..workflow.model_choice import CHOICE_RULE, FEEDBACK_RULE, SIGNALS
 from ..workflow.training import INPUTS, MODELS, OPTIMIZERS, ROBOT_MODELS, TRAIN_RULE
 from ._args import (
     ProgressBar,
@@ -19,11 +19,6 @@ from ._args import (
 
 #: The positional list that recordings left over after the options join.
 RECORDINGS = "recordings"
-#: GP support rows per joint of the fits that compare models (fewer when
-#: ``--n-support`` asks for fewer).
-FOLD_SUPPORT = 300
-#: Controller signals ``--signals`` may name.
-SIGNALS = ("target_q", "target_qd", "target_current")
 
 
 def signals_arg(value):
@@ -114,36 +109,11 @@ def _robot(args, recordings):
     return robot_for(args, recordings), None
 
 
-def _signals(args, recordings, model):
-    """``(signals for the inputs, target-current check or None)``.
-
-    The check runs whenever the inputs would use the target current; with
-    ``--signals auto`` a target that fails it leaves the inputs (an explicit
-    list is taken as given), and SP_C leaves ``--model auto``'s candidates
-    either way.
-    """
-    from ..workflow import check_target_current
-
-    if args.signals == "none" or model in ("p_f", "sp_s"):
-        return (), None
-    logged = tuple(s for s in SIGNALS if all(getattr(r, s) is not None for r in recordings))
-    signals = logged if args.signals == "auto" else args.signals
-    if "target_current" not in signals or "target_current" not in logged:
-        return signals, None
-    check = check_target_current(recordings)
-    if not check.usable and model != "sp_c" and args.signals == "auto":
-        signals = tuple(s for s in signals if s != "target_current")
-    return signals, check
-
-
 def run(args):
     """``gpcd train``: choose and fit the model on the recordings, save it with its inputs."""
-    import numpy as np
-
-    from ..gp import resolve_n_support
     from ..robots import list_robots
-    from ..workflow import compare_models, save_model, train_model, training_set
-    from ..workflow.model_choice import candidate_models
+    from ..workflow import (choose_model, input_signals, save_model, train_model,
+                            training_report, training_set)
 
     start = time.perf_counter()
     quiet = args.quiet
@@ -154,19 +124,8 @@ def run(args):
         raise ValueError(f"--model {model} needs the robot's rigid-body model ({no_robot}): "
                          f"pass --robot with a built-in name ({', '.join(list_robots())}) or "
                          "a URDF path; without one use --model auto, sp_c or gp")
-    if model == "sp_c":
-        if args.signals == "none" or (args.signals != "auto"
-                                      and "target_current" not in args.signals):
-            raise ValueError("--model sp_c needs the target current among the inputs; drop "
-                             "--signals or include target_current in it")
-        if (lacking := [r.name for r in recordings if r.target_current is None]):
-            raise ValueError(f"model sp_c needs the target current; {', '.join(lacking)} "
-                             f"do{'es' * (len(lacking) == 1)} not log it: leave "
-                             f"{'it' if len(lacking) == 1 else 'them'} out, or use --model "
-                             "auto (or gp)")
-    n_recordings, n_joints = len(recordings), recordings[0].n_joints
-    n_jobs = args.n_jobs if args.n_jobs is not None else min(n_joints, os.cpu_count() or 1)
-    signals, check = _signals(args, recordings, model)
+    signals, check = input_signals(recordings, args.signals, model)
+    n_jobs = min(recordings[0].n_joints, os.cpu_count() or 1) if args.n_jobs is None else args.n_jobs
     bars = lambda label, total: ProgressBar(label, total, enabled=not quiet)  # noqa: E731
     data = training_set(recordings, args.inputs, progress=bars, signals=signals)
     notes = []  # printed before the fits, which may take minutes
@@ -183,24 +142,11 @@ def run(args):
         print(note, flush=True)
     notes, comparison = [], None
     if model == "auto":
-        models, left_out = candidate_models(robot, data.features.signals_, check)
-        if args.signals == "none":
-            left_out["sp_c"] = "--signals none: the inputs have no target current"
-        elif "sp_c" in left_out and not data.has_target_current:
-            left_out["sp_c"] = "the recordings do not all log the target current"
-        if len(models) == 1:
-            model = models[0]
-            notes.append(f"model choice (--model auto): {model.upper()}, the only model "
-                         "these recordings allow; " + "; ".join(
-                             f"{m.upper()} {why}" for m, why in left_out.items()))
-        else:
-            fold_support = min(FOLD_SUPPORT, resolve_n_support(args.n_support, len(data.y)))
-            comparison = compare_models(
-                data, robot, models, n_support=fold_support,
-                optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed,
-                n_jobs=n_jobs, coulomb_width=args.coulomb_width, progress=bars)
-            comparison.left_out = left_out
-            model = comparison.best
+        model, comparison, note = choose_model(
+            data, robot, check, signals=args.signals, n_support=args.n_support,
+            optimizer=args.optimizer, sigma_v=args.sigma_v, seed=args.seed, n_jobs=n_jobs,
+            coulomb_width=args.coulomb_width, progress=bars)
+        notes += [note] if note else []
     choice_seconds = time.perf_counter() - start
     trained = train_model(
         data, robot, model, n_support=args.n_support, optimizer=args.optimizer,
@@ -213,28 +159,12 @@ def run(args):
         trained.training["target_current_check"] = check.summary()
     fit_seconds = time.perf_counter() - start
     save_model(trained, args.output)
-    regressor, info = trained.regressor, trained.training
     for note in notes:
         print(note)
     if comparison is not None:
         print("\n".join(comparison.text()))
         print(f"  (model choice {choice_seconds:.1f} s)")
-    print(f"trained {model.upper()} "
-          + (f"for robot {robot.name} " if robot is not None else "without a robot model ")
-          + f"({n_joints} joints) on {n_recordings} recording(s), {info['n_rows']} rows, "
-          f"{info['inputs']} inputs"
-          + (f" (1 row in {info['step']} used: {info['n_rows_used']})"
-             if info["step"] > 1 else ""))
-    print(f"  GP support {info['n_support']} rows per joint, optimizer {regressor.optimizer_}, "
-          f"iterations per joint {np.atleast_1d(regressor.n_iter_).tolist()}, "
-          f"sigma_v {info['sigma_v'] if info['sigma_v'] is not None else '-'}, "
-          + (f"Coulomb tanh(qd / {info['coulomb_width']:g}), "
-             if info.get("coulomb_width") is not None else "")
-          + f"seed {info['seed']}, controller signals {', '.join(info['signals']) or 'none'}")
-    lml = np.atleast_1d(regressor.log_marginal_likelihood_value_)
-    print("  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml))
-    print(f"  largest |qdd| of the training rows {info['acceleration_limit']:.3g} rad/s^2 "
-          "(the braking limit of gpcd calibrate --braking)")
+    print(training_report(trained))
     print(f"  inputs and fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "
           f"wrote {args.output} (the model, its causal input features and how it was "
           "trained)")

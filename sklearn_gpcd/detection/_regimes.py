@@ -1,42 +1,12 @@
-"""Motion regimes of the arm and the rest re-reference of the monitoring signal.
+"""Motion regimes of the arm, the rest re-reference and the per-sample alarm state.
 
-At rest a joint's current holds a history-dependent offset: dry friction
-keeps whatever torque the servo was applying when the motion stopped
-(stiction), so the same pose is held with different currents depending on
-the way it was reached. No function of the pose predicts that offset, which
-is why the paper adds the quasi-static GP on augmented inputs (Eq. 13-17).
-On the real UR10e this is not enough: the offset at rest differs by up to
-0.7 A between still poses that the pose features cannot tell apart (issue
-14). What does predict it is the *history*: the current the joint held when
-the arm came to rest.
-
-This module is our extension of the paper (not in Dalla Libera et al.). Per
-sample, the arm is in one of three regimes, read from the joint velocities
-with the paper's threshold :math:`\\sigma_v` (Eq. 15) applied to the whole
-arm:
-
-- ``moving``: some joint has :math:`|\\dot q_\\ell| \\ge \\sigma_v`;
-- ``settling``: every joint is below :math:`\\sigma_v`, for less than
-  ``settle`` samples since the arm stopped (the friction and servo
-  transient of a stop);
-- ``rest``: every joint below :math:`\\sigma_v` for at least ``settle``
-  samples, or since the stream started (an arm that is still when
-  monitoring begins is at rest at once).
-- ``braking`` (only with a braking limit): from a sample where some joint's
-  acceleration exceeds the limit, :math:`|\\ddot q_\\ell| > \\ddot q_{max}`,
-  until ``hold`` samples after the last such sample, whatever the other
-  rules say. A hard stop rings the current by several ampere for about
-  half a second, for the controller's own expected current too; with the
-  limit set to the largest acceleration of the model's training data
-  (``training["acceleration_limit"]`` of
-  :func:`~sklearn_gpcd.workflow.train_model`), these are the samples the
-  model never saw, and they get their own thresholds
-  instead of inflating those of motion.
-
-At rest the monitoring signal is re-referenced: at rest entry the
-reference :math:`b_\\ell` is set to the signal :math:`m_\\ell` of that
-sample, then follows it slowly (time constant :math:`\\tau`, sampling
-period :math:`T`)
+Our extension of the paper (the user guide's real-robot page: "History at
+rest"). Per sample the arm is ``moving`` (some :math:`|\\dot q_\\ell| \\ge
+\\sigma_v`), ``settling`` (all still for less than ``settle`` samples since
+it stopped), at ``rest`` (still for longer, or since the stream started) or,
+with a braking limit, ``braking`` (for ``hold`` samples after some
+:math:`|\\ddot q_\\ell|` exceeds it). At rest the monitoring signal is
+re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
 
 .. math::
 
@@ -44,11 +14,10 @@ period :math:`T`)
     b_{k+1,\\ell} = b_{k\\ell} + \\beta\\,\\tilde m_{k\\ell}, \\qquad
     \\beta = 1 - e^{-T/\\tau},
 
-so a contact (a change of tenths of a second) shows in full while the slow
-relaxation of the held current after a stop does not (``tau=inf`` keeps
-the reference fixed). Outside rest :math:`\\tilde m = m`. A contact that
-builds up over many :math:`\\tau` at rest is absorbed: the price of the
-re-reference, documented in the user guide.
+so a contact shows in full while the slow relaxation of the current held
+after a stop does not. :class:`AlarmState` is the per-sample decision of one
+band that the batch detector and :class:`~sklearn_gpcd.detection.StreamingMonitor`
+share.
 """
 
 import numpy as np
@@ -165,16 +134,10 @@ class RegimeState:
         The braking regime overrides the others for the thresholds only: the
         rest reference follows the motion regimes as without it.
 
-        **A contact never relaxes its own threshold.** While the band is in
-        alarm the caller passes the regime of the alarm's onset as ``hold``:
-        it is returned whatever the motion says, and at rest the reference is
-        frozen (subtracted, not tracked). A push on a still arm moves it; without
-        the hold the arm would be ``moving`` at once, with the loose thresholds
-        of motion, and one push would be reported as several events. The
-        counters still advance, so when the alarm clears a displaced arm
-        settles again before it is at rest. The hold lasts ``alarm_hold``
-        samples at most: an alarm that outlasts it (a contact that stays, an
-        arm that moves on) is judged by the regime of the motion again.
+        **A contact never relaxes its own threshold**: while the band is in
+        alarm the caller passes the regime of the alarm's onset as ``hold``; it
+        is returned (at rest the reference is subtracted, not tracked) for
+        ``alarm_hold`` samples at most, while the counters advance.
 
         Parameters
         ----------
@@ -268,14 +231,117 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
     return out, regimes, signal - out
 
 
+class AlarmState:
+    """One band's decision, sample by sample: the state batch and streaming share.
+
+    Per sample: the regime (a :class:`RegimeState`, the regime of an alarm's
+    onset held while the alarm lasts), the debounce over the last
+    ``min_duration`` samples (a ring of rows), the ratio to the scale of the
+    regime, over the motion envelope while moving (the factor frozen while
+    an alarm lasts, like the regime), and the alarm: the joints above
+    ``level``; it ends after ``release`` samples at or below it, meanwhile
+    the joints that fired last stay in alarm. Preallocated: a sample
+    allocates no array.
+
+    Parameters
+    ----------
+    n_joints : int
+    settings : dict or None
+        :class:`RegimeState` settings (``AlarmRule.regime_settings()``);
+        None: no regimes (regime 0).
+    scales : ndarray of shape (n_regime_rows, n_joints)
+    level : float
+    min_duration : int
+    release : int, default=0
+
+    Examples
+    --------
+    A dip of one sample inside a contact does not end its alarm with a
+    release of 2 samples:
+
+    >>> import numpy as np
+    >>> state = AlarmState(1, None, np.ones((1, 1)), 1.0, 1, release=2)
+    >>> [bool(state.step(np.array([m]), None) > 1.0) or state.alarmed
+    ...  for m in (0.0, 2.0, 0.5, 2.0, 0.0, 0.0, 0.0)]
+    [False, True, True, True, True, True, False]
+    """
+
+    def __init__(self, n_joints, settings, scales, level, min_duration, release=0):
+        self.regimes = None if settings is None else RegimeState(n_joints=n_joints, **settings)
+        self.scales = np.atleast_2d(np.asarray(scales, dtype=float))
+        self.level, self.release = float(level), int(release)
+        self.window = np.zeros((min_duration, n_joints))
+        self.ratio = np.full(n_joints, np.nan)
+        self.alarms = np.zeros(n_joints, dtype=bool)
+        self._bind()
+        self.reset()
+
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k not in ("_rows", "_scale_rows")}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._bind()
+
+    def _bind(self):
+        """Row views of the ring and the scales (rebuilt on load: a pickle copies views)."""
+        self._rows, self._scale_rows = list(self.window), list(self.scales)
+
+    def reset(self):
+        """A new stream: no regime, debounce or alarm history."""
+        self.window[:] = 0.0
+        self.position, self.regime, self.factor = 0, 0, 1.0
+        self.clear()
+        if self.regimes is not None:
+            self.regimes.reset()
+
+    def clear(self):
+        """No alarm (a new stream, or a rejected sample)."""
+        self.alarms[:] = False
+        self.alarmed, self.below = False, 0
+
+    def step(self, signal, motion, envelope=None):
+        """One sample; ``signal`` is re-referenced in place at rest.
+
+        Parameters
+        ----------
+        signal : ndarray of shape (n_joints,)
+            Filtered residual of the sample.
+        motion : ndarray or None
+            What the regimes read (velocities, then accelerations).
+        envelope : ndarray of shape (n_rows, n_joints) or None, default=None
+            Rows whose column maximum is the sample's motion envelope factor.
+
+        Returns
+        -------
+        top : float
+            The largest ratio over the joints.
+        """
+        if self.regimes is not None:
+            self.regime = self.regimes.step(motion, signal,
+                                            self.regime if self.alarmed else None)
+        np.abs(signal, out=self._rows[self.position])
+        self.position = (self.position + 1) % len(self._rows)
+        np.minimum.reduce(self.window, axis=0, out=self.ratio)
+        self.ratio /= self._scale_rows[self.regime]
+        if envelope is not None and self.regime == MOVING:
+            if not self.alarmed:
+                self.factor = envelope.max(axis=0)
+            self.ratio /= self.factor
+        top = max(self.ratio.tolist())
+        if top > self.level:
+            np.greater(self.ratio, self.level, out=self.alarms)
+            self.alarmed, self.below = True, 0
+        elif self.alarmed and self.below < self.release:
+            self.below += 1  # the joints that fired last stay in alarm
+        elif self.alarmed:
+            self.clear()
+        return top
+
+
 def held_regime_pass(signal, motion, starts, settings, scales, level, min_duration,
                      envelope=None, release=0):
-    """:func:`regime_pass` with the alarm hold of :meth:`RegimeState.step`.
-
-    Sample by sample, as a streaming monitor does: regime, debounce over the
-    last ``min_duration`` samples, ratio to the scale of the regime, alarm
-    where the ratio exceeds ``level``; while some joint is in alarm the
-    regime of the alarm's onset is held.
+    """:class:`AlarmState` over a batch, as a streaming monitor runs it.
 
     Parameters
     ----------
@@ -285,21 +351,10 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
         As for :func:`regime_pass`.
     starts : ndarray of int
         Segment starts.
-    settings : dict
-        ``sigma_v``, ``settle``, ``beta``, ``brake_limit``, ``brake_hold``,
-        ``alarm_hold`` (see :class:`RegimeState`).
-    scales : ndarray of shape (n_regime_rows, n_joints)
-        Scale per regime.
-    level : float
-        A joint fires where its ratio exceeds it.
-    min_duration : int
-        Debounce window [samples].
+    settings, scales, level, min_duration, release
+        As for :class:`AlarmState`.
     envelope : ndarray of shape (n_samples, n_joints) or None, default=None
-        Motion envelope of the moving thresholds (``AlarmRule.envelope``),
-        frozen while an alarm lasts like the regime.
-    release : int, default=0
-        Samples the ratio must stay at or below ``level`` before an alarm
-        ends; meanwhile the joints that fired last stay in alarm.
+        Motion envelope factor of each sample (``AlarmRule.envelope``).
 
     Returns
     -------
@@ -308,8 +363,7 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
     ratio : ndarray of shape (n_samples, n_joints)
         Debounced ``|m|`` over the scale of each sample's regime.
     alarms : ndarray of bool, shape (n_samples, n_joints)
-        Joints in alarm (those above ``level``, or during a release the
-        ones that fired last).
+        Joints in alarm.
 
     Examples
     --------
@@ -325,73 +379,15 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
     ...                                            1.0, 1)
     >>> regime.tolist(), alarms[:, 0].tolist()
     ([2, 2, 2, 2, 1], [False, True, True, False, False])
-
-    A dip of one sample inside a contact does not end its alarm with a
-    release of 2 samples:
-
-    >>> m = np.array([[0.0], [2.0], [0.5], [2.0], [0.0], [0.0], [0.0]])
-    >>> alarms = held_regime_pass(m, np.zeros((7, 1)), np.array([0]), settings, scales, 1.0, 1,
-    ...                           release=2)[4]
-    >>> alarms[:, 0].astype(int).tolist()
-    [0, 1, 1, 1, 1, 1, 0]
     """
-    n_joints = signal.shape[1]
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     ratio = np.empty_like(out)
     alarms = np.zeros(signal.shape, dtype=bool)
     bounds = np.append(starts, signal.shape[0])
     for lo, hi in zip(bounds[:-1], bounds[1:]):
-        state = RegimeState(n_joints=n_joints, **settings)
-        window = np.zeros((min_duration, n_joints))
-        alarmed, regime, factor, below, fired = False, 0, 1.0, 0, None
-        for i, k in enumerate(range(lo, hi)):
-            regime = regimes[k] = state.step(motion[k], out[k], regime if alarmed else None)
-            window[i % min_duration] = np.abs(out[k])
-            ratio[k] = window.min(axis=0) / scales[regime]
-            if envelope is not None and regime == MOVING:
-                factor = factor if alarmed else envelope[k]
-                ratio[k] /= factor
-            alarmed, below, fired = release_step(ratio[k], level, alarmed, below, fired,
-                                                 release)
-            if alarmed:
-                alarms[k] = fired
+        state = AlarmState(signal.shape[1], settings, scales, level, min_duration, release)
+        for k in range(lo, hi):
+            state.step(out[k], motion[k], None if envelope is None else envelope[k:k + 1])
+            regimes[k], ratio[k], alarms[k] = state.regime, state.ratio, state.alarms
     return out, regimes, signal - out, ratio, alarms
-
-
-def release_step(ratio, level, alarmed, below, fired, release):
-    """One sample of the alarm state with a release time.
-
-    Parameters
-    ----------
-    ratio : ndarray of shape (n_joints,)
-    level : float
-    alarmed : bool
-        In alarm after the previous sample.
-    below : int
-        Samples at or below ``level`` since the alarm's last sample above it.
-    fired : ndarray of bool or None
-        Joints above ``level`` at that sample.
-    release : int
-        Samples at or below ``level`` that end an alarm.
-
-    Returns
-    -------
-    alarmed, below, fired
-
-    Examples
-    --------
-    >>> state = (False, 0, None)
-    >>> out = []
-    >>> for r in (2.0, 0.5, 0.5, 0.5):
-    ...     state = release_step(np.array([r]), 1.0, *state, release=2)
-    ...     out.append(state[0])
-    >>> out
-    [True, True, True, False]
-    """
-    above = ratio > level
-    if above.any():
-        return True, 0, above
-    if alarmed and below < release:
-        return True, below + 1, fired
-    return False, 0, None

@@ -1,6 +1,5 @@
 """Collision detection by thresholding the current residual (paper Sec. II-III)."""
 
-import copy
 import inspect
 import warnings
 from numbers import Integral, Real
@@ -393,44 +392,6 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         self.offset_ = first.offset_ if len(self.rules_) == 1 else 0.0
         return self
 
-    def recalibrated(self, residuals, **params):
-        """A copy with other alarm rules, on this detector's fitted residual model.
-
-        The copy shares ``regressor_`` (nothing is refitted): only ``rules``
-        may change, and the copy is calibrated on ``residuals``.
-
-        Parameters
-        ----------
-        residuals : Bunch
-            What :meth:`fit_residuals` returned for this detector.
-        **params
-            ``rules``, or nested rule parameters such as
-            ``rules__min_duration``.
-
-        Returns
-        -------
-        detector : CollisionDetector
-            Fitted.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> from sklearn.linear_model import LinearRegression
-        >>> from sklearn_gpcd.detection import CollisionDetector, stack_currents
-        >>> X = stack_currents(np.arange(50.0)[:, None], np.sin(np.arange(50.0)))
-        >>> det = CollisionDetector(LinearRegression())
-        >>> residuals = det.fit_residuals(X)
-        >>> det.recalibrated(residuals, rules__min_duration=3).rules_[0].min_duration
-        3
-        """
-        other = [k for k in params if k != "rules" and not k.startswith("rules__")]
-        if other:
-            raise ValueError(f"recalibrated changes the rules only, not {other[0]!r}: fit a "
-                             "detector with it")
-        copy_ = copy.copy(self)
-        copy_.rules = AlarmRule() if self.rules is None else clone(self.rules)
-        return copy_.set_params(**params).calibrate(residuals)
-
     def _normalized(self, residual, std):
         """The residual over the predictive std with ``normalize="std"``."""
         return residual / std if self.normalize == "std" else residual
@@ -627,10 +588,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples, n_inputs + n_joints)
-            Regressor inputs followed by the measured currents.
-        groups : array-like of shape (n_samples,), default=None
-            Recording id of each row.
+        X, groups
+            As for :meth:`monitoring_signal`.
         return_std : bool, default=None
             Also the predictive std (None: where the monitoring signal reads
             it, :meth:`needs_std`).
@@ -730,10 +689,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples, n_inputs + n_joints)
-            Regressor inputs followed by the measured currents.
-        groups : array-like of shape (n_samples,), default=None
-            Recording id of each row.
+        X, groups
+            As for :meth:`monitoring_signal`.
 
         Returns
         -------
@@ -748,10 +705,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples, n_inputs + n_joints)
-            Regressor inputs followed by the measured currents.
-        groups : array-like of shape (n_samples,), default=None
-            Recording id of each row.
+        X, groups
+            As for :meth:`monitoring_signal`.
 
         Returns
         -------
@@ -764,10 +719,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples, n_inputs + n_joints)
-            Regressor inputs followed by the measured currents.
-        groups : array-like of shape (n_samples,), default=None
-            Recording id of each row.
+        X, groups
+            As for :meth:`monitoring_signal`.
 
         Returns
         -------
@@ -787,10 +740,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples, n_inputs + n_joints)
-            Regressor inputs followed by the measured currents.
-        groups : array-like of shape (n_samples,), default=None
-            Recording id of each row.
+        X, groups
+            As for :meth:`monitoring_signal`.
 
         Returns
         -------

@@ -10,7 +10,7 @@ from sklearn.utils.validation import check_is_fitted
 from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..gp import compile_predictor
-from ._regimes import MOVING, RegimeState
+from ._regimes import AlarmState
 from .detector import reads_currents
 
 
@@ -23,12 +23,9 @@ class MonitorStatus(str, Enum):
     - ``COLLISION`` (``"collision"``): a valid sample and at least one joint
       fired (``monitor.alarms`` tells which); the batch detector's
       ``predict`` gives -1 for this sample.
-    - ``SENSOR_FAULT`` (``"sensor_fault"``): the sample was missing (None),
-      held a NaN / infinite value, came with a time stamp that does not
-      advance, or gave a non-finite prediction. It is skipped: no decision
-      is made (``alarms`` all False), the filter and debounce state are
-      held, and the next valid sample is processed as if the faulty one had
-      never arrived. It is neither a collision nor an all-clear.
+    - ``SENSOR_FAULT`` (``"sensor_fault"``): the sample could not be used
+      and is skipped (see :class:`StreamingMonitor`): neither a collision
+      nor an all-clear.
 
     ``str(status)`` is the value, so statuses stored in a NumPy array or
     written to a log keep it (``np.asarray([...])`` gives ``'collision'``,
@@ -142,10 +139,10 @@ def _frame_maker(detector):
 class BandState:
     """One alarm rule's causal state in a :class:`StreamingMonitor`.
 
-    The low-pass filter as a state-space step, the arm's regime and rest
-    reference (:class:`~sklearn_gpcd.detection._regimes.RegimeState`) and
-    the debounce window (a ring buffer of ``min_duration`` rows), all in
-    preallocated arrays: a tick allocates nothing.
+    The low-pass filter as a state-space step, then the regimes, debounce
+    and alarm of :class:`~sklearn_gpcd.detection._regimes.AlarmState` (the
+    batch detector's per-sample state), all in preallocated arrays: a tick
+    allocates nothing.
 
     Parameters
     ----------
@@ -181,32 +178,22 @@ class BandState:
 
     #: Views rebuilt on load (see :meth:`_bind`).
     _REBUILT = ("_filter_flat", "_filter_in", "_filter_out", "_u", "_z", "signal", "_z_next",
-                "_window_rows", "_scale_rows")
+                "ratio", "alarms")
 
     def __init__(self, rule, n_joints):
         self.rule = rule
         self.level = -float(rule.offset_)
         self.thresholds = np.atleast_2d(np.asarray(rule.thresholds_, dtype=float))
-        self._scales = np.atleast_2d(np.asarray(rule.scale_, dtype=float))
-        settings = rule.regime_settings()
-        self._regime_state = (None if settings is None
-                              else RegimeState(n_joints=n_joints, **settings))
-        self.regime = 0
-        # the envelope of the last envelope_hold() samples (a ring), and the factor
+        self.state = AlarmState(n_joints, rule.regime_settings(), rule.scale_, self.level,
+                                rule.min_duration, rule.release_samples())
+        # the envelope of the last envelope_hold() samples (a ring)
         self._envelope = (None if getattr(rule, "envelope_", None) is None
                           else np.ones((rule.envelope_hold(), n_joints)))
-        self._envelope_position = 0
-        self._factor = None
-        self._release = rule.release_samples()
         self._transition, self._zi_unit = _filter_transition(rule.filter_coefficients_)
         order = self._transition.shape[0] - 1
         # [u; z] -> [y; z']: filter input and state, output and next state
         self._filter = np.full((2, order + 1, n_joints), np.nan)
         self._filter_finite = np.empty(self._filter.size, dtype=bool)
-        self._window = np.zeros((rule.min_duration, n_joints))
-        self.ratio = np.full(n_joints, np.nan)
-        self.alarms = np.zeros(n_joints, dtype=bool)
-        self.alarmed = False  # some entry of alarms is True
         self._bind()
         self.reset()
 
@@ -232,20 +219,21 @@ class BandState:
         self._filter_in, self._filter_out = self._filter
         self._u, self._z = self._filter_in[0], self._filter_in[1:]
         self.signal, self._z_next = self._filter_out[0], self._filter_out[1:]
-        self._window_rows = list(self._window)
-        self._scale_rows = list(self._scales)
+        self.ratio, self.alarms = self.state.ratio, self.state.alarms
+
+    @property
+    def regime(self):
+        return self.state.regime
+
+    @property
+    def alarmed(self):
+        return self.state.alarmed
 
     def reset(self):
         """Forget the filter, regime and debounce history."""
-        self._fresh = True
-        self.alarmed = False
-        self._below = 0
-        self._fresh_envelope = True
-        self.alarms[:] = False
-        self._window[:] = 0.0
-        self._position = 0
-        if self._regime_state is not None:
-            self._regime_state.reset()
+        self._fresh = self._fresh_envelope = True
+        self._envelope_position = 0
+        self.state.reset()
 
     def filter_step(self, u):
         """Filter ``u`` (not yet accepted); whether input, output and state are finite.
@@ -281,14 +269,6 @@ class BandState:
         """
         np.copyto(self._z, self._z_next)
         self._fresh = False
-        if self._regime_state is not None:
-            # the regime of an alarm's onset is held while the alarm lasts
-            self.regime = self._regime_state.step(
-                motion, self.signal, self.regime if self.alarmed else None)
-        np.abs(self.signal, out=self._window_rows[self._position])
-        self._position = (self._position + 1) % len(self._window_rows)
-        np.minimum.reduce(self._window, axis=0, out=self.ratio)
-        self.ratio /= self._scale_rows[self.regime]
         if self._envelope is not None:
             factor = self.rule.instant_envelope(motion[None, :], self.ratio.size)[0]
             if self._fresh_envelope:  # the first sample fills the ring, as in batch
@@ -296,28 +276,13 @@ class BandState:
                 self._fresh_envelope = False
             self._envelope[self._envelope_position] = factor
             self._envelope_position = (self._envelope_position + 1) % len(self._envelope)
-            if self.regime == MOVING:
-                if not self.alarmed:  # frozen while an alarm lasts, like the regime
-                    self._factor = self._envelope.max(axis=0)
-                self.ratio /= self._factor
-        top = max(self.ratio.tolist())
-        if top > self.level:
-            np.greater(self.ratio, self.level, out=self.alarms)
-            self.alarmed, self._below = True, 0
-        elif self.alarmed and self._below < self._release:
-            self._below += 1  # released only after _release samples below: alarms stay
-        elif self.alarmed:
-            self.alarms[:] = False
-            self.alarmed, self._below = False, 0
-        return top
+        return self.state.step(self.signal, motion, self._envelope)
 
     def fault(self):
         """A rejected tick: no signal, no decision (the state is kept)."""
         self.signal[:] = np.nan
         self.ratio[:] = np.nan
-        self.alarms[:] = False
-        self.alarmed = False
-        self._below = 0
+        self.state.clear()
 
     def non_finite_joints(self):
         """Joints whose filter input, output or state was not finite in the last step."""
@@ -337,55 +302,27 @@ class StreamingMonitor(VersionedStateMixin):
     Memory is bounded (the debounce window is a ring buffer of
     ``min_duration`` rows) and a tick allocates no array.
 
-    The regressor's prediction is compiled once into a single-sample path
-    (see :func:`~sklearn_gpcd.gp.compile_predictor`): for a
-    GP, the support points are pre-scaled per ARD block, the weights and
-    parametric-mean coefficients are cached and the gated (quasi-static)
-    block is skipped while every gate is closed. ``normalize="std"`` needs
-    the predictive std each tick, which costs a triangular solve with the
-    support set; that goes through ``regressor.predict(..., return_std=True)``
-    and is much slower.
+    The prediction is compiled once into a single-sample path
+    (:func:`~sklearn_gpcd.gp.compile_predictor`); ``normalize="std"`` goes
+    through ``regressor.predict(..., return_std=True)`` and is much slower.
 
-    **Sensor faults.** A tick is a sensor fault when the sample is missing
-    (``x=None``), holds a NaN or infinite value (in the inputs or the
-    currents), has a ``time`` that is not strictly after the last accepted
-    sample's (a repeated or out-of-order packet), or gives a non-finite
-    prediction or monitoring signal. :meth:`update` then returns
-    ``MonitorStatus.SENSOR_FAULT`` -- never ``COLLISION``, never an
-    exception -- and drops the sample: the filter state, the debounce window
-    and ``last_time`` keep the values of the last valid sample. The monitor
-    recovers on the next valid sample, which is processed exactly as if the
-    faulty ones had never arrived: the decisions on the valid samples equal
-    the batch ``predict`` on those rows alone, whatever the number of faults
-    in between. So a fault does not end an alarm either: if a contact is
-    still there at the next valid sample, it is reported at once (the
-    debounce window still holds the contact's samples; there is no new
-    ``min_duration`` wait). ``fault_reason`` says what was wrong and
-    ``n_consecutive_faults`` counts the faults in a row. What a run of faults
-    means is the caller's policy (e.g. stop the robot when no valid sample
-    came for a few control periods); call :meth:`reset` after an outage long
-    enough that the held filter state is stale.
+    **Sensor faults.** A missing sample (``x=None``), a NaN or infinite
+    value, a ``time`` not after the last valid sample's, or a non-finite
+    prediction or signal makes :meth:`update` return
+    ``MonitorStatus.SENSOR_FAULT`` (never ``COLLISION``, never an exception)
+    and drop the sample: the next valid sample is processed as if the faulty
+    ones had never arrived, so a fault does not end an alarm either. A sample
+    of the wrong length or with non-numeric values is a wiring error
+    (``ValueError``, state unchanged). What a run of faults means is the
+    caller's policy; see the user guide's streaming page.
 
-    A sample of the wrong length or with non-numeric values is a wiring
-    error, not a sensor fault: :meth:`update` raises ``ValueError`` and
-    leaves the state and the counters unchanged.
-
-    **Raw samples.** Given ``features`` (a fitted
-    :class:`~sklearn_gpcd.features.CausalFeatures`, the one whose
-    ``transform`` built the detector's training inputs),
-    :meth:`update_raw` takes what the robot logs -- time, ``q``, ``qd``,
-    currents and the controller's targets -- and builds the input row
-    causally (:class:`~sklearn_gpcd.features.OnlineFeatures`). The batch
-    equivalent of :meth:`replay_recording` is ``detector.predict`` on
-    ``stack_currents(features.transform(recording), recording.current)``,
-    sample for sample. A raw sample with a non-finite value or a time stamp
-    that does not advance is a sensor fault that leaves the feature state
-    untouched too.
-
-    **Regimes and rest reference** (``AlarmRule(regimes=Regimes(...))``) run
-    in the same :class:`~sklearn_gpcd.detection._regimes.RegimeState` as the
-    batch detector; ``regime`` holds the last tick's regime code (of the
-    first band).
+    **Raw samples.** Given ``features`` (the fitted
+    :class:`~sklearn_gpcd.features.CausalFeatures` that built the detector's
+    training inputs), :meth:`update_raw` takes what the robot logs and
+    builds the input row causally; :meth:`replay_recording` equals
+    ``detector.predict`` on ``stack_currents(features.transform(rec),
+    rec.current)``, sample for sample. The regimes run in the batch
+    detector's :class:`~sklearn_gpcd.detection._regimes.AlarmState`.
 
     Parameters
     ----------

@@ -41,11 +41,15 @@ from .model_choice import (
     FEEDBACK_RULE,
     FEEDBACK_SPEED,
     FEEDBACK_WINDOW,
+    FOLD_SUPPORT,
+    SIGNALS,
     ModelComparison,
     TargetCurrentCheck,
     candidate_models,
     check_target_current,
+    choose_model,
     compare_models,
+    input_signals,
 )
 from .training import (
     INPUTS,
@@ -62,21 +66,24 @@ from .training import (
     load_model,
     save_model,
     train_model,
+    training_report,
     training_rows,
     training_set,
 )
 
 __all__ = [
     "CHOICE_RULE", "DETECTOR_KIND", "DETECTOR_RULE", "FEEDBACK_LIMIT",
-    "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE", "FEEDBACK_SPEED", "FEEDBACK_WINDOW", "INPUTS",
+    "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE", "FEEDBACK_SPEED", "FEEDBACK_WINDOW",
+    "FOLD_SUPPORT", "INPUTS", "SIGNALS",
     "MAX_TRAIN_ROWS", "MIN_CALIBRATION_SECONDS", "MIN_REGIME_SECONDS", "MODELS",
     "MODEL_KIND", "MODEL_SIGNALS", "MOTION_ENVELOPE_SPEED", "OPTIMIZERS", "ROBOT_MODELS",
     "SELECT_GRID", "TRAIN_RULE", "CalibratedDetector", "CalibrationWarning",
     "ModelComparison", "TargetCurrentCheck", "TrainedModel", "TrainingSet",
     "acceleration_limit", "band_label", "band_settings", "calibrate_detector",
     "calibration_coverage", "calibration_report", "candidate_models",
-    "check_calibration_options", "check_target_current", "compare_models", "load_detector",
+    "check_calibration_options", "check_target_current", "choose_model", "compare_models",
+    "input_signals", "load_detector",
     "load_model", "recording_keys", "resolve_select", "save_detector", "save_model",
-    "split_recordings", "train_model",
+    "split_recordings", "train_model", "training_report",
     "training_rows", "training_set",
 ]

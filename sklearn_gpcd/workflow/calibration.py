@@ -607,6 +607,8 @@ def _summary(result, trained, features, robot, *, keys, split, n_files, select, 
         "selected": bool(select),
         "candidates": [dict(c, params=_json_params(c["params"])) for c in result.candidates]
         if select else [],
+        "fold_settings": ({k: _json_params(p) for k, p in result.fold_settings.items()}
+                          if select else {}),
         "thresholds_A": entries[0]["thresholds_A"],
         "n_false_alarms_nested": result.n_false_alarms,
         "false_alarms_per_hour": result.false_alarms_per_hour,

@@ -25,9 +25,15 @@ from .training import MODELS, ROBOT_MODELS, TrainingSet, train_model
 
 __all__ = ["CHOICE_RULE", "FEEDBACK_LIMIT", "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE",
            "FEEDBACK_SPEED", "FEEDBACK_WINDOW",
-           "ModelComparison", "TargetCurrentCheck", "candidate_models",
-           "check_target_current", "compare_models"]
+           "FOLD_SUPPORT", "SIGNALS", "ModelComparison", "TargetCurrentCheck",
+           "candidate_models", "check_target_current", "choose_model", "compare_models",
+           "input_signals"]
 
+#: Controller signals model inputs may use (``gpcd train --signals``).
+SIGNALS = ("target_q", "target_qd", "target_current")
+#: GP support rows per joint of the fits :func:`choose_model` compares (fewer
+#: when the model's own ``n_support`` is smaller).
+FOLD_SUPPORT = 300
 #: Length [s] of the windows over which :func:`check_target_current` averages
 #: ``current - target_current``.
 FEEDBACK_WINDOW = 0.1
@@ -536,3 +542,120 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
     return ModelComparison(models=models, errors=sse / n_test / var, seconds=seconds,
                            held_out=[name for name, _ in folds], n_support=int(n_support),
                            left_out=left_out)
+
+
+def input_signals(recordings, signals="auto", model="auto"):
+    """The controller signals of a model's inputs, and the target-current check.
+
+    The check (:func:`check_target_current`) runs whenever the inputs would
+    use the target current; with ``signals="auto"`` a target that fails it
+    leaves the inputs unless ``model`` is ``"sp_c"`` (a list is taken as
+    given). P_f and SP_S use no controller signal.
+
+    Parameters
+    ----------
+    recordings : list of Recording
+    signals : "auto", "none" or tuple of str, default="auto"
+        ``"auto"``: each of :data:`SIGNALS` that every recording logs.
+    model : str, default="auto"
+        The model asked for (``gpcd train --model``).
+
+    Returns
+    -------
+    signals : tuple of str
+    check : TargetCurrentCheck or None
+        None when the inputs do not use a logged target current.
+
+    Raises
+    ------
+    ValueError
+        For ``model="sp_c"`` without the target current (asked or logged).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(100) * 0.01
+    >>> rec = Recording(time=t, q=t[:, None], qd=np.ones((100, 1)), current=t[:, None],
+    ...                 target_q=t[:, None])
+    >>> input_signals([rec]), input_signals([rec], model="p_f")
+    ((('target_q',), None), ((), None))
+    """
+    if model == "sp_c":
+        if signals == "none" or (signals != "auto" and "target_current" not in signals):
+            raise ValueError("--model sp_c needs the target current among the inputs; drop "
+                             "--signals or include target_current in it")
+        if (lacking := [r.name for r in recordings if r.target_current is None]):
+            raise ValueError(f"model sp_c needs the target current; {', '.join(lacking)} "
+                             f"do{'es' * (len(lacking) == 1)} not log it: leave "
+                             f"{'it' if len(lacking) == 1 else 'them'} out, or use --model "
+                             "auto (or gp)")
+    if signals == "none" or model in ("p_f", "sp_s"):
+        return (), None
+    logged = tuple(s for s in SIGNALS if all(getattr(r, s) is not None for r in recordings))
+    auto, signals = signals == "auto", logged if signals == "auto" else tuple(signals)
+    if "target_current" not in signals or "target_current" not in logged:
+        return signals, None
+    check = check_target_current(recordings)
+    if not check.usable and model != "sp_c" and auto:
+        signals = tuple(s for s in signals if s != "target_current")
+    return signals, check
+
+
+def choose_model(data, robot=None, target_check=None, *, signals="auto", n_support="auto",
+                 **fit):
+    """``gpcd train --model auto``: the one model the data allow, or the best compared.
+
+    The candidates are :func:`candidate_models`; with several, each is scored
+    by :func:`compare_models` (:data:`CHOICE_RULE`) with at most
+    :data:`FOLD_SUPPORT` support rows per joint.
+
+    Parameters
+    ----------
+    data : TrainingSet
+    robot : Robot or None, default=None
+    target_check : TargetCurrentCheck or None, default=None
+    signals : "auto", "none" or tuple of str, default="auto"
+        The signals asked for (says why SP_C is left out).
+    n_support : int or "auto", default="auto"
+        Support rows of the model to be trained (bounds the folds').
+    **fit
+        ``optimizer``, ``sigma_v``, ``seed``, ``n_jobs``, ``coulomb_width``,
+        ``progress`` of :func:`compare_models`.
+
+    Returns
+    -------
+    model : str
+    comparison : ModelComparison or None
+        None when one model only is possible.
+    note : str or None
+        Why, in that case.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> from sklearn_gpcd.workflow import training_set
+    >>> t = np.arange(200) * 0.01
+    >>> rec = Recording(time=t, q=np.sin(t)[:, None], qd=np.cos(t)[:, None],
+    ...                 current=np.sin(t)[:, None])
+    >>> choose_model(training_set([rec], signals=()))[::2]
+    ('gp', 'model choice (--model auto): GP, the only model these recordings allow; \
+SP_P needs the robot model (--robot); SP_S needs the robot model (--robot); \
+P_F needs the robot model (--robot); SP_C the recordings do not all log the target current')
+    """
+    from ..gp import resolve_n_support
+
+    models, left_out = candidate_models(robot, data.features.signals_, target_check)
+    if signals == "none":
+        left_out["sp_c"] = "--signals none: the inputs have no target current"
+    elif "sp_c" in left_out and not data.has_target_current:
+        left_out["sp_c"] = "the recordings do not all log the target current"
+    if len(models) == 1:
+        return models[0], None, (
+            f"model choice (--model auto): {models[0].upper()}, the only model these "
+            "recordings allow; " + "; ".join(f"{m.upper()} {why}" for m, why in left_out.items()))
+    fold_support = min(FOLD_SUPPORT, resolve_n_support(n_support, len(data.y)))
+    comparison = compare_models(data, robot, models, n_support=fold_support, **fit)
+    comparison.left_out = left_out
+    return comparison.best, comparison, None

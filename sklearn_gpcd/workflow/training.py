@@ -35,7 +35,8 @@ import numpy as np
 
 __all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", "OPTIMIZERS",
            "ROBOT_MODELS", "TRAIN_RULE", "TrainedModel", "TrainingSet", "acceleration_limit",
-           "load_model", "save_model", "train_model", "training_rows", "training_set"]
+           "load_model", "save_model", "train_model", "training_report", "training_rows",
+           "training_set"]
 
 #: Estimators :func:`train_model` builds (``gpcd train --model``): the paper's
 #: three, SP_C (the controller's target current as mean) and ``"gp"``, the GP
@@ -460,6 +461,50 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "acceleration_limit": acceleration_limit(data),
     }
     return TrainedModel(regressor=regressor, features=features, training=training)
+
+
+def training_report(trained):
+    """What ``gpcd train`` prints about a trained model: data, fit and braking limit.
+
+    Parameters
+    ----------
+    trained : TrainedModel
+
+    Returns
+    -------
+    text : str
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(100) * 0.01
+    >>> rec = Recording(time=t, q=np.sin(t)[:, None], qd=np.cos(t)[:, None],
+    ...                 current=np.sin(t)[:, None], target_current=np.sin(t)[:, None])
+    >>> print(training_report(train_model([rec], model="sp_c", n_support=20)))
+    ... # doctest: +ELLIPSIS
+    trained SP_C without a robot model (1 joints) on 1 recording(s), 100 rows, causal inputs
+      GP support 20 rows per joint, optimizer ...
+    """
+    info, regressor = trained.training, trained.regressor
+    robot = info.get("robot")
+    lml = np.atleast_1d(regressor.log_marginal_likelihood_value_)
+    return "\n".join([
+        f"trained {info['model'].upper()} "
+        + (f"for robot {robot} " if robot is not None else "without a robot model ")
+        + f"({trained.features.n_joints_} joints) on {len(info['recordings'])} recording(s), "
+        f"{info['n_rows']} rows, {info['inputs']} inputs"
+        + (f" (1 row in {info['step']} used: {info['n_rows_used']})"
+           if info["step"] > 1 else ""),
+        f"  GP support {info['n_support']} rows per joint, optimizer {regressor.optimizer_}, "
+        f"iterations per joint {np.atleast_1d(regressor.n_iter_).tolist()}, "
+        f"sigma_v {info['sigma_v'] if info['sigma_v'] is not None else '-'}, "
+        + (f"Coulomb tanh(qd / {info['coulomb_width']:g}), "
+           if info.get("coulomb_width") is not None else "")
+        + f"seed {info['seed']}, controller signals {', '.join(info['signals']) or 'none'}",
+        "  log marginal likelihood per joint: " + ", ".join(f"{v:.4g}" for v in lml),
+        f"  largest |qdd| of the training rows {info['acceleration_limit']:.3g} rad/s^2 "
+        "(the braking limit of gpcd calibrate --braking)"])
 
 
 def save_model(trained, path):
