@@ -27,7 +27,6 @@ the numbers of the documentation's results page, is
 # %%
 # Find the data
 # -------------
-import os
 import sys
 import warnings
 from pathlib import Path
@@ -36,17 +35,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 
-def find_data(name="ur10e_mamedov"):
-    """``$GPCD_REAL_DATA/<name>`` if set, else ``../shared/data/real/<name>``; None if absent."""
-    if os.environ.get("GPCD_REAL_DATA"):
-        root = Path(os.environ["GPCD_REAL_DATA"]).expanduser()
-    else:
-        here = Path(__file__).resolve().parent if "__file__" in globals() else Path.cwd()
-        root = here.parent.parent / "shared" / "data" / "real"
-    return root / name if (root / name).is_dir() else None
+sys.path.insert(0, str(Path(__file__).resolve().parent if "__file__" in globals()
+                       else Path.cwd()))
+from _real_data import find_data  # noqa: E402  (examples/_real_data.py)
 
-
-DATA = find_data()
+DATA = find_data("ur10e_mamedov")
 if DATA is None:
     print("The UR10e recordings were not found (set GPCD_REAL_DATA to the folder that "
           "holds ur10e_mamedov/). Skipping this example.")

@@ -433,7 +433,9 @@ class MonitorSession:
             matplotlib.use("Agg")
             import matplotlib.pyplot as plt
         except ImportError:
-            warnings.warn("matplotlib is not installed; no figure", UserWarning, stacklevel=2)
+            warnings.warn("matplotlib is not installed; no figure: pip install matplotlib "
+                          "(or 'sklearn-gpcd[plot]'), or drop --plot", UserWarning,
+                          stacklevel=2)
             return None
         s = self.series
         t = np.asarray(s["t"])
@@ -726,7 +728,7 @@ class MonitorSession:
                                                 env={**os.environ, **env}))
         except (OSError, ValueError) as exc:
             self.hook_failures += 1
-            warnings.warn(f"hook {self.hook!r} could not start: {exc}; monitoring goes on",
+            warnings.warn(f"--hook {self.hook!r} could not start: {exc}; monitoring goes on",
                           HookWarning, stacklevel=2)
 
     def _reap(self):
@@ -738,7 +740,7 @@ class MonitorSession:
                 running.append(process)
             elif code != 0:
                 self.hook_failures += 1
-                warnings.warn(f"hook {self.hook!r} exited with status {code}; monitoring "
+                warnings.warn(f"--hook {self.hook!r} exited with status {code}; monitoring "
                               "goes on", HookWarning, stacklevel=3)
         self._hooks = running
 
@@ -882,7 +884,8 @@ class MonitorSession:
         try:
             return client.connect()
         except (OSError, ConnectionError) as exc:
-            raise OSError(f"cannot start an RTDE stream from {host}:{port}: {exc}") from None
+            raise OSError(f"cannot start an RTDE stream from {host}:{port}: {exc} (check "
+                          "--rtde HOST and --port)") from None
 
     def run_rtde(self, client, name, duration=None, reconnect_timeout=30.0):
         """Monitor a connected :class:`~sklearn_gpcd.io.RTDEClient` until the stream ends.

@@ -146,14 +146,16 @@ def n_support_arg(value):
 
 # ---------------------------------------------------------------- recordings
 def read_recordings(paths, args, what="recordings", progress=True):
-    """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``
-    ``--units-confirmed`` and ``--allow-short``."""
+    """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``,
+    ``--units-confirmed``, ``--allow-short`` and ``--max-joint-speed``."""
     from ..io import load_recordings
 
     kwargs = {"accept": ["degrees", "units"] * bool(getattr(args, "units_confirmed", False))
               + ["short"] * bool(getattr(args, "allow_short", False))}
     if getattr(args, "time_scale", None) is not None:
         kwargs["time_scale"] = args.time_scale
+    if getattr(args, "max_joint_speed", None) is not None:
+        kwargs["max_joint_speed"] = args.max_joint_speed
     if select_joints(args) is not None:
         kwargs["n_joints"] = args.robot.n_joints
     shown = progress and not getattr(args, "quiet", False)
@@ -164,7 +166,8 @@ def read_recordings(paths, args, what="recordings", progress=True):
     except ValueError as exc:
         if str(exc).startswith("no recordings found"):
             raise ValueError(f"no {what} found in {' '.join(map(str, paths))}") from None
-        if "column_map" not in str(exc) or "--column-map" in str(exc):
+        if not any(w in str(exc) for w in ("column_map", "column map", "missing column")) \
+                or "--column-map" in str(exc):
             raise
         raise ValueError(f"{exc} -- on the command line: --column-map with a JSON object, "
                          "a JSON file or a preset name") from None
@@ -176,7 +179,10 @@ def select_joints(args):
 
     robot, joints = getattr(args, "robot", None), getattr(args, "joints", None)
     if robot is not None and joints is not None and not getattr(args, "_joints_done", False):
-        args.robot, args._joints_done = load_robot(robot.source, joints=joints), True
+        try:
+            args.robot, args._joints_done = load_robot(robot.source, joints=joints), True
+        except ValueError as exc:
+            raise ValueError(f"--joints: {exc}") from None
     return args.robot if robot is not None else None
 
 
@@ -212,8 +218,8 @@ def robot_for(args, recordings):
 
 
 def add_check_options(parser):
-    """``--time-scale``, ``--units-confirmed``, ``--allow-short``: what
-    :func:`read_recordings` checks."""
+    """``--time-scale``, ``--units-confirmed``, ``--allow-short``, ``--max-joint-speed``:
+    what :func:`read_recordings` checks."""
     parser.add_argument("--time-scale", type=positive_float, default=None, metavar="S",
                         help="multiply the time column by S to get seconds (1e-3 for ms)")
     parser.add_argument("--units-confirmed", action="store_true",
@@ -221,6 +227,9 @@ def add_check_options(parser):
                         "disagree (time in ms, deg/s; refused by default)")
     parser.add_argument("--allow-short", action="store_true",
                         help="go on with recordings shorter than 1 s (refused by default)")
+    parser.add_argument("--max-joint-speed", type=positive_float, default=None, metavar="RAD_S",
+                        help="drop rows where a joint jumps faster than this [rad/s] as "
+                        "glitches (default 10)")
 
 
 def add_recording_options(parser, robot_help):

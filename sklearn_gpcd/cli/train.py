@@ -136,7 +136,8 @@ def run(args):
     if check is not None:
         notes.append(check.text(sp_c_asked=model == "sp_c"))
         if not check.usable and model == "sp_c":
-            notes.append("WARNING: --model sp_c asked for: its mean may absorb contacts")
+            notes.append("WARNING: --model sp_c asked for: its mean may absorb contacts "
+                         "(--model auto leaves SP_C out)")
     for note in notes:
         print(note, flush=True)
     notes, comparison = [], None

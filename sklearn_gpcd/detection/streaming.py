@@ -639,7 +639,9 @@ class StreamingMonitor(VersionedStateMixin):
 
                 warnings.warn(
                     f"the stream's mean time step is {mean:g} s but the detector was "
-                    f"calibrated with sample_time={expected:g} s",
+                    f"calibrated with sample_time={expected:g} s: its filters, debounce and "
+                    "delays are off by that ratio; calibrate it again on recordings at "
+                    "this rate (gpcd calibrate)",
                     SampleTimeWarning, stacklevel=3,
                 )
 

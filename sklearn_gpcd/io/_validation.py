@@ -480,7 +480,7 @@ def finalize_recording(
         first_row, reason = malformed[0]
         _too_many(source, "are malformed", len(malformed), n_rows, max_dropped,
                   f"{kind} {first_row}: {reason}",
-                  "Check the delimiter and the column map.")
+                  "Check the delimiter and the column map (--column-map on the command line).")
     _check_joint_count(source, columns, column_labels, n_joints)
     for key, values in columns.items():
         values2d = values if values.ndim == 2 else values[:, None]
@@ -495,7 +495,8 @@ def finalize_recording(
                   "max_joint_speed)",
                   len(bad), n_rows, max_dropped, f"{kind} {bad[0][0]}, {bad[0][1]}",
                   "Sort the file or split it where time resets; for fast motion raise "
-                  "max_joint_speed (None disables the joint check).")
+                  "max_joint_speed (--max-joint-speed on the command line; None "
+                  "disables the joint check).")
     columns, row_ids = _take(columns, keep), row_ids[keep]
 
     if len(row_ids) < min_samples:

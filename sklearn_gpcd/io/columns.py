@@ -372,7 +372,9 @@ def _expand_prefix(prefix, lookup, n_joints, source=""):
     if count > n_joints:
         raise ValueError(
             f"{source}: the file has {count} {prefix}_* columns ({prefix}_0 .. "
-            f"{prefix}_{count - 1}) but n_joints={n_joints}: more joints than the robot has?")
+            f"{prefix}_{count - 1}) but n_joints={n_joints}: more joints than the robot has? "
+            f"(keep the robot's joints the log has: gpcd --joints {count}, or "
+            f"load_robot(..., joints={count}) in Python)")
     return [f"{prefix}_{j}" for j in range(n_joints)]
 
 

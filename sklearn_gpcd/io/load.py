@@ -1,5 +1,6 @@
 """One entry point for every recording format: :func:`load_recording`."""
 
+import contextlib
 import re
 import warnings
 from glob import glob, has_magic
@@ -240,7 +241,8 @@ def load_recordings(paths, format="auto", column_map=None, *, accept=None, progr
         :func:`~sklearn_gpcd.io.recording_problems` finds (``"degrees"``,
         ``"units"``, ``"short"``) is a ValueError naming the file, unless its
         kind is in ``accept`` (``gpcd --units-confirmed`` accepts degrees and
-        units, ``--allow-short`` short recordings).
+        units, ``--allow-short`` short recordings); the file's warnings are
+        then left to that error, which says it all.
     progress : callable, default=None
         ``progress(label, total)`` returning an object whose ``update()`` is
         called after each source (e.g. a progress bar).
@@ -266,12 +268,16 @@ def load_recordings(paths, format="auto", column_map=None, *, accept=None, progr
     if not sources:
         raise ValueError(f"no recordings found in {paths!r}")
     bar = progress("reading recordings", len(sources)) if progress is not None else None
-    recordings = []
+    recordings, said = [], set()
     for path in sources:
         if kwargs.get("time_scale", 1.0) != 1.0 and detect_format(path) in ("rtde", "rosbag"):
             raise ValueError(f"{path}: time_scale (--time-scale) applies to CSV, NPZ and "
                              "one-value-per-line logs only")
-        rec = load_recording(path, format=format, column_map=column_map, **kwargs)
+        with (warnings.catch_warnings(record=True) if accept is not None
+              else contextlib.nullcontext()) as caught:
+            if accept is not None:  # said by the error, if there is one
+                warnings.simplefilter("always")
+            rec = load_recording(path, format=format, column_map=column_map, **kwargs)
         for kind, note in recording_problems(rec) if accept is not None else ():
             if kind not in accept:
                 scale = re.search(r"time_scale=(\S+?)\)", note)
@@ -279,6 +285,10 @@ def load_recordings(paths, format="auto", column_map=None, *, accept=None, progr
                 flag = "--allow-short" if kind == "short" else "--units-confirmed"
                 raise ValueError(f"{path}: {note} Fix it ({fix}or convert the file), or accept "
                                  f"it as it is: {flag} (accept=[{kind!r}] in Python)")
+        for caught_warning in caught or ():
+            if str(caught_warning.message) not in said:  # a guessed layout: once
+                said.add(str(caught_warning.message))
+                warnings.warn(caught_warning.message, caught_warning.category, stacklevel=2)
         recordings.append(rec)
         if bar is not None:
             bar.update()

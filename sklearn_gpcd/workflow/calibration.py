@@ -787,6 +787,14 @@ def _false_alarm_line(summary, out, which=""):
     out.append(f"    95 % upper bound: {bound:.3g} per hour (Poisson, from "
                f"{summary['n_false_alarms_nested']} onset(s) in {summary['hours'] * 60:.1f} min: "
                "longer calibration data tightens it)")
+    chosen = [c for c in summary.get("candidates") or () if c["rank"] == 0]
+    if summary.get("selected") and chosen and summary["hours"] > 0:
+        c = chosen[0]
+        out.append(f"    at the chosen settings (settle {_seconds_text(c['params']['settle_time_s'])}"
+                   f", rest reference {_seconds_text(c['params']['rest_reference_s'])}) "
+                   f"alone: {c['n_false_alarms']} onset(s) = "
+                   f"{c['n_false_alarms'] / summary['hours']:.2f} per hour; the figure above "
+                   "also counts the choice, made without each recording")
 
 
 def _threshold_lines(entry, summary, pad, out):

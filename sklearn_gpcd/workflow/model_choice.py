@@ -586,8 +586,10 @@ def input_signals(recordings, signals="auto", model="auto"):
             raise ValueError("--model sp_c needs the target current among the inputs; drop "
                              "--signals or include target_current in it")
         if (lacking := [r.name for r in recordings if r.target_current is None]):
-            raise ValueError(f"model sp_c needs the target current; {lacking[0]} does not "
-                             "log it")
+            raise ValueError(f"model sp_c needs the target current; {', '.join(lacking)} "
+                             f"do{'es' * (len(lacking) == 1)} not log it: leave "
+                             f"{'it' if len(lacking) == 1 else 'them'} out, or use --model "
+                             "auto (or gp)")
     if signals == "none" or model in ("p_f", "sp_s"):
         return (), None
     logged = tuple(s for s in SIGNALS if all(getattr(r, s) is not None for r in recordings))
