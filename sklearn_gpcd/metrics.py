@@ -95,8 +95,8 @@ def _new_segment(n, groups):
 
 
 # ------------------------------------------------------------------- alarms
-def alarm_onsets(alarms, time=None, *, event_gap=0.0):
-    """Times at which alarm episodes (or events) start.
+def alarm_onsets(alarms, time=None):
+    """Times at which alarm episodes start.
 
     An onset is a sample with an alarm whose predecessor has none (the first
     sample counts when it alarms). With one column per joint, a sample alarms
@@ -105,21 +105,12 @@ def alarm_onsets(alarms, time=None, *, event_gap=0.0):
     :func:`false_alarms_per_hour` counts before it leaves out those that
     belong to a contact.
 
-    With ``event_gap`` > 0, an episode that starts less than ``event_gap``
-    after the previous one ended (its last alarm sample) belongs to the same
-    **event**, as :class:`~sklearn_gpcd.monitoring.MonitorSession` reports
-    them: a contact whose monitoring signal hovers about the threshold
-    flickers on and off, and is still one contact.
-
     Parameters
     ----------
     alarms : array-like of bool, shape (n_samples,) or (n_samples, n_joints)
         True where the detector raised an alarm (per joint, or any joint).
     time : array-like of shape (n_samples,), default=None
         Time stamp of each sample; None gives the sample indices.
-    event_gap : float, default=0.0
-        Quiet time (in the unit of ``time``, samples without it) shorter than
-        which two episodes are one event. 0 counts every episode.
 
     Returns
     -------
@@ -131,8 +122,6 @@ def alarm_onsets(alarms, time=None, *, event_gap=0.0):
     >>> from sklearn_gpcd.metrics import alarm_onsets
     >>> alarm_onsets([0, 1, 1, 0, 1])
     [1, 4]
-    >>> alarm_onsets([0, 1, 1, 0, 1], event_gap=3)    # quiet 2 < 3: one event
-    [1]
     >>> alarm_onsets([[0, 0], [1, 0], [0, 1], [0, 0]], time=[0.0, 0.01, 0.02, 0.03])
     [0.01]
     """
@@ -146,13 +135,10 @@ def alarm_onsets(alarms, time=None, *, event_gap=0.0):
     alarms = _check_alarm_values(alarms)
     any_joint = alarms.any(axis=1) if alarms.ndim == 2 else alarms
     starts = np.flatnonzero(any_joint & ~np.concatenate([[False], any_joint[:-1]]))
-    stamps = (np.arange(n, dtype=float) if time is None
-              else _check_time(time, None, n, required=True))
-    if event_gap > 0 and starts.size > 1:
-        ends = np.flatnonzero(any_joint & ~np.concatenate([any_joint[1:], [False]]))
-        quiet = stamps[starts[1:]] - stamps[ends[:-1]]  # from the last alarm sample
-        starts = starts[np.concatenate([[True], quiet >= event_gap])]
-    return starts.tolist() if time is None else stamps[starts].tolist()
+    if time is None:
+        return starts.tolist()
+    time = _check_time(time, None, n, required=True)
+    return time[starts].tolist()
 
 
 # ------------------------------------------------------------------- events

@@ -44,7 +44,7 @@ import numpy as np
 
 from .workflow.calibration import band_label, band_settings
 
-__all__ = ["BLIND", "EVENT_GAP", "MONITORING", "RECOVERING", "HookWarning", "MonitorSession",
+__all__ = ["BLIND", "MONITORING", "RECOVERING", "HookWarning", "MonitorSession",
            "paced", "recording_samples", "stall_bound"]
 
 #: State of a session whose decisions are those of the detector.
@@ -63,12 +63,6 @@ FAULT_EXIT_STATUS = 3
 MAX_FAULT_RECORDS = 1000
 #: Line colours of the bands in a multi-band figure (C3, red, shades the events).
 BAND_COLORS = ("C0", "C2", "C4", "C1", "C5", "C6", "C8", "C9")
-
-
-#: Quiet time [s] below which two alarms are one event (MonitorSession):
-#: a contact's signal can flicker about its threshold for a few tenths of a
-#: second (gaps of 60 and 120 ms inside real UR10e pushes).
-EVENT_GAP = 0.25
 
 
 class HookWarning(UserWarning):
@@ -245,13 +239,6 @@ class MonitorSession:
     stall_timeout : float, default=None
         Stall bound [s]; None: :func:`stall_bound` of the detector's sample
         time.
-    event_gap : float, default=EVENT_GAP
-        An alarm that starts less than this [s] after the last alarm sample
-        extends the open event (no new ``ALARM`` line, no second hook): a
-        contact whose signal flickers about its threshold is one event
-        (:func:`~sklearn_gpcd.metrics.alarm_onsets` with the same
-        ``event_gap`` counts the events of a recording). 0 closes an event
-        at the first sample without alarm.
 
     Attributes
     ----------
@@ -307,7 +294,7 @@ class MonitorSession:
     """
 
     def __init__(self, detector, features, *, hook=None, keep_series=False, echo=False,
-                 band_labels=None, stall_timeout=None, event_gap=EVENT_GAP):
+                 band_labels=None, stall_timeout=None):
         from .detection import StreamingMonitor
 
         self.monitor = StreamingMonitor(detector, features=features)
@@ -325,7 +312,6 @@ class MonitorSession:
                               else float(stall_timeout))
         self.warmup_s = max(self._warmup(band.rule) for band in self.bands)
         self.hook, self.keep_series, self.echo = hook, keep_series, echo
-        self.event_gap = float(event_gap)
         self.events, self.recordings, self.faults = [], [], []
         self.n_blind, self.hook_failures = 0, 0
         self.end_reason, self.abnormal_end = None, False
@@ -559,7 +545,7 @@ class MonitorSession:
             self.cross_start = None
         if mon.alarms.any():
             self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
-        elif self.open is not None and rel - self.open["end_s"] >= self.event_gap:
+        elif self.open is not None:
             self._close()
         if self.keep_series:
             s = self.series

@@ -21,10 +21,8 @@ from sklearn.base import clone
 
 from sklearn_gpcd.detection import stack_currents
 from sklearn_gpcd.io._rtde_live import LoopbackRTDEServer, RTDEClient
-from sklearn_gpcd.metrics import alarm_onsets
 from sklearn_gpcd.monitoring import (
     BLIND,
-    EVENT_GAP,
     MONITORING,
     MonitorSession,
     recording_samples,
@@ -396,21 +394,3 @@ def test_duration_bounds_a_stream_that_sends_nothing(live, capsys):
         session.run_rtde(client, "silent", duration=0.5)
     assert session.end_reason == "duration" and session.n_samples == 0
     assert [f["kind"] for f in session.faults] == ["stall"] and session.exit_status == 3
-
-
-def test_a_flickering_contact_is_one_event_as_alarm_onsets_counts_it(live, capsys):
-    """Two bumps 0.15 s apart are one event (one ALARM line) under the default gap,
-    two with ``event_gap=0``; the batch count with the same gap agrees."""
-    stream = with_pushes(free_runs(1)[0].slice(0, 1500), (0.5, 0.95))
-    batch = live["detector"].predict(
-        stack_currents(live["features"].transform(stream), stream.current)) == -1
-    t = stream.time - stream.time[0]
-    assert len(alarm_onsets(batch, t)) == 2
-    for gap, n in ((EVENT_GAP, 1), (0.0, 2)):
-        session = MonitorSession(live["detector"], live["features"], echo=True,
-                                 event_gap=gap)
-        session.run_recording(stream, "flicker")
-        starts = [e["start_s"] for e in session.events]
-        assert len(starts) == n
-        assert np.allclose(starts, alarm_onsets(batch, t, event_gap=gap))
-        assert capsys.readouterr().out.count("ALARM flicker") == n
