@@ -343,12 +343,16 @@ def test_extra_columns_of_a_variant_pass_the_test_on_their_own():
 def test_peak_next_to_an_exponential_softening_is_sized():
     """A peak next to dry friction that softens exponentially (a regularised constraint,
     MuJoCo's frictionloss) came out 22-40 % low with the Gaussian softening alone: the
-    misfit of the shape went into the peak. The softening's shape is now a setting."""
+    misfit of the shape went into the peak. The softening's shape is now a setting
+    (opt-in)."""
+    from sklearn_gpcd.diagnosis.effects import SOFTENING_SHAPES, FrictionSofteningEffect
+
     nominal, s, v, k = _low_speed_states(2)
     n = s.n_samples
     s.current[:, 1] += (3.0 * np.sign(v) * np.exp(-(v / 0.03) ** 2)
                         - 8.0 * np.sign(v) * np.exp(-np.abs(v) / 0.004)) / k
-    library = effect_library(["stribeck_friction", "friction_softening"])
+    library = effect_library(["stribeck_friction",
+                              FrictionSofteningEffect(shapes=SOFTENING_SHAPES)])
     candidates, design = build_candidates(s, nominal, library)
     stats = fold_statistics(candidates, design, s.current - s.reference,
                             np.ones((n, 6), dtype=bool), fold_index(s, 5), 5, s.current)
