@@ -9,29 +9,21 @@ and how far a 10 % change of the torque constant moves what they cannot
 reproduce, against the sample noise of the residual (its first differences
 over sqrt 2).
 """
-import json
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import blind_protocol as bp  # noqa: E402
-from sklearn_gpcd.diagnosis import NominalModel, Signals  # noqa: E402
+from blind_torque_constant_estimator import load_case  # noqa: E402
 
 out = Path(sys.argv[1])
 for spec in sys.argv[2:]:
     case, joint = spec.split(":")
     assert int(case[4:]) in bp.SEEDS["dev"] + bp.SEEDS["dev2"], "development cases only"
     j = int(joint) - 1
-    folder = out / "cases" / case
-    nominal = json.loads((folder / "nominal.json").read_text())
-    with tempfile.TemporaryDirectory() as tmp:
-        robot = bp._nominal_robot(nominal, tmp)
-    model = NominalModel(robot, None, {"coulomb": np.array(nominal["coulomb"]),
-                                       "viscous": np.array(nominal["viscous"])})
-    s = Signals.from_recordings(model, [bp._load_recording(folder / "train.npz", "train")])
+    s = load_case(out, case)
     qd = s.qd[:, j]
     moving = np.abs(qd) > 1e-3
     ref = s.reference[moving, j]

@@ -27,8 +27,9 @@ def bp():
 
 def test_seed_sets_are_disjoint_and_large_enough(bp):
     dev = set(bp.SEEDS["dev"]) | set(bp.SEEDS["dev2"])
-    score, seen = set(bp.SEEDS["score"]), set(bp.SEEDS["score1"])
+    score, seen = set(bp.SEEDS["score3"]), set(bp.SEEDS["score1"]) | set(bp.SEEDS["score"])
     assert not dev & score and not dev & seen and not score & seen
+    assert not set(bp.SEEDS["score"]) & set(bp.SEEDS["score1"])
     assert len(score) >= 30
 
 

@@ -248,19 +248,26 @@ def test_separating_excitation_names_joints_from_one():
 
 
 # ---------------------------------------------------------- friction family
+def _low_speed_states(seed, n=3000):
+    """Random states with speeds spread over 3 decades; current = reference + noise.
+
+    Returns the nominal model, the signals, joint 2's velocity and torque constant.
+    """
+    rng = np.random.default_rng(seed)
+    nominal = NominalModel("ur10")
+    qd = rng.uniform(-1, 1, (n, 6)) * 10 ** rng.uniform(-3.5, -0.5, (n, 6))
+    X = np.hstack([rng.uniform(-1, 1, (n, 6)), qd, np.zeros((n, 6))])
+    s = Signals.from_states(nominal, X)
+    s.current = s.reference + 0.01 * rng.normal(size=(n, 6))
+    return nominal, s, s.qd[:, 1], s.torque_constants[1]
+
+
 def test_stribeck_peak_over_softening_dry_friction_is_found_with_both_signs():
     """A peak (+6 Nm at 0.04 rad/s) on friction that softens at lower speed (-8 Nm at
     0.004 rad/s): tried alone each is cancelled by the other; the pair is found, each with
     its physical sign."""
-    rng = np.random.default_rng(1)
-    nominal = NominalModel("ur10")
-    n = 3000
-    qd = rng.uniform(-1, 1, (n, 6)) * 10 ** rng.uniform(-3.5, -0.5, (n, 6))
-    X = np.hstack([rng.uniform(-1, 1, (n, 6)), qd, np.zeros((n, 6))])
-    s = Signals.from_states(nominal, X)
-    v = s.qd[:, 1]
-    k = s.torque_constants[1]
-    s.current = s.reference + 0.01 * rng.normal(size=(n, 6))
+    nominal, s, v, k = _low_speed_states(1)
+    n = s.n_samples
     s.current[:, 1] += (6.0 * np.sign(v) * np.exp(-(v / 0.04) ** 2)
                         - 8.0 * np.sign(v) * np.exp(-(v / 0.004) ** 2)) / k
     library = effect_library(["stribeck_friction", "friction_softening"])
@@ -331,3 +338,110 @@ def test_extra_columns_of_a_variant_pass_the_test_on_their_own():
     stats, candidates = _drifting(viscous_rate=0.01)
     kept, _ = forward_selection(stats, candidates)
     assert [s.candidate.settings["with_viscous"] for s in kept] == [True]
+
+
+def test_peak_next_to_an_exponential_softening_is_sized():
+    """A peak next to dry friction that softens exponentially (a regularised constraint,
+    MuJoCo's frictionloss) came out 22-40 % low with the Gaussian softening alone: the
+    misfit of the shape went into the peak. The softening's shape is now a setting
+    (opt-in)."""
+    from sklearn_gpcd.diagnosis.effects import SOFTENING_SHAPES, FrictionSofteningEffect
+
+    nominal, s, v, k = _low_speed_states(2)
+    n = s.n_samples
+    s.current[:, 1] += (3.0 * np.sign(v) * np.exp(-(v / 0.03) ** 2)
+                        - 8.0 * np.sign(v) * np.exp(-np.abs(v) / 0.004)) / k
+    library = effect_library(["stribeck_friction",
+                              FrictionSofteningEffect(shapes=SOFTENING_SHAPES)])
+    candidates, design = build_candidates(s, nominal, library)
+    stats = fold_statistics(candidates, design, s.current - s.reference,
+                            np.ones((n, 6), dtype=bool), fold_index(s, 5), 5, s.current)
+    selected, _ = forward_selection(stats, candidates, check=plausibility_check(nominal))
+    from sklearn_gpcd.diagnosis import joint_fit
+    from sklearn_gpcd.diagnosis.selection import expand_composites
+
+    model = joint_fit(s, nominal, expand_composites(selected), np.ones((n, 6), dtype=bool))
+    fitted = {f.name: f for f in model.effects}
+    assert fitted["stribeck_friction"].parameters["delta_stribeck"][0] == pytest.approx(
+        3.0, rel=0.2)
+    assert fitted["friction_softening"].settings["shape"] == "exponential"
+    assert fitted["friction_softening"].parameters["softening"][0] == pytest.approx(8.0, rel=0.2)
+
+
+def test_softening_shapes():
+    from sklearn_gpcd.diagnosis.effects import SOFTENING_SHAPES, softening_shape
+
+    v = np.array([-0.02, -0.001, 0.0, 0.001, 0.02])
+    for shape in SOFTENING_SHAPES:
+        col = softening_shape(v, 0.01, shape)
+        assert col[2] == 0 and np.allclose(col, -col[::-1])  # odd, zero at rest
+        assert 0.5 < col[3] <= 1.0 and abs(col[4]) < 0.2  # near 1 at rest, fades
+    with pytest.raises(ValueError, match="unknown softening shape"):
+        softening_shape(v, 0.01, "cubic")
+
+
+def _simulator_nominal():
+    from sklearn_gpcd.datasets import default_friction
+    from sklearn_gpcd.datasets.plant import drive_parameters
+    from sklearn_gpcd.robots import load_robot
+
+    robot = load_robot("ur10")
+    k, rotor = drive_parameters(robot)
+    return load_robot("ur10", torque_constants=k, rotor_inertias=rotor), default_friction(robot)
+
+
+def _lead(recording, seconds):
+    """The recording with its current leading the state by ``seconds``."""
+    t = recording.time
+    current = np.column_stack([np.interp(t + seconds, t, recording.current[:, j])
+                               for j in range(recording.current.shape[1])])
+    return Recording(time=t, q=recording.q, qd=recording.qd, current=current,
+                     units=recording.units, name=recording.name)
+
+
+def test_a_lead_shorter_than_half_a_sample_is_not_a_delay():
+    """PyBullet's logged current leads its state by about 1.4 ms at 125 Hz (which sample of
+    the control cycle each carries); it was named a -1.4 ms delay in blind cases without
+    any delay. A lead below half the sample period (4 ms here) is not a delay of the log; a
+    longer one still is."""
+    robot, friction = _simulator_nominal()
+    run = make_d1("ur10", n_targets=8, random_state=1)
+    assert np.median(np.diff(run.time)) == pytest.approx(0.008)
+    # (a 3 ms lead removes 1.6 % of the held-out error here: below the default min_gain,
+    # so the bar is lowered to reach the rule)
+    short = DynamicsDiagnosis(robot, friction=friction, effects=["time_delay"],
+                              min_gain=0.005).fit(_lead(run, 0.003))
+    assert short.effects_ == []
+    assert any("half the sample period" in r["reason"] for r in short.rejected_effects_)
+    long = DynamicsDiagnosis(robot, friction=friction, effects=["time_delay"],
+                             min_gain=0.005).fit(_lead(run, 0.012))
+    assert [f.name for f in long.effects_] == ["time_delay"]
+    assert long.effects_[0].parameters["delay"][0] == pytest.approx(-0.012, rel=0.2)
+
+
+def test_torque_constant_a_run_cannot_show_is_said_so():
+    """On the blind protocol's plants a 10-24 % torque-constant change of wrist joint 5,
+    whose current is 98-99.8 % friction there, went unnamed and unmentioned. The report now
+    lists the torque constants these recordings cannot tell from a friction change of the
+    joint, from which size on they could, and the excitation that would; the gravity-loaded
+    joints 1-3 are not listed, nor a joint whose constant was named."""
+    from sklearn_gpcd.datasets import TorqueConstantError
+
+    robot, friction = _simulator_nominal()
+    control = DynamicsDiagnosis(robot, friction=friction).fit(
+        make_d1("ur10", n_targets=8, random_state=1))
+    said = {u["joints"][0]: u for u in control.unidentifiable_}
+    assert {4, 5} <= set(said) and not {0, 1, 2} & set(said)
+    assert said[4]["smallest_change"] > 0.1 and said[4]["friction_share"] > 0.9
+    text = control.report().text()
+    assert "Not identifiable from these recordings" in text and "joint 5" in text
+    assert control.report().to_dict()["not_identifiable"][0]["effect"] == "torque_constant"
+    # on this simulator nothing else competes for joint 5's residual: a 10 % change is named
+    # (and then not listed)
+    changed = DynamicsDiagnosis(robot, friction=friction).fit(
+        make_d1("ur10", n_targets=8, effects=[TorqueConstantError([1, 1, 1, 1, 0.9, 1])],
+                random_state=1))
+    named = [f for f in changed.effects_ if f.name == "torque_constant"]
+    assert [f.target for f in named] == [4]
+    assert named[0].parameters["scale"][0] == pytest.approx(0.9, abs=0.02)
+    assert 4 not in {u["joints"][0] for u in changed.unidentifiable_}

@@ -170,6 +170,9 @@ class DiagnosisReport:
     ambiguities : list of dict
         Effects the recordings cannot tell apart, with the excitation that
         would separate them (see ``DynamicsDiagnosis.ambiguities_``).
+    unidentifiable : list of dict
+        Effects the recordings could not show at a size that matters, with
+        the excitation that would (see ``DynamicsDiagnosis.unidentifiable_``).
 
     Examples
     --------
@@ -190,6 +193,7 @@ class DiagnosisReport:
     rejected: list = field(default_factory=list)
     implausible: list = field(default_factory=list)
     ambiguities: list = field(default_factory=list)
+    unidentifiable: list = field(default_factory=list)
 
     @classmethod
     def from_diagnosis(cls, diagnosis, scores=None):
@@ -247,6 +251,7 @@ class DiagnosisReport:
             rejected=[{"name": s.candidate.label, **s.to_dict()} for s in rejected],
             implausible=list(getattr(diagnosis, "rejected_effects_", [])),
             ambiguities=list(getattr(diagnosis, "ambiguities_", [])),
+            unidentifiable=list(getattr(diagnosis, "unidentifiable_", [])),
         )
 
     def to_dict(self):
@@ -269,6 +274,7 @@ class DiagnosisReport:
         out["strongest_rejected"] = self.rejected
         out["rejected_estimates"] = self.implausible
         out["ambiguous"] = self.ambiguities
+        out["not_identifiable"] = self.unidentifiable
         if self.breakdown is not None:
             out["residual_breakdown"] = self.breakdown.to_dict()
         return out
@@ -373,6 +379,15 @@ class DiagnosisReport:
                     f"fitted terms {corr:.2f}{' or more' if corr < 0.995 else ''}); {first.replace('_', ' ')} is reported "
                     f"as the simpler. To separate them: "
                     f"{separating_excitation(first, second, joints)}.")
+        if self.unidentifiable:
+            lines += ["", "   Not identifiable from these recordings:"]
+            for u in self.unidentifiable:
+                lines.append(
+                    f"   - the {u['effect'].replace('_', ' ')} of {_joint_list(u['joints'])}: "
+                    f"a change smaller than {100 * u['smallest_change']:.0f} % cannot be told "
+                    f"from a friction change of the joint ({100 * u['friction_share']:.1f} % "
+                    "of its reference current is what friction terms reproduce); "
+                    f"excitation needed: {u['excitation']}.")
         if self.implausible:
             lines += ["", "   Rejected estimates (not reported as findings):"]
             by_effect = {}

@@ -244,7 +244,9 @@ def _friction_pairs(candidates):
                     v0 * PAIR_SEPARATION > vs:
                 continue
             pairs.append(Candidate(peak.effect, peak.target,
-                                   {**peak.settings, "softening_velocity": v0}, peak.joints,
+                                   {**peak.settings, "softening_velocity": v0,
+                                    "softening_shape": soft.settings.get("shape", "gaussian")},
+                                   peak.joints,
                                    np.concatenate([peak.columns, soft.columns]), peak.order,
                                    parts=(peak, soft)))
     return pairs
@@ -836,6 +838,9 @@ def _score(stats, candidates, base, chosen=()):
 def _one_standard_error(eligible):
     """The simplest eligible step not worse than the best by one paired standard error.
 
+    Simplest: fewest parameters, then library order, then the default softening shape
+    (:func:`_other_shape`), then the largest gain.
+
     Returns the pick and every step within that standard error of the best.
     """
     best = max(eligible, key=lambda s: s.gain)
@@ -845,8 +850,19 @@ def _one_standard_error(eligible):
         se = diff.std(ddof=1) / np.sqrt(diff.size) if diff.size > 1 else 0.0
         if diff.mean() <= se:
             close.append(step)
-    pick = min(close, key=lambda s: (s.candidate.n_params, s.candidate.order, -s.gain))
+    pick = min(close, key=lambda s: (s.candidate.n_params, s.candidate.order,
+                                     _other_shape(s.candidate), -s.gain))
     return pick, close
+
+
+def _other_shape(candidate):
+    """1 when the candidate uses a softening shape other than the default Gaussian, else 0.
+
+    Within one standard error the Gaussian (the Stribeck law's shape) is kept: another
+    shape must be clearly better on held-out data to be chosen.
+    """
+    parts = candidate.parts or (candidate,)
+    return int(any(p.settings.get("shape", "gaussian") != "gaussian" for p in parts))
 
 
 def _contribution_correlation(stats, base, a, b):
