@@ -5,26 +5,17 @@ simulator), ``train``, ``diagnose``, ``calibrate`` and ``monitor`` (a user's
 own recordings); ``gpcd COMMAND --help`` and the CLI page of the
 documentation describe each.
 
-Every option that names a robot (``--robot``) takes a built-in name (``ur10``,
-``ur10e``, ...) or the path of a URDF file. Commands that read recordings take
-the robot from the recordings' metadata when they name it (the
-``ur10e_mamedov`` column preset, files written by ``gpcd simulate``), else
-``--robot`` is required; ``--robot`` always wins. Recordings are read with
-:func:`sklearn_gpcd.io.load_recording` (``--column-map``: a JSON object, a
-JSON file or a preset name) and must have the robot's number of joints.
-Options that take several recordings are repeated (``--test a.csv --test
-b.csv``), so they never swallow positional arguments. Output paths
-(``-o``, ``--json``, ``--plot``) are checked before any work starts.
+Options naming a robot (``--robot``) take a built-in name or a URDF path;
+without one, the robot comes from the recordings' metadata when they name it.
+Recordings are read with :func:`sklearn_gpcd.io.load_recording` (``--column-map``:
+a JSON object, a JSON file or a preset name); options that take several are
+repeated (``--test a.csv --test b.csv``); output paths are checked first.
 
-Exit status: 0 on success; 2 for bad input -- a usage error (argparse), or a
-recording or option the command cannot use (``ValueError``, ``OSError``, a
-missing optional package); 130 when interrupted (Ctrl-C). Bad input prints ONE
-line ``gpcd COMMAND: error: MESSAGE`` on stderr (the message names the file,
-and the column and line where relevant), never a traceback; Ctrl-C prints one
-line ``gpcd COMMAND: interrupted``. Warnings, such as a
-:class:`~sklearn_gpcd.io.RecordingWarning` for dropped rows, print one line
-each, ``gpcd COMMAND: warning: MESSAGE``, and the command goes on. Progress
-bars (with an ETA) go to stderr.
+Exit status: 0 on success; 2 for bad input (a usage error, or a recording or
+option the command cannot use), with ONE line ``gpcd COMMAND: error: MESSAGE``
+on stderr naming the file and never a traceback; 130 on Ctrl-C (``gpcd COMMAND:
+interrupted``). Warnings print one line each, ``gpcd COMMAND: warning: MESSAGE``,
+and the command goes on. Progress bars (with an ETA) go to stderr.
 
 One module per verb (:mod:`~sklearn_gpcd.cli.train`, ``calibrate``,
 ``monitor``, ``diagnose``, ``reproduce`` with ``simulate`` and ``robots``),

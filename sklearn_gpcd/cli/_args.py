@@ -228,8 +228,7 @@ def add_check_options(parser):
     parser.add_argument("--allow-short", action="store_true",
                         help="go on with recordings shorter than 1 s (refused by default)")
     parser.add_argument("--max-joint-speed", type=positive_float, default=None, metavar="RAD_S",
-                        help="drop rows where a joint jumps faster than this [rad/s] as "
-                        "glitches (default 10)")
+                        help="drop rows where a joint moves faster than this [rad/s] (default 10)")
 
 
 def add_recording_options(parser, robot_help):
