@@ -320,10 +320,9 @@ def monitor_result(trained, options, blocks, unseen, pushes, push_blocks, labels
             rule: sum(len(f["onsets"]) for f in nested_false_alarms(series[0], unseen,
                                                                      rule).values())
             for rule in MARGIN_RULES}
-        result["candidates"] = [dict(c, params={k.removesuffix("_s"): v for k, v in
-                                                c["params"].items()})
+        result["candidates"] = [dict(c, params=regime_params(c["params"]))
                                 for c in summary["candidates"]] or None
-        result["fold_settings"] = {k: {n.removesuffix("_s"): v for n, v in p.items()}
+        result["fold_settings"] = {k: regime_params(p)
                                    for k, p in summary["fold_settings"].items()} or None
     else:
         result = {
@@ -338,6 +337,15 @@ def monitor_result(trained, options, blocks, unseen, pushes, push_blocks, labels
             "fold_settings": {k: band_params(s) for k, s in
                               summary["fold_band_settings"].items()} or None}
     return {**result, **operating_point(det, folds, pushes, push_blocks, labels)}
+
+
+def regime_params(settings):
+    """Regime settings of the calibration summary with the JSON keys of this benchmark.
+
+    >>> regime_params({"settle_time_s": 3.0, "rest_reference_s": 2.0})
+    {'settle_time': 3.0, 'rest_reference': 2.0}
+    """
+    return {k.removesuffix("_s"): v for k, v in settings.items()}
 
 
 def band_params(settings):

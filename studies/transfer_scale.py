@@ -151,14 +151,21 @@ def score(det, cache, labels):
     return "2020 collisions {}, pushes {}".format(*out)
 
 
-def calibrated(cache, regressor, normalize=None):
-    rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
-                     regimes=Regimes(rest_reference=5.0))
+def calibrated(cache, regressor=None, normalize=None, *, keys=None, rules=None,
+               param_grid=None):
+    """``calibrate_across_recordings`` of ``rules`` (default: the present rule) over
+    ``regressor`` (default: the cached P_f) on ``keys`` (default: the cross-task
+    calibration recordings)."""
+    if rules is None:
+        rules = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
+                          min_duration=5, regimes=Regimes(rest_reference=5.0))
+    regressor = cache["model"] if regressor is None else regressor
     det = CollisionDetector(FrozenEstimator(regressor), n_joints=J, sample_time="auto",
-                            rules=rule, normalize=normalize)
-    keys = cache["calibration"]
+                            rules=rules, normalize=normalize)
+    keys = cache["calibration"] if keys is None else keys
     return calibrate_across_recordings(det, {k: cache["blocks"][k] for k in keys},
-                                       {k: cache["times"][k] for k in keys})
+                                       {k: cache["times"][k] for k in keys},
+                                       param_grid=param_grid)
 
 
 def study_scale(cache, labels):
@@ -264,14 +271,6 @@ def study_cells(cache, labels):
               f"{np.round(T[0], 2)}", flush=True)
 
 
-def calibrated_rules(cache, keys, rules, param_grid=None):
-    det = CollisionDetector(FrozenEstimator(cache["model"]), n_joints=J, sample_time="auto",
-                            rules=rules)
-    return calibrate_across_recordings(det, {k: cache["blocks"][k] for k in keys},
-                                       {k: cache["times"][k] for k in keys},
-                                       param_grid=param_grid)
-
-
 def study_ceiling(cache, labels):
     keys = cache["calibration"]
     root = B.real_data_path(B.DATASET, None)
@@ -315,7 +314,7 @@ def study_bands(cache, labels):
                                      motion_envelope=0.05))
                 fast = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=cutoff,
                                  min_duration=debounce, regimes=rule.regimes)
-                cal = calibrated_rules(cache, keys, [rule, fast])
+                cal = calibrated(cache, keys=keys, rules=[rule, fast])
                 print(f"+{cutoff:g} Hz band, settle {settle}, rest ref. {tau}, {name}: margins "
                       f"{[round(float(np.max(b.margin)), 2) for b in cal.bands]}, nested "
                       f"onsets {cal.n_false_alarms}, {score(cal.detector, cache, labels)}",
@@ -329,7 +328,7 @@ def study_refclip(cache, labels):
     keys = cache["calibration"][:-1]
     rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0, min_duration=5,
                      regimes=Regimes(rest_reference=5.0))
-    det = calibrated_rules(cache, keys, rule, SELECT_GRID).detector
+    det = calibrated(cache, keys=keys, rules=rule, param_grid=SELECT_GRID).detector
     fitted = det.rules_[0]
     limit = np.zeros(J)
     for key in keys:
