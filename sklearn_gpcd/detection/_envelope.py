@@ -28,6 +28,8 @@ debounced ``|m|`` of every 0.25 s window of motion.
 import numpy as np
 from scipy.optimize import linprog
 
+from ._signal import window_segments
+
 #: Columns of the envelope's features: 1, stuck, |qdd|, |qd|.
 N_FEATURES = 4
 #: Samples per window whose peak the envelope must cover (0.25 s at 100 Hz).
@@ -78,25 +80,6 @@ def envelope_factor(features, coef):
     return 1.0 + np.einsum("nlk,lk->nl", features[..., 1:], coef)
 
 
-def held_factor(factor, starts, hold):
-    """The largest factor over the last ``hold`` samples, per segment (causal).
-
-    Examples
-    --------
-    >>> held_factor(np.array([[1.0], [3.0], [1.0], [1.0], [1.0]]), np.array([0]), 2)[:, 0].tolist()
-    [1.0, 3.0, 3.0, 1.0, 1.0]
-    """
-    if hold <= 1:
-        return factor
-    out = np.empty_like(factor)
-    bounds = np.append(starts, factor.shape[0])
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        padded = np.concatenate([np.repeat(factor[lo:lo + 1], hold - 1, axis=0), factor[lo:hi]])
-        windows = np.lib.stride_tricks.sliding_window_view(padded, hold, axis=0)
-        out[lo:hi] = windows.max(axis=-1)
-    return out
-
-
 def over_envelope(debounced, moving, features, coef, starts, hold):
     """``debounced`` over the held envelope on the moving rows (1 elsewhere).
 
@@ -112,7 +95,7 @@ def over_envelope(debounced, moving, features, coef, starts, hold):
     starts : ndarray of int
         Segment starts (the hold restarts).
     hold : int
-        Samples the envelope holds its largest value (:func:`held_factor`).
+        Samples the envelope holds its largest value.
 
     Returns
     -------
@@ -125,7 +108,7 @@ def over_envelope(debounced, moving, features, coef, starts, hold):
     ...               np.array([[0.0, 0.5, 0.0]]), np.array([0]), 1)[:, 0].tolist()
     [1.5, 3.0]
     """
-    factor = held_factor(envelope_factor(features, coef), starts, hold)
+    factor = window_segments(envelope_factor(features, coef), hold, starts, np.max)
     return debounced / np.where(moving[:, None], factor, 1.0)
 
 

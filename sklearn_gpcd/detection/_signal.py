@@ -167,43 +167,33 @@ def filter_segments(u, b, a, starts):
     return y
 
 
-def debounce_segments(ratio, min_duration, starts):
-    """Running minimum over the last ``min_duration`` samples, per segment.
+def window_segments(x, window, starts, reduce, pad=None):
+    """``reduce`` (``np.min``, ``np.max``) over the last ``window`` rows, per segment.
 
-    A joint fires only when its ratio ``|m_l| / scale_l`` has exceeded the
-    threshold for ``min_duration`` consecutive samples. That event equals
-    "the minimum of the ratio over the last ``min_duration`` samples exceeds
-    the threshold", so debouncing is a causal erosion of the ratio and the
-    decision stays a plain threshold test on the debounced ratio. The first
-    ``min_duration - 1`` samples of each segment see zeros before them and
-    cannot fire.
-
-    Parameters
-    ----------
-    ratio : ndarray of shape (n_samples, n_joints)
-        Non-negative ratios.
-    min_duration : int
-        Window length in samples (1 = no debounce).
-    starts : ndarray of int
-        Segment starts.
-
-    Returns
-    -------
-    debounced : ndarray of shape (n_samples, n_joints)
+    Causal; before its first row a segment sees ``pad``, or (None) its first
+    row repeated; ``window <= 1`` returns ``x`` itself. The debounce is the
+    running minimum of ``|m|`` with ``pad=0``: a joint that exceeds the
+    threshold for ``min_duration`` consecutive samples is one whose minimum
+    over them does (a causal erosion), and the first ``min_duration - 1``
+    samples of a segment cannot fire. The motion envelope holds its running
+    maximum.
 
     Examples
     --------
     >>> r = np.array([[2.0], [3.0], [1.0], [5.0], [6.0]])
-    >>> debounce_segments(r, 2, np.array([0]))[:, 0].tolist()
+    >>> window_segments(r, 2, np.array([0]), np.min, pad=0.0)[:, 0].tolist()
     [0.0, 2.0, 1.0, 1.0, 5.0]
+    >>> window_segments(r, 2, np.array([0, 3]), np.max)[:, 0].tolist()
+    [2.0, 3.0, 3.0, 5.0, 6.0]
     """
-    if min_duration <= 1:
-        return ratio
-    out = np.empty_like(ratio)
-    bounds = np.append(starts, ratio.shape[0])
-    pad = np.zeros((min_duration - 1, ratio.shape[1]))
+    if window <= 1:
+        return x
+    out = np.empty_like(x)
+    bounds = np.append(starts, x.shape[0])
     for lo, hi in zip(bounds[:-1], bounds[1:]):
-        padded = np.concatenate([pad, ratio[lo:hi]])
-        windows = np.lib.stride_tricks.sliding_window_view(padded, min_duration, axis=0)
-        out[lo:hi] = windows.min(axis=-1)
+        head = (np.repeat(x[lo:lo + 1], window - 1, axis=0) if pad is None
+                else np.full((window - 1, x.shape[1]), pad))
+        windows = np.lib.stride_tricks.sliding_window_view(
+            np.concatenate([head, x[lo:hi]]), window, axis=0)
+        out[lo:hi] = reduce(windows, axis=-1)
     return out

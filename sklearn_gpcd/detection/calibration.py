@@ -484,17 +484,13 @@ def _band_run(rule, residuals, times, margin_rule):
     """One band at its settings: series, LORO margin, levels and its own nested folds."""
     if rule.regimes is not None and rule.regimes.motion_envelope is not None:
         series = _enveloped_series(rule, residuals)
-        margin = _fold_margin(series, list(series), margin_rule)
     else:
-        series = {}
-        for key, (u, motion) in residuals.items():
-            signal, regime, _ = rule.signal(u, motion=motion)
-            series[key] = _excursion(rule, signal, regime)
-        margin = loro_margin({k: v[2] for k, v in series.items()}, list(series), margin_rule)
+        series = {key: _excursion(rule, *rule.signal(u, motion=motion)[:2])
+                  for key, (u, motion) in residuals.items()}
     keys = list(series)
     peaks = {k: v[2] for k, v in series.items()}
     folds = nested_false_alarms(series, times, margin_rule) if len(keys) >= 3 else {}
-    return Bunch(rule=rule, series=series, margin=margin,
+    return Bunch(rule=rule, series=series, margin=_fold_margin(series, keys, margin_rule),
                  levels=regime_levels(peaks, keys), folds=folds,
                  n_false_alarms=sum(len(f["onsets"]) for f in folds.values()),
                  regime_names=tuple(rule.regime_names_))
@@ -540,10 +536,11 @@ def _enveloped_series(rule, residuals):
 
 
 def _fold_margin(series, keys, rule):
-    """The LORO margin with each left-out recording over the envelope fitted without it."""
+    """The LORO margin (:func:`loro_margin`), each left-out recording over the
+    envelope fitted without it where the band has one."""
     factors = []
     for r in keys:
-        fold = series.folds[r]
+        fold = series.folds[r] if getattr(series, "folds", None) else series
         others = peak_levels(np.stack([fold[k][2] for k in keys if k != r]))
         factors.append(fold[r][2] / others)
     return shared_margin(factors, rule)

@@ -35,12 +35,11 @@ from ._envelope import (
     envelope_factor,
     envelope_features,
     fit_envelope,
-    held_factor,
     over_envelope,
     window_peaks,
 )
 from ._regimes import MOVING, held_regime_pass, regime_names, regime_pass
-from ._signal import debounce_segments, filter_segments, lowpass_coefficients, segment_starts
+from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
     false_alarm_level,
@@ -436,7 +435,8 @@ class AlarmRule(BaseEstimator):
         -------
         debounced : ndarray of shape (n_samples, n_joints)
         """
-        return debounce_segments(np.abs(signal), self.min_duration, _starts(signal, starts))
+        return window_segments(np.abs(signal), self.min_duration, _starts(signal, starts), np.min,
+                               pad=0.0)
 
     def ratio(self, signal, regime, starts=None, motion=None):
         """Debounced ``|m|`` over the scale of each sample's regime.
@@ -480,7 +480,7 @@ class AlarmRule(BaseEstimator):
         factor = self.instant_envelope(motion, n_joints)
         if factor is None:
             return None
-        return held_factor(factor, _starts(motion, starts), self.envelope_hold())
+        return window_segments(factor, self.envelope_hold(), _starts(motion, starts), np.max)
 
     def instant_envelope(self, motion, n_joints):
         """:math:`e_\\ell(x)` of each sample on its own, before the hold; None

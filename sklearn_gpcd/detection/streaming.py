@@ -1,5 +1,6 @@
 """Tick-by-tick collision monitoring with bounded memory."""
 
+import warnings
 from enum import Enum
 
 import numpy as np
@@ -11,7 +12,7 @@ from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..gp import compile_predictor
 from ._regimes import AlarmState
-from .detector import reads_currents
+from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning, reads_currents
 
 
 class MonitorStatus(str, Enum):
@@ -630,13 +631,9 @@ class StreamingMonitor(VersionedStateMixin):
         self._dt_sum += dt
         self._dt_count += 1
         if self._dt_count == self._DT_CHECK_TICKS:
-            from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning
-
             mean = self._dt_sum / self._dt_count
             expected = self.detector.sample_time_
             if abs(mean - expected) > _SAMPLE_TIME_RTOL * mean:
-                import warnings
-
                 warnings.warn(
                     f"the stream's mean time step is {mean:g} s but the detector was "
                     f"calibrated with sample_time={expected:g} s: its filters, debounce and "
