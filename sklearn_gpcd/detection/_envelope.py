@@ -43,25 +43,10 @@ HOLD_SECONDS = 0.25
 
 
 def envelope_features(motion, n_joints, still_speed):
-    """Per joint and sample: ``[1, exp(-(qd / v0)^2), |qdd|, |qd|]``.
+    """Per sample and joint: ``[1, exp(-(qd / v0)^2), |qdd|, |qd|]``, shape (n, n_joints, 4).
 
-    Parameters
-    ----------
-    motion : ndarray of shape (n_samples, 2 * n_joints)
-        Joint velocities, then accelerations.
-    n_joints : int
-    still_speed : float
-        :math:`v_0` [rad/s]: below it a joint counts as stuck.
-
-    Returns
-    -------
-    features : ndarray of shape (n_samples, n_joints, 4)
-
-    Examples
-    --------
-    >>> f = envelope_features(np.array([[0.0, 2.0]]), 1, 0.05)
-    >>> f[0, 0].tolist()
-    [1.0, 1.0, 2.0, 0.0]
+    ``motion``: velocities, then accelerations; ``still_speed``: :math:`v_0`
+    [rad/s], below which a joint counts as stuck.
     """
     qd = np.abs(motion[:, :n_joints])
     qdd = np.abs(motion[:, n_joints:2 * n_joints])
@@ -71,42 +56,16 @@ def envelope_features(motion, n_joints, still_speed):
 
 def envelope_factor(features, coef):
     """``1 + a stuck + b |qdd| + c |qd|`` per sample and joint (``coef``: (n_joints, 3)).
-
-    Examples
-    --------
-    >>> envelope_factor(np.array([[[1.0, 1.0, 2.0, 0.0]]]), np.array([[0.5, 0.25, 0.0]])).tolist()
-    [[2.0]]
     """
     return 1.0 + np.einsum("nlk,lk->nl", features[..., 1:], coef)
 
 
 def over_envelope(debounced, moving, features, coef, starts, hold):
-    """``debounced`` over the held envelope on the moving rows (1 elsewhere).
+    """``debounced`` over the envelope on the ``moving`` rows (1 elsewhere).
 
-    What the levels of a rule with a motion envelope are taken on.
-
-    Parameters
-    ----------
-    debounced : ndarray of shape (n_samples, n_joints)
-    moving : ndarray of bool, shape (n_samples,)
-    features : ndarray of shape (n_samples, n_joints, 4)
-        :func:`envelope_features`.
-    coef : ndarray of shape (n_joints, 3)
-    starts : ndarray of int
-        Segment starts (the hold restarts).
-    hold : int
-        Samples the envelope holds its largest value.
-
-    Returns
-    -------
-    normalized : ndarray of shape (n_samples, n_joints)
-
-    Examples
-    --------
-    >>> f = np.array([[[1.0, 0.0, 2.0, 0.0]], [[1.0, 0.0, 2.0, 0.0]]])
-    >>> over_envelope(np.array([[3.0], [3.0]]), np.array([True, False]), f,
-    ...               np.array([[0.0, 0.5, 0.0]]), np.array([0]), 1)[:, 0].tolist()
-    [1.5, 3.0]
+    What the levels of a rule with a motion envelope are taken on. The
+    envelope holds its largest value for ``hold`` samples, restarting at the
+    segment ``starts``.
     """
     factor = window_segments(envelope_factor(features, coef), hold, starts, np.max)
     return debounced / np.where(moving[:, None], factor, 1.0)
@@ -131,18 +90,10 @@ def window_peaks(debounced, moving, features):
 def fit_envelope(constraints):
     """The tightest non-negative envelope over the window peaks of several recordings.
 
-    Parameters
-    ----------
-    constraints : list of tuple
-        :func:`window_peaks` of each recording.
-
-    Returns
-    -------
-    level : ndarray of shape (n_joints,)
-        The constant term :math:`s_\\ell` (the threshold of a smoothly sliding
-        joint at zero acceleration, before any margin).
-    coef : ndarray of shape (n_joints, 3)
-        :math:`a, b, c` relative to it.
+    ``constraints``: :func:`window_peaks` of each recording. Returns
+    ``(level, coef)``: the constant term :math:`s_\\ell` per joint (the
+    threshold of a smoothly sliding joint at zero acceleration, before any
+    margin) and :math:`a, b, c` relative to it, shape (n_joints, 3).
 
     Examples
     --------

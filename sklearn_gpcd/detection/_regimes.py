@@ -31,52 +31,20 @@ MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
 
 
 def regime_names(braking):
-    """Names of the regime codes in use: the first three, and "braking" when
-    a braking limit is set.
-
-    Examples
-    --------
-    >>> regime_names(False)
-    ('moving', 'settling', 'rest')
-    """
+    """Names of the regime codes in use ("braking" only with a braking limit)."""
     return REGIME_NAMES if braking else REGIME_NAMES[:BRAKING]
 
 
 class RegimeState:
     """Regime of the arm and rest reference, carried from sample to sample.
 
-    Parameters
-    ----------
-    sigma_v : float
-        Velocity threshold [rad/s] below which a joint is still.
-    settle : int
-        Samples the arm must be still after a motion before it is at rest.
-    beta : float or None
-        Gain of the reference tracker, ``1 - exp(-T / tau)`` (0 keeps the
-        reference fixed); None disables the re-reference.
-    n_joints : int
-        Number of joints.
-    brake_limit : float or None, default=None
-        Acceleration [rad/s^2] above which the arm is ``braking`` (None:
-        no braking regime). With a limit, :meth:`step` reads the
-        accelerations after the velocities.
-    brake_hold : int, default=0
-        Samples the braking regime lasts after the last sample above the
-        limit.
-    alarm_hold : int, default=0
-        Samples at most that an alarm holds the regime of its onset (see
-        :meth:`step`); 0: no hold.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> state = RegimeState(sigma_v=0.01, settle=2, beta=0.0, n_joints=1)
-    >>> out = []
-    >>> for qd, m in [(0.5, 1.0), (0.0, 2.0), (0.0, 2.0), (0.0, 2.5), (0.0, 3.0)]:
-    ...     signal = np.array([m])
-    ...     out.append((state.step(np.array([qd]), signal), float(signal[0])))
-    >>> out   # moving, settling x2, rest with the reference 2.5 from entry
-    [(0, 1.0), (1, 2.0), (1, 2.0), (2, 0.0), (2, 0.5)]
+    ``sigma_v`` [rad/s]: a joint below it is still; ``settle``: samples
+    still after a motion before rest; ``beta``: the tracker gain ``1 -
+    exp(-T / tau)`` (0: a fixed reference, None: no re-reference);
+    ``brake_limit`` [rad/s^2]: the arm brakes above it, and ``brake_hold``
+    samples more (None: no braking regime; with a limit, :meth:`step` reads
+    the accelerations after the velocities); ``alarm_hold``: samples at most
+    that an alarm holds the regime of its onset (0: no hold).
     """
 
     def __init__(self, sigma_v, settle, beta, n_joints, brake_limit=None, brake_hold=0,
@@ -102,11 +70,8 @@ class RegimeState:
         self.reference[:] = 0.0
 
     def braking(self, qdd):
-        """Advance the braking counter with one acceleration row; True while braking.
-
-        From a sample with some ``|qdd_l| > brake_limit`` the arm brakes for
-        that sample and the ``brake_hold`` after it.
-        """
+        """Advance the braking counter with one acceleration row; True while braking
+        (a sample with some ``|qdd_l| > brake_limit`` and the ``brake_hold`` after it)."""
         limit = self.brake_limit
         if any([abs(a) > limit for a in qdd.tolist()]):
             self._braking_for = self.brake_hold + 1
@@ -138,21 +103,8 @@ class RegimeState:
         alarm the caller passes the regime of the alarm's onset as ``hold``; it
         is returned (at rest the reference is subtracted, not tracked) for
         ``alarm_hold`` samples at most, while the counters advance.
-
-        Parameters
-        ----------
-        motion : ndarray of shape (n_joints,) or (2 * n_joints,)
-            Joint velocities of the sample, followed by the joint
-            accelerations when ``brake_limit`` is set.
-        signal : ndarray of shape (n_joints,)
-            Monitoring signal of the sample, modified in place.
-        hold : int or None, default=None
-            Regime code to keep (the band is in alarm), or None.
-
-        Returns
-        -------
-        regime : int
-            ``MOVING`` (0), ``SETTLING`` (1), ``REST`` (2) or ``BRAKING`` (3).
+        ``motion``: the sample's velocities (then accelerations with a
+        braking limit).
         """
         n = self.n_joints
         regime = self.regime(motion[:n])
@@ -185,39 +137,9 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
                 brake_hold=0, alarm_hold=0):
     """:class:`RegimeState` over a batch, restarting at every segment start.
 
-    Parameters
-    ----------
-    signal : ndarray of shape (n_samples, n_joints)
-        Monitoring signal (filtered residual).
-    motion : ndarray of shape (n_samples, n_joints) or (n_samples, 2 * n_joints)
-        Joint velocities, followed by the accelerations with ``brake_limit``.
-    starts : ndarray of int
-        Segment starts (new recordings).
-    sigma_v, settle, beta, brake_limit, brake_hold, alarm_hold
-        See :class:`RegimeState` (no alarm: ``alarm_hold`` is not used).
-
-    Returns
-    -------
-    referenced : ndarray of shape (n_samples, n_joints)
-        The signal, re-referenced at rest (a copy).
-    regimes : ndarray of int, shape (n_samples,)
-    reference : ndarray of shape (n_samples, n_joints)
-        The reference subtracted at each sample (0 outside rest).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> m = np.array([[1.0], [1.0], [1.2]])
-    >>> out, reg, ref = regime_pass(m, np.zeros((3, 1)), np.array([0]), 0.01, 5, 0.0)
-    >>> out[:, 0].round(6).tolist(), reg.tolist()
-    ([0.0, 0.0, 0.2], [2, 2, 2])
-
-    A hard stop (``|qdd| > 5``) and the 2 samples after it are braking:
-
-    >>> motion = np.array([[0.5, 1.0], [0.5, 9.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
-    >>> regime_pass(np.zeros((5, 1)), motion, np.array([0]), 0.01, 5, None,
-    ...             brake_limit=5.0, brake_hold=2)[1].tolist()
-    [0, 3, 3, 3, 1]
+    Returns ``(referenced, regimes, reference)``: a copy of the signal
+    re-referenced at rest, the regime codes and the reference subtracted (0
+    outside rest). No alarm, so ``alarm_hold`` is not used.
     """
     settings = dict(sigma_v=sigma_v, settle=settle, beta=beta, brake_limit=brake_limit,
                     brake_hold=brake_hold, alarm_hold=alarm_hold)
@@ -241,29 +163,8 @@ class AlarmState:
     an alarm lasts, like the regime), and the alarm: the joints above
     ``level``; it ends after ``release`` samples at or below it, meanwhile
     the joints that fired last stay in alarm. Preallocated: a sample
-    allocates no array.
-
-    Parameters
-    ----------
-    n_joints : int
-    settings : dict or None
-        :class:`RegimeState` settings (``AlarmRule.regime_settings()``);
-        None: no regimes (regime 0).
-    scales : ndarray of shape (n_regime_rows, n_joints)
-    level : float
-    min_duration : int
-    release : int, default=0
-
-    Examples
-    --------
-    A dip of one sample inside a contact does not end its alarm with a
-    release of 2 samples:
-
-    >>> import numpy as np
-    >>> state = AlarmState(1, None, np.ones((1, 1)), 1.0, 1, release=2)
-    >>> [bool(state.step(np.array([m]), None) > 1.0) or state.alarmed
-    ...  for m in (0.0, 2.0, 0.5, 2.0, 0.0, 0.0, 0.0)]
-    [False, True, True, True, True, True, False]
+    allocates no array. ``settings``: :class:`RegimeState` settings
+    (``AlarmRule.regime_settings()``; None: no regimes, regime 0).
     """
 
     def __init__(self, n_joints, settings, scales, level, min_duration, release=0):
@@ -301,21 +202,11 @@ class AlarmState:
         self.alarmed, self.below = False, 0
 
     def step(self, signal, motion, envelope=None):
-        """One sample; ``signal`` is re-referenced in place at rest.
+        """One sample; returns the largest ratio over the joints.
 
-        Parameters
-        ----------
-        signal : ndarray of shape (n_joints,)
-            Filtered residual of the sample.
-        motion : ndarray or None
-            What the regimes read (velocities, then accelerations).
-        envelope : ndarray of shape (n_rows, n_joints) or None, default=None
-            Rows whose column maximum is the sample's motion envelope factor.
-
-        Returns
-        -------
-        top : float
-            The largest ratio over the joints.
+        ``signal`` (the filtered residual) is re-referenced in place at rest;
+        ``envelope``: rows whose column maximum is the sample's motion
+        envelope factor (None: no envelope).
         """
         if self.regimes is not None:
             self.regime = self.regimes.step(motion, signal,
@@ -343,42 +234,10 @@ def held_regime_pass(signal, motion, starts, settings, scales, level, min_durati
                      envelope=None, release=0):
     """:class:`AlarmState` over a batch, as a streaming monitor runs it.
 
-    Parameters
-    ----------
-    signal : ndarray of shape (n_samples, n_joints)
-        Filtered residual.
-    motion : ndarray
-        As for :func:`regime_pass`.
-    starts : ndarray of int
-        Segment starts.
-    settings, scales, level, min_duration, release
-        As for :class:`AlarmState`.
-    envelope : ndarray of shape (n_samples, n_joints) or None, default=None
-        Motion envelope factor of each sample (``AlarmRule.envelope``).
-
-    Returns
-    -------
-    referenced, regimes, reference
-        As for :func:`regime_pass`.
-    ratio : ndarray of shape (n_samples, n_joints)
-        Debounced ``|m|`` over the scale of each sample's regime.
-    alarms : ndarray of bool, shape (n_samples, n_joints)
-        Joints in alarm.
-
-    Examples
-    --------
-    A push on a still arm (joint speed 0.5 rad/s while pushed) stays one
-    alarm at the rest threshold:
-
-    >>> import numpy as np
-    >>> m = np.array([[0.0], [2.0], [2.0], [0.5], [0.0]])
-    >>> qd = np.array([[0.0], [0.0], [0.5], [0.5], [0.0]])
-    >>> settings = dict(sigma_v=0.01, settle=5, beta=None, alarm_hold=100)
-    >>> scales = np.array([[10.0], [10.0], [1.0]])       # moving, settling, rest
-    >>> _, regime, _, _, alarms = held_regime_pass(m, qd, np.array([0]), settings, scales,
-    ...                                            1.0, 1)
-    >>> regime.tolist(), alarms[:, 0].tolist()
-    ([2, 2, 2, 2, 1], [False, True, True, False, False])
+    ``envelope``: the motion envelope factor of each sample
+    (``AlarmRule.envelope``). Returns those of :func:`regime_pass`, then
+    ``ratio`` (debounced ``|m|`` over the scale of each sample's regime) and
+    ``alarms`` (bool, joints in alarm).
     """
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)

@@ -27,25 +27,8 @@ def lowpass_coefficients(cutoff, sample_time, order=1):
 
     - ``order=2``: a second-order Butterworth filter (bilinear transform).
 
-    Parameters
-    ----------
-    cutoff : float
-        Cut-off frequency ``f_c`` in Hz, ``0 < f_c < 1 / (2 T)``.
-    sample_time : float
-        Sampling period ``T`` in seconds.
-    order : {1, 2}, default=1
-        Filter order.
-
-    Returns
-    -------
-    b, a : ndarray
-        Numerator and denominator, ``a[0] == 1``, both of length ``order + 1``.
-
-    Examples
-    --------
-    >>> b, a = lowpass_coefficients(10.0, 0.008)
-    >>> round(float(b.sum() / a.sum()), 12)  # unit DC gain
-    1.0
+    ``cutoff`` [Hz] must lie in ``(0, 1 / (2 T))``, ``T = sample_time`` [s];
+    ``a[0] == 1``, both of length ``order + 1``.
     """
     nyquist = 0.5 / sample_time
     if not 0.0 < cutoff < nyquist:
@@ -63,20 +46,9 @@ def lowpass_coefficients(cutoff, sample_time, order=1):
 
 
 def recording_index(groups, labels=None):
-    """Recording index ``0 .. n - 1`` of each collision-free row.
+    """Recording index ``0 .. n - 1`` of each collision-free row (None without ``groups``).
 
-    Parameters
-    ----------
-    groups : array-like of shape (n_samples,) or None
-        Recording id of each row.
-    labels : array-like of shape (n_samples,), default=None
-        Contact labels; rows with a non-zero label are dropped, as the
-        detector drops them before calibrating.
-
-    Returns
-    -------
-    index : ndarray of int or None
-        None without ``groups``.
+    Rows with a non-zero label are dropped, as the detector drops them.
 
     Examples
     --------
@@ -92,22 +64,10 @@ def recording_index(groups, labels=None):
 
 
 def segment_starts(n_samples, groups=None, keep=None):
-    """Row indices where the signal state restarts.
+    """Row indices where the signal state restarts, beginning with 0 (empty: no rows).
 
-    Parameters
-    ----------
-    n_samples : int
-        Number of rows.
-    groups : array-like of shape (n_samples,), default=None
-        Recording id of each row; a new segment starts where it changes.
-    keep : ndarray of bool, default=None
-        Rows kept before the starts are computed (``None`` keeps all). A gap of
-        dropped rows also starts a new segment. Indices refer to the kept rows.
-
-    Returns
-    -------
-    starts : ndarray of int
-        Sorted segment starts, always beginning with 0 (empty if no rows).
+    A segment starts where ``groups`` changes and, with ``keep`` (bool mask of
+    the rows kept), after a gap of dropped rows; indices refer to the kept rows.
 
     Examples
     --------
@@ -135,21 +95,8 @@ def filter_segments(u, b, a, starts):
     """Apply the IIR filter ``(b, a)`` along axis 0, restarting per segment.
 
     Each segment starts in the steady state of its first sample
-    (``scipy.signal.lfilter_zi``), so a constant offset passes unchanged and
-    there is no start-up transient.
-
-    Parameters
-    ----------
-    u : ndarray of shape (n_samples, n_joints)
-        Input signal.
-    b, a : ndarray
-        Filter coefficients from :func:`lowpass_coefficients`.
-    starts : ndarray of int
-        Segment starts from :func:`segment_starts`.
-
-    Returns
-    -------
-    y : ndarray of shape (n_samples, n_joints)
+    (``scipy.signal.lfilter_zi``): a constant offset passes unchanged, with
+    no start-up transient.
 
     Examples
     --------

@@ -14,14 +14,6 @@ import numpy as np
 def rms_scale(signal):
     """Root mean square of each column, 1 where the column is all zero.
 
-    Parameters
-    ----------
-    signal : ndarray of shape (n_samples, n_joints)
-
-    Returns
-    -------
-    scale : ndarray of shape (n_joints,)
-
     Examples
     --------
     >>> rms_scale(np.array([[3.0, 0.0], [-3.0, 0.0]])).tolist()
@@ -37,23 +29,8 @@ def contamination_level(peak, contamination):
     Follows :class:`sklearn.ensemble.IsolationForest`: the offset is the
     ``100 * contamination`` percentile of the training scores ``-peak``, so
     that exactly that fraction of the training samples has a negative
-    decision function (up to ties).
-
-    Parameters
-    ----------
-    peak : ndarray of shape (n_samples,)
-        Largest debounced ratio over the joints, per sample.
-    contamination : float in (0, 0.5]
-        Expected fraction of flagged training samples.
-
-    Returns
-    -------
-    gamma : float
-
-    Examples
-    --------
-    >>> contamination_level(np.arange(10.0), 0.1)
-    8.1
+    decision function (up to ties). ``peak``: the largest debounced ratio
+    over the joints, per sample.
     """
     return -float(np.percentile(-peak, 100.0 * contamination))
 
@@ -71,24 +48,9 @@ def false_alarm_level(peak, starts, sample_time, rate):
     the onset count at every level is a difference of two counts found by
     binary search. The returned level is the smallest candidate (0 or a
     value of ``peak``) such that this level and every higher one give at most
-    ``rate`` onsets per hour of training data; the count is not monotone in
-    the level (raising it can split one alarm into two), hence "every higher
-    one".
-
-    Parameters
-    ----------
-    peak : ndarray of shape (n_samples,)
-        Largest debounced ratio over the joints, per sample (non-negative).
-    starts : ndarray of int
-        Segment starts (see :func:`~sklearn_gpcd.detection._signal.segment_starts`).
-    sample_time : float
-        Sampling period in seconds.
-    rate : float
-        Allowed alarm onsets per hour.
-
-    Returns
-    -------
-    gamma : float
+    ``rate`` onsets per hour of training data (``peak``: non-negative,
+    ``sample_time`` in s); the count is not monotone in the level (raising
+    it can split one alarm into two), hence "every higher one".
 
     Examples
     --------
@@ -128,26 +90,9 @@ MARGIN_RULES = ("cell", "regime", "joint", "global")
 def fill_absent_regimes(table, present):
     """Rows of regimes absent from the data take the largest present value.
 
-    The rule of every per-regime table of the detector: no data, no tighter
-    band. With no regime present at all the table becomes 1.
-
-    Parameters
-    ----------
-    table : ndarray of shape (n_regime_rows, n_joints)
-        Values per regime (anything in the absent rows).
-    present : ndarray of bool, shape (n_regime_rows,)
-        Regimes that occur in the data.
-
-    Returns
-    -------
-    filled : ndarray of shape (n_regime_rows, n_joints)
-        A copy.
-
-    Examples
-    --------
-    >>> fill_absent_regimes(np.array([[1.0, 4.0], [9.0, 9.0], [2.0, 3.0]]),
-    ...                     np.array([True, False, True])).tolist()
-    [[1.0, 4.0], [2.0, 4.0], [2.0, 3.0]]
+    The rule of every per-regime table (n_regime_rows, n_joints) of the
+    detector: no data, no tighter band. With no regime present at all the
+    table becomes 1. Returns a copy.
     """
     table = np.array(table, dtype=float, copy=True)
     present = np.asarray(present, dtype=bool)
@@ -158,27 +103,9 @@ def fill_absent_regimes(table, present):
 def recording_peaks(debounced, regimes, recordings, n_regime_rows):
     """Peak debounced ``|m|`` per recording, regime and joint.
 
-    Parameters
-    ----------
-    debounced : ndarray of shape (n_samples, n_joints)
-        Debounced ``|m|`` of the collision-free data.
-    regimes : ndarray of int, shape (n_samples,)
-        Regime code of each sample.
-    recordings : ndarray of int, shape (n_samples,)
-        Recording index ``0 .. n_recordings - 1`` of each sample.
-    n_regime_rows : int
-        Number of regime rows of the tables.
-
-    Returns
-    -------
-    peaks : ndarray of shape (n_recordings, n_regime_rows, n_joints)
-        Zero where a recording lacks the regime.
-
-    Examples
-    --------
-    >>> d = np.array([[1.0], [3.0], [2.0]])
-    >>> recording_peaks(d, np.array([0, 0, 1]), np.array([0, 1, 1]), 2)[:, :, 0].tolist()
-    [[1.0, 0.0], [3.0, 2.0]]
+    ``recordings`` holds the index ``0 .. n_recordings - 1`` of each sample;
+    the peaks, of shape (n_recordings, n_regime_rows, n_joints), are zero
+    where a recording lacks the regime.
     """
     n_recordings = int(recordings.max()) + 1 if recordings.size else 0
     peaks = np.zeros((n_recordings, n_regime_rows, debounced.shape[1]))
@@ -192,25 +119,10 @@ def recording_peaks(debounced, regimes, recordings, n_regime_rows):
 
 
 def peak_levels(peaks):
-    """Level per (regime, joint) of ``false_alarm_rate=0``: the largest peak.
+    """Level per (regime, joint) of ``false_alarm_rate=0``: the largest peak (positive).
 
-    A regime absent from every recording takes the largest level of the
-    others (:func:`fill_absent_regimes`).
-
-    Parameters
-    ----------
-    peaks : ndarray of shape (n_recordings, n_regime_rows, n_joints)
-
-    Returns
-    -------
-    levels : ndarray of shape (n_regime_rows, n_joints)
-        Positive.
-
-    Examples
-    --------
-    >>> peaks = np.array([[[1.0, 2.0], [0.0, 0.0], [0.5, 0.2]]])
-    >>> peak_levels(peaks)[1].tolist()
-    [1.0, 2.0]
+    ``peaks`` as :func:`recording_peaks`; a regime absent from every
+    recording takes the largest level of the others.
     """
     present = peaks.any(axis=(0, 2))
     table = fill_absent_regimes(peaks.max(axis=0), present)
@@ -235,20 +147,8 @@ def loro_factors(peaks, rule="global"):
 def shared_margin(factors, rule="global"):
     """The margin from left-out factors: at least 1, shared by ``rule``.
 
-    Parameters
-    ----------
-    factors : list of ndarray of shape (n_regime_rows, n_joints)
-        Per left-out recording, its peaks over the others' levels.
-    rule : {"global", "joint", "regime", "cell"}, default="global"
-
-    Returns
-    -------
-    margin : ndarray of shape (n_regime_rows, n_joints)
-
-    Examples
-    --------
-    >>> shared_margin([np.array([[0.5, 2.0]]), np.array([[1.5, 0.5]])], "joint").tolist()
-    [[1.5, 2.0]]
+    ``factors``: per left-out recording, its peaks over the others' levels,
+    each of shape (n_regime_rows, n_joints).
     """
     margin = np.maximum(np.max(factors, axis=0), 1.0)
     if rule == "regime":
