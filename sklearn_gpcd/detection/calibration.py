@@ -2,27 +2,18 @@
 
 A detector calibrated with ``threshold="per_joint", false_alarm_rate=0`` sets
 each (regime, joint) level to the largest debounced excursion of its
-collision-free calibration data. On a recording it never saw, the excursions
-can be larger. The rule here (the one of ``gpcd calibrate``, which the
-real-robot benchmark applies too):
+collision-free calibration data; on a recording it never saw, the excursions
+can be larger. The rule of ``gpcd calibrate`` and of the real-robot benchmark
+(:func:`calibrate_across_recordings` does all four):
 
-1. **levels**: per recording ``r``, the peak debounced ``|m|`` per (regime,
-   joint) cell (:func:`regime_excursions`); the level of a set of recordings
-   is the largest of their peaks (:func:`regime_levels`);
+1. **levels**: the largest peak debounced ``|m|`` per (regime, joint) cell
+   over the recordings (:func:`regime_excursions`, :func:`regime_levels`);
 2. **margin**: the largest factor by which a left-out recording's peak
-   exceeds the level of the others (:func:`loro_margin`), at least 1,
-   shared by all cells (``rule="global"``), per regime or per cell;
-3. **false alarms, nested**: for each ``r``, margin and levels chosen on the
-   other recordings only, alarm onsets counted on ``r``
-   (:func:`nested_false_alarms`): the figure never saw ``r``;
-4. the operating point: the detector refitted on all recordings with that
-   margin (:func:`calibrate_across_recordings` does 1-4);
-5. optionally, **settings chosen the same way** (``param_grid``: e.g. the
-   settle time and the rest reference): the candidate with the fewest nested
-   false alarms (3.) on the calibration recordings, then the smallest
-   time-weighted thresholds at its own operating point, and, for the nested
-   false alarms, the candidate chosen without the recording they are counted
-   on (:func:`calibrate_across_recordings` with ``param_grid``).
+   exceeds the level of the others, at least 1 (:func:`loro_margin`);
+3. **false alarms, nested**: each recording's alarm onsets with margin and
+   levels chosen on the others only (:func:`nested_false_alarms`);
+4. optionally, **settings chosen the same way** (``param_grid``, e.g. the
+   settle time and the rest reference).
 """
 
 import copy
@@ -267,8 +258,8 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     does, and the nested false alarms count the alarm onsets of that union
     (each band with margin and levels chosen without the recording).
 
-    With ``param_grid``, the settings of the **last** rule are chosen too.
-    Each candidate is calibrated by the rule above and scored by the
+    With ``param_grid``, the settings of the **last** rule are chosen too:
+    each candidate is calibrated by the rule above and scored by the
     time-weighted mean log threshold at its own operating point,
 
     .. math::
@@ -277,21 +268,15 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
             \\log\\big(\\mu\\, p_{g\\ell}\\big),
 
     with :math:`n_g` the calibration samples in regime :math:`g` under that
-    candidate, :math:`p_{g\\ell}` the levels and :math:`\\mu` the margin: the
-    band the arm spends its time in, smaller is more sensitive (each joint's
-    scale adds the same constant to every candidate). By construction of the
-    margin every candidate raises no alarm on the recordings it is calibrated
-    on, so :math:`J` alone rewards a candidate that fits them tightly and
-    transfers badly. The candidates are therefore ranked first by the nested
-    false alarms of the union on the calibration recordings (each recording
-    scored with margins and levels from the others, step 3 above), then by
-    :math:`J`: the operating point is the most sensitive candidate among those
-    that transferred best between the calibration recordings. The nested
-    false alarms of each recording are counted at the candidate chosen
-    without it (ranked on the other recordings alone, its margin and levels
-    also chosen without it), so the figure never saw the recording even
-    through the choice of settings. The regressor predicts each recording
-    once for every band and candidate.
+    candidate, :math:`p_{g\\ell}` the levels and :math:`\\mu` the margin
+    (smaller is more sensitive). Every candidate raises no alarm on the
+    recordings it is calibrated on, so :math:`J` alone would reward one that
+    fits them tightly and transfers badly: the candidates are ranked first by
+    the nested false alarms of the union on the calibration recordings, then
+    by :math:`J`. The nested false alarms of each recording are counted at
+    the candidate chosen without it, so the figure never saw the recording,
+    even through the choice of settings. The regressor predicts each
+    recording once for all bands and candidates.
 
     Parameters
     ----------
@@ -418,9 +403,9 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
                 fold_settings[r] = candidates[c]
             alarms[r] = _held_out_union(fixed_series + [runs[c].series], keys, r, rule)
     bands = fixed + [runs[best]]
-    chosen = [clone(run.rule).set_params(margin=run.margin if run.rule.uses_regimes
-                                         else run.margin.reshape(-1))  # its scale_'s shape
-              for run in bands]
+    chosen = [clone(run.rule).set_params(  # the margin in the shape of its scale_
+        margin=run.margin if run.rule.regimes is not None else run.margin.reshape(-1))
+        for run in bands]
     single = detector.rules is None or isinstance(detector.rules, AlarmRule)
     fitted = copy.copy(base).set_params(rules=chosen[0] if single else chosen)
     fitted.calibrate(residuals)

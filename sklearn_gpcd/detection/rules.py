@@ -66,55 +66,48 @@ class Regimes(BaseEstimator):
     """Separate thresholds for the arm's motion regimes, and the rest re-reference.
 
     The residual of a still arm is small and slow, that of a moving one
-    large and fast, so one band for both is either blind at rest or noisy in
-    motion. Per sample the arm is ``moving``, ``settling`` (still for less
-    than ``settle_time``) or at ``rest``, read from the joint velocities with
-    the detector's :math:`\\sigma_v`; with ``brake_limit``, ``braking`` for
-    ``brake_hold`` seconds after some joint's acceleration exceeds it (see
-    :mod:`sklearn_gpcd.detection._regimes`). Our extension of the paper.
+    large and fast: one band for both is blind at rest or noisy in motion.
+    Per sample the arm is ``moving``, ``settling`` (still for less than
+    ``settle_time``) or at ``rest``, by the detector's :math:`\\sigma_v` on
+    the joint velocities, or ``braking`` (with ``brake_limit``). Our
+    extension of the paper.
 
     Parameters
     ----------
     settle_time : float, default=0.5
         Seconds the arm must be still after a motion before it is at rest.
     rest_reference : float or None, default=None
-        Re-reference the monitoring signal at rest entry and let the
-        reference follow it with this time constant in seconds
-        (``numpy.inf``: a fixed reference). The held current of a still
-        joint depends on its history (stiction); the re-reference removes
-        that offset, which no pose feature predicts.
+        Re-reference the monitoring signal at rest entry, the reference
+        following it with this time constant [s] (``numpy.inf``: fixed). It
+        removes the history-dependent offset of a still joint's held current
+        (stiction), which no pose feature predicts.
     brake_limit : float or None, default=None
         A fourth regime, ``braking``, with its own thresholds, from a sample
-        where some joint's acceleration exceeds ``brake_limit`` [rad/s^2]:
-        hard stops ring the current for about half a second. Set it to the
-        largest acceleration the model was trained on
-        (``training["acceleration_limit"]`` of
-        :func:`~sklearn_gpcd.workflow.train_model`). Needs the ``qdd`` block
-        of the paper's layout among the inputs.
+        where some joint's acceleration exceeds it [rad/s^2] (hard stops ring
+        the current for about half a second). Set it to the largest
+        acceleration the model was trained on (``training["acceleration_limit"]``
+        of :func:`~sklearn_gpcd.workflow.train_model`). Needs the ``qdd``
+        block of the paper's layout among the inputs.
     brake_hold : float, default=0.5
         Seconds the braking regime lasts after the last sample above
         ``brake_limit``.
     alarm_hold : float, default=1.0
         Seconds at most that an alarm holds the regime (and rest reference)
         of its onset: a push that moves a still arm is judged at the rest
-        thresholds while it lasts instead of relaxing them (one push, one
-        event). 0: the regime follows the motion during alarms too.
+        thresholds while it lasts (one push, one event). 0: no hold.
     alarm_release : float, default=0.0
         Seconds the ratio must stay below the level before an alarm ends: a
-        contact whose force dips for less is one event, its regime held
-        through the dip (the joints that fired last stay in alarm; the
-        score follows the ratio). 0: an alarm ends at the first sample below.
-        Not on by default: on the real UR10e a 0.25 s release also prolongs
-        the alarms that linger after a push at rest (the held rest reference
-        meets the push's new stiction offset), so that the next push starts
-        inside them (results page, issue 38).
+        contact whose force dips for less is one event (the joints that
+        fired last stay in alarm; the score follows the ratio). Off by
+        default: on the real UR10e a 0.25 s release also prolongs the alarms
+        that linger after a push at rest, so that the next push starts inside
+        them (results page, issue 38).
     motion_envelope : float or None, default=None
         Moving thresholds that follow the motion
         (:mod:`sklearn_gpcd.detection._envelope`): joint ``l``'s band widens
-        when it is stuck (``|qd_l|`` well below this speed [rad/s]), when it
-        accelerates or moves fast, by the tightest envelope of the
-        calibration residual. None: one moving threshold per joint. Needs
-        the ``qdd`` block of the paper's layout among the inputs.
+        when it is stuck (``|qd_l|`` well below this speed [rad/s]),
+        accelerates or moves fast. None: one moving threshold per joint.
+        Needs the ``qdd`` block of the paper's layout among the inputs.
 
     Attributes
     ----------
@@ -172,9 +165,9 @@ class Regimes(BaseEstimator):
         Returns
         -------
         settings : dict
-            ``sigma_v``, ``settle``, ``brake_hold`` and ``alarm_hold`` in samples, ``beta``
-            (the rest reference's smoothing factor, None without it) and
-            ``brake_limit``.
+            ``sigma_v``; ``settle``, ``brake_hold`` and ``alarm_hold`` in
+            samples; ``beta`` (the rest reference's smoothing factor, None
+            without it) and ``brake_limit``.
         """
         beta = None
         if self.rest_reference is not None:
@@ -321,19 +314,11 @@ class AlarmRule(BaseEstimator):
             self.regimes._validate_params()
             if self.threshold == "std":
                 raise ValueError("AlarmRule: regimes cannot be combined with threshold='std'")
-        if _is_loro(self.margin):
-            if self.threshold != "per_joint":
-                raise ValueError("AlarmRule: margin must be a float >= 1, an array of floats "
-                                 ">= 1 or 'loro' (with threshold='per_joint'), got 'loro'")
-        elif not _valid_margin(self.margin):
+        if (self.threshold != "per_joint" if _is_loro(self.margin)
+                else not _valid_margin(self.margin)):
             raise ValueError("AlarmRule: margin must be a float >= 1, an array of floats >= 1 "
                              f"or 'loro' (with threshold='per_joint'), got {self.margin!r}")
         return self
-
-    @property
-    def uses_regimes(self):
-        """Whether the rule has regimes (and reads the arm's motion)."""
-        return self.regimes is not None
 
     @property
     def needs_std(self):
@@ -342,11 +327,11 @@ class AlarmRule(BaseEstimator):
 
     # ------------------------------------------------------------ stages
     def prepare(self, sample_time, sigma_v=None):
-        """Set what the signal stages need before calibration; return self.
+        """Set what :meth:`signal` needs before calibration; return self.
 
         ``sample_time_``, ``sigma_v_``, ``filter_coefficients_`` and
-        ``regime_names_``: enough for :meth:`signal` (e.g. to compare
-        candidate settings on residuals already predicted).
+        ``regime_names_`` (e.g. to compare settings on residuals already
+        predicted).
 
         Parameters
         ----------
@@ -392,11 +377,9 @@ class AlarmRule(BaseEstimator):
         u : ndarray of shape (n_samples, n_joints)
             The residual, normalised by the detector where it asks so.
         starts : ndarray of int, default=None
-            Rows where a new recording begins (filter and regimes restart);
-            None: one recording.
+            Rows where a new recording begins (None: one recording).
         motion : ndarray of shape (n_samples, n_motion), default=None
-            Joint velocities (then accelerations with ``brake_limit``), for
-            the regimes.
+            Joint velocities, then accelerations where the regimes read them.
 
         Returns
         -------
@@ -404,7 +387,7 @@ class AlarmRule(BaseEstimator):
         regime : ndarray of int of shape (n_samples,)
             All 0 without regimes.
         reference : ndarray or None
-            Rest reference subtracted (None without ``rest_reference``).
+            Rest reference subtracted (None without regimes).
         """
         starts = _starts(u, starts)
         u = self._filtered(u, starts)
@@ -430,6 +413,7 @@ class AlarmRule(BaseEstimator):
         ----------
         signal : ndarray of shape (n_samples, n_joints)
         starts : ndarray of int, default=None
+            As for :meth:`signal`.
 
         Returns
         -------
@@ -438,45 +422,17 @@ class AlarmRule(BaseEstimator):
         return window_segments(np.abs(signal), self.min_duration, _starts(signal, starts), np.min,
                                pad=0.0)
 
-    def ratio(self, signal, regime, starts=None, motion=None):
-        """Debounced ``|m|`` over the scale of each sample's regime.
-
-        Parameters
-        ----------
-        signal : ndarray of shape (n_samples, n_joints)
-        regime : ndarray of int of shape (n_samples,)
-        starts : ndarray of int, default=None
-        motion : ndarray, default=None
-            Velocities and accelerations, for a motion envelope.
-
-        Returns
-        -------
-        ratio : ndarray of shape (n_samples, n_joints)
-        """
+    def _ratio(self, signal, regime, starts=None, motion=None):
+        """Debounced ``|m|`` over the scale of each sample's regime (and envelope)."""
         ratio = self.debounced(signal, starts) / np.atleast_2d(self.scale_)[regime]
-        factor = self.envelope(motion, signal.shape[1], starts)
+        factor = self._held_envelope(motion, signal.shape[1], starts)
         if factor is not None:
             ratio /= np.where((regime == MOVING)[:, None], factor, 1.0)
         return ratio
 
-    def envelope(self, motion, n_joints, starts=None):
-        """:math:`e_\\ell(x)` of every sample (as if moving); None without an envelope.
-
-        The largest value of :meth:`instant_envelope` over the last 0.25 s
-        (``_envelope.HOLD_SECONDS``).
-
-        Parameters
-        ----------
-        motion : ndarray of shape (n_samples, 2 * n_joints)
-            Velocities, then accelerations.
-        n_joints : int
-        starts : ndarray of int, default=None
-            Segment starts (the hold restarts).
-
-        Returns
-        -------
-        factor : ndarray of shape (n_samples, n_joints) or None
-        """
+    def _held_envelope(self, motion, n_joints, starts=None):
+        """:math:`e_\\ell(x)` of every sample (as if moving), held over the last
+        0.25 s; None without an envelope."""
         factor = self.instant_envelope(motion, n_joints)
         if factor is None:
             return None
@@ -489,6 +445,7 @@ class AlarmRule(BaseEstimator):
         Parameters
         ----------
         motion : ndarray of shape (n_samples, 2 * n_joints)
+            Velocities, then accelerations.
         n_joints : int
 
         Returns
@@ -510,10 +467,9 @@ class AlarmRule(BaseEstimator):
         """Every stage from the residual to the alarms.
 
         With regimes, the regime of an alarm's onset is held while the alarm
-        lasts (a contact never relaxes its own threshold, see
-        :meth:`~sklearn_gpcd.detection._regimes.RegimeState.step`): the
-        recordings with an alarm are run again sample by sample with the
-        hold, as a :class:`~sklearn_gpcd.detection.StreamingMonitor` runs.
+        lasts (a contact never relaxes its own threshold): the recordings
+        with an alarm run again sample by sample with the hold, as a
+        :class:`~sklearn_gpcd.detection.StreamingMonitor` runs.
 
         Parameters
         ----------
@@ -528,7 +484,7 @@ class AlarmRule(BaseEstimator):
         """
         starts = _starts(u, starts)
         signal, regime, reference = self.signal(u, starts, motion)
-        ratio = self.ratio(signal, regime, starts, motion)
+        ratio = self._ratio(signal, regime, starts, motion)
         level = -self.offset_
         alarms = ratio > level
         if self.regimes is not None and alarms.any():
@@ -543,7 +499,7 @@ class AlarmRule(BaseEstimator):
         signal, regime, reference, ratio, held = (np.array(a, copy=True) for a in stages)
         filtered, motion = self._filtered(u, starts), self._motion(motion)
         scales = np.atleast_2d(self.scale_)
-        factor = self.envelope(motion, u.shape[1], starts)
+        factor = self._held_envelope(motion, u.shape[1], starts)
         bounds = np.append(starts, len(u))
         for lo, hi in zip(bounds[:-1], bounds[1:]):
             if not alarms[lo:hi].any():
@@ -610,7 +566,7 @@ class AlarmRule(BaseEstimator):
         else:
             self.scale_ = self._regime_rows(lambda rows: rms_scale(signal[rows]), regimes,
                                             n_joints)
-            peak = self.ratio(signal, regimes, starts).max(axis=1)
+            peak = self._ratio(signal, regimes, starts).max(axis=1)
             if self.threshold == "contamination":
                 gamma = contamination_level(peak, self.contamination)
             else:
@@ -710,8 +666,6 @@ def _is_loro(margin):
 
 def _valid_margin(margin):
     """A number or an array of numbers, all finite and >= 1."""
-    if isinstance(margin, str):
-        return False
     try:
         values = np.asarray(margin, dtype=float)
     except (TypeError, ValueError):
