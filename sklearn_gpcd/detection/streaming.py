@@ -18,19 +18,14 @@ from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning, reads_currents
 class MonitorStatus(str, Enum):
     """Outcome of one :meth:`StreamingMonitor.update` call.
 
-    Members compare equal to their string values.
-
     - ``OK`` (``"ok"``): a valid sample, no joint fired.
     - ``COLLISION`` (``"collision"``): a valid sample and at least one joint
-      fired (``monitor.alarms`` tells which); the batch detector's
-      ``predict`` gives -1 for this sample.
+      fired (``monitor.alarms`` tells which); batch ``predict`` gives -1.
     - ``SENSOR_FAULT`` (``"sensor_fault"``): the sample could not be used
-      and is skipped (see :class:`StreamingMonitor`): neither a collision
-      nor an all-clear.
+      and is skipped: neither a collision nor an all-clear.
 
-    ``str(status)`` is the value, so statuses stored in a NumPy array or
-    written to a log keep it (``np.asarray([...])`` gives ``'collision'``,
-    not a truncated ``'MonitorStatu'``).
+    Members compare equal to their string values, and ``str(status)`` is the
+    value, so arrays and logs of statuses keep it whole.
 
     Examples
     --------
@@ -87,32 +82,8 @@ def _filter_transition(coefficients):
 
     (``z_{N+1} = 0``), so ``[y; z'] = T [u; z]`` with the ``(N + 1) x (N +
     1)`` matrix ``T``: a filter step for every joint is one matrix product.
-    Without a filter ``T = [[1]]`` (``y = u``, no state).
-
-    Parameters
-    ----------
-    coefficients : tuple of ndarray or None
-        ``(b, a)`` of :func:`~sklearn_gpcd.detection._signal.lowpass_coefficients`.
-
-    Returns
-    -------
-    transition : ndarray of shape (N + 1, N + 1)
-    zi_unit : ndarray of shape (N, 1)
-        State of a filter at rest on a unit input (``lfilter_zi``).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from scipy.signal import lfilter
-    >>> b, a = np.array([0.2, 0.1]), np.array([1.0, -0.5])
-    >>> T, zi = _filter_transition((b, a))
-    >>> u, state, y = [1.0, 3.0, -2.0], np.zeros(2), []
-    >>> for value in u:
-    ...     state[0] = value
-    ...     state = T @ state
-    ...     y.append(state[0])
-    >>> np.allclose(y, lfilter(b, a, u))
-    True
+    Without a filter ``T = [[1]]`` (``y = u``, no state). Also returns the
+    (N, 1) state of a filter at rest on a unit input (``lfilter_zi``).
     """
     if coefficients is None:
         return np.ones((1, 1)), np.zeros((0, 1))
@@ -141,9 +112,8 @@ class BandState:
     """One alarm rule's causal state in a :class:`StreamingMonitor`.
 
     The low-pass filter as a state-space step, then the regimes, debounce
-    and alarm of :class:`~sklearn_gpcd.detection._regimes.AlarmState` (the
-    batch detector's per-sample state), all in preallocated arrays: a tick
-    allocates nothing.
+    and alarm of the batch detector's per-sample state, in preallocated
+    arrays: a tick allocates nothing.
 
     Parameters
     ----------
@@ -173,8 +143,8 @@ class BandState:
     >>> rule = AlarmRule("false_alarm_rate", false_alarm_rate=0.0).calibrate(
     ...     np.random.default_rng(0).normal(size=(500, 1)), sample_time=0.01)
     >>> band = BandState(rule, 1)
-    >>> band.filter_step(np.array([10.0])) and band.commit(None) > band.level
-    True
+    >>> band.thresholds.shape, band.regime, band.alarms.tolist()
+    ((1, 1), 0, [False])
     """
 
     #: Views rebuilt on load (see :meth:`_bind`).
@@ -211,10 +181,9 @@ class BandState:
     def _bind(self):
         """The views a tick reads and writes through (after construction or load).
 
-        ``_filter[0]`` holds the filter input ``u`` and the state ``z``,
-        ``_filter[1]`` the output ``y`` (``signal``) and the next state
-        ``z'``: one product with ``_transition`` is one filter step, and
-        ``z'`` is copied into ``z`` only when the tick is accepted.
+        ``_filter[0]`` is ``[u; z]`` (input, state), ``_filter[1]`` ``[y; z']``
+        (``signal``, next state): one product with ``_transition`` is one
+        filter step; ``z'`` becomes ``z`` only when the tick is accepted.
         """
         self._filter_flat = self._filter.reshape(-1)
         self._filter_in, self._filter_out = self._filter
@@ -236,18 +205,9 @@ class BandState:
         self._envelope_position = 0
         self.state.reset()
 
-    def filter_step(self, u):
-        """Filter ``u`` (not yet accepted); whether input, output and state are finite.
-
-        Parameters
-        ----------
-        u : ndarray of shape (n_joints,)
-            The residual (over the std with ``normalize="std"``).
-
-        Returns
-        -------
-        finite : bool
-        """
+    def _filter_step(self, u):
+        """Filter ``u`` (the residual, over the std with ``normalize="std"``), not
+        yet accepted; whether input, output and state are finite."""
         np.copyto(self._u, u)
         if self._fresh:  # steady state of the first sample, as in batch
             np.multiply(self._zi_unit, self._u, out=self._z)
@@ -255,19 +215,9 @@ class BandState:
         finite = np.isfinite(self._filter_flat, out=self._filter_finite)
         return np.count_nonzero(finite) == finite.size
 
-    def commit(self, motion):
-        """Accept the tick filtered last: regime, debounce, ratio and alarms.
-
-        Parameters
-        ----------
-        motion : ndarray or None
-            What the regimes read (velocities, then accelerations).
-
-        Returns
-        -------
-        top : float
-            The largest ratio over the joints.
-        """
+    def _commit(self, motion):
+        """Accept the tick filtered last (regime, debounce, ratio, alarms); the
+        largest ratio over the joints. ``motion``: what the regimes read."""
         np.copyto(self._z, self._z_next)
         self._fresh = False
         if self._envelope is not None:
@@ -279,13 +229,13 @@ class BandState:
             self._envelope_position = (self._envelope_position + 1) % len(self._envelope)
         return self.state.step(self.signal, motion, self._envelope)
 
-    def fault(self):
+    def _reject(self):
         """A rejected tick: no signal, no decision (the state is kept)."""
         self.signal[:] = np.nan
         self.ratio[:] = np.nan
         self.state.clear()
 
-    def non_finite_joints(self):
+    def _non_finite_joints(self):
         """Joints whose filter input, output or state was not finite in the last step."""
         return np.flatnonzero(~np.all(np.isfinite(self._filter), axis=(0, 1)))
 
@@ -295,35 +245,30 @@ class StreamingMonitor(VersionedStateMixin):
 
     Each :meth:`update` takes one input row and the measured currents and
     makes the same decision as the detector's batch ``predict`` on the same
-    rows (in order, with ``groups`` restarts mapped to :meth:`reset`): the
-    residual ``s = i - i_hat``, the optional normalisation, and for every
-    alarm rule (band) the causal low-pass filter, the regimes, the debounce
-    and the threshold test are all carried forward in preallocated state
-    (one :class:`BandState` per rule; one prediction per tick for all).
-    Memory is bounded (the debounce window is a ring buffer of
-    ``min_duration`` rows) and a tick allocates no array.
-
-    The prediction is compiled once into a single-sample path
-    (:func:`~sklearn_gpcd.gp.compile_predictor`); ``normalize="std"`` goes
-    through ``regressor.predict(..., return_std=True)`` and is much slower.
+    rows (in order, ``groups`` restarts mapped to :meth:`reset`): residual,
+    normalisation and, per alarm rule, filter, regimes, debounce and
+    threshold are carried forward in preallocated state (one
+    :class:`BandState` per rule, one prediction per tick for all). Memory is
+    bounded and a tick allocates no array. The prediction is compiled once
+    into a single-sample path (:func:`~sklearn_gpcd.gp.compile_predictor`);
+    ``normalize="std"`` goes through ``regressor.predict(...,
+    return_std=True)`` and is much slower.
 
     **Sensor faults.** A missing sample (``x=None``), a NaN or infinite
     value, a ``time`` not after the last valid sample's, or a non-finite
     prediction or signal makes :meth:`update` return
     ``MonitorStatus.SENSOR_FAULT`` (never ``COLLISION``, never an exception)
-    and drop the sample: the next valid sample is processed as if the faulty
-    ones had never arrived, so a fault does not end an alarm either. A sample
-    of the wrong length or with non-numeric values is a wiring error
-    (``ValueError``, state unchanged). What a run of faults means is the
-    caller's policy; see the user guide's streaming page.
+    and drop the sample, as if it had never arrived (a fault does not end an
+    alarm either). A sample of the wrong length or with non-numeric values
+    is a wiring error (``ValueError``, state unchanged). What a run of faults
+    means is the caller's policy (user guide, streaming page).
 
     **Raw samples.** Given ``features`` (the fitted
     :class:`~sklearn_gpcd.features.CausalFeatures` that built the detector's
-    training inputs), :meth:`update_raw` takes what the robot logs and
-    builds the input row causally; :meth:`replay_recording` equals
-    ``detector.predict`` on ``stack_currents(features.transform(rec),
-    rec.current)``, sample for sample. The regimes run in the batch
-    detector's :class:`~sklearn_gpcd.detection._regimes.AlarmState`.
+    training inputs), :meth:`update_raw` builds the input row causally from
+    what the robot logs; :meth:`replay_recording` equals ``detector.predict``
+    on ``stack_currents(features.transform(rec), rec.current)``, sample for
+    sample.
 
     Parameters
     ----------
@@ -341,15 +286,9 @@ class StreamingMonitor(VersionedStateMixin):
     residual : ndarray of shape (n_joints,)
         ``s = i - i_hat``.
     bands : list of BandState
-        One per alarm rule: its ``signal``, ``ratio``, ``alarms``,
-        ``regime``, ``level`` and ``thresholds``.
-    signal, ratio : ndarray of shape (n_joints,)
-        Monitoring signal ``m`` (normalised, filtered, re-referenced at
-        rest) and debounced ``|m|`` over the scale of the current regime,
-        of the first band.
-    regime : int
-        Regime code of the last valid tick in the first band (index into
-        its ``regime_names_``; always 0 without regimes).
+        One per alarm rule.
+    signal, ratio, regime
+        Those of the first band.
     alarms : ndarray of bool, shape (n_joints,)
         Joints that fired (in some band).
     score : float
@@ -362,11 +301,10 @@ class StreamingMonitor(VersionedStateMixin):
         What made the last tick a sensor fault (e.g. ``"non-finite value in
         qd_1"``); None after a valid tick.
     last_time : float or None
-        ``time`` of the last valid tick (None when no time was given, or
-        after :meth:`reset`).
+        ``time`` of the last valid tick (None without time, or after
+        :meth:`reset`).
     predictor_kind : str
-        ``"gaussian_process"``, ``"linear"`` or ``"generic"`` (per-tick
-        ``regressor.predict``).
+        ``"gaussian_process"``, ``"linear"`` or ``"generic"``.
 
     The arrays are overwritten in place by every tick; copy them to keep
     them. After a sensor fault they hold NaN (``alarms`` all False).
@@ -490,9 +428,8 @@ class StreamingMonitor(VersionedStateMixin):
     def reset(self):
         """Forget the filter and debounce history and the last time stamp.
 
-        Call it where a new recording starts (the batch detector's
-        ``groups``) or after a long outage. The counters (``n_ticks``,
-        ``n_faults``, ``n_consecutive_faults``) keep running.
+        Call it where a new recording starts (the batch ``groups``) or after
+        a long outage; the counters keep running.
         """
         self.last_time = None
         for band in self.bands:
@@ -506,30 +443,25 @@ class StreamingMonitor(VersionedStateMixin):
         Parameters
         ----------
         x : array-like of shape (n_inputs + n_joints,) or (n_inputs,), or None
-            One row of the detector's input: regressor inputs followed by
-            the measured currents, or the regressor inputs only when
-            ``current`` is given. None marks a missing sample; a missing
-            value inside the sample is passed as NaN (or None).
+            One row of the detector's input (the regressor inputs only when
+            ``current`` is given). None marks a missing sample, NaN (or
+            None) a missing value.
         current : array-like of shape (n_joints,), default=None
             Measured currents, when not included in ``x``.
         time : float, default=None
-            Time stamp of the sample (s). When given, it must be strictly
-            after the last valid sample's: a repeated or earlier stamp (a
-            duplicated or out-of-order packet) is a sensor fault. Gaps are
-            not faults.
+            Time stamp [s]; a stamp not after the last valid sample's (a
+            duplicated or out-of-order packet) is a sensor fault, a gap is not.
 
         Returns
         -------
         status : MonitorStatus
-            ``"ok"``, ``"collision"`` or ``"sensor_fault"`` (see the class
-            docstring for what a fault does to the state).
 
         Raises
         ------
         ValueError
-            When ``x`` or ``current`` has the wrong length or non-numeric
-            values, or ``time`` is not a number (a wiring error, not a
-            sensor fault); the monitor's state is left unchanged.
+            A wiring error, not a sensor fault (state unchanged): ``x`` or
+            ``current`` of the wrong length or not numeric, ``time`` not a
+            number.
         """
         if x is not None:
             self._load(x, current)
@@ -553,16 +485,16 @@ class StreamingMonitor(VersionedStateMixin):
         else:
             np.subtract(self._current, self.predicted, out=self._u)  # the residual
         # u, z, y and z' finite in every band (u holds the residual: the prediction too)
-        if not all([band.filter_step(self._u) for band in self.bands]):
+        if not all([band._filter_step(self._u) for band in self.bands]):
             return self._fault(self._signal_reason())  # no band's state moves
         if self._motion is not None:
             np.take(self._inputs, self._motion_columns, out=self._motion, mode="clip")
         if len(self.bands) == 1:
             band = self.bands[0]
-            self.score = -band.commit(self._motion)
+            self.score = -band._commit(self._motion)
             alarmed = band.alarmed
         else:
-            self.score = min([band.level - band.commit(self._motion) for band in self.bands])
+            self.score = min([band.level - band._commit(self._motion) for band in self.bands])
             np.logical_or.reduce([band.alarms for band in self.bands], out=self.alarms)
             alarmed = any(band.alarmed for band in self.bands)
         self.last_time = stamp
@@ -592,8 +524,8 @@ class StreamingMonitor(VersionedStateMixin):
         Raises
         ------
         ValueError
-            Without ``features``, or when a signal the model was trained on
-            is missing (a wiring error, not a sensor fault).
+            Without ``features``, or without a signal the model was trained
+            on (a wiring error, not a sensor fault).
         """
         if self._online is None:
             raise ValueError(
@@ -739,7 +671,7 @@ class StreamingMonitor(VersionedStateMixin):
             bad = np.flatnonzero(~np.isfinite(getattr(self, name)))
             if bad.size:
                 return f"non-finite {label} of joint(s) {bad.tolist()}"
-        bad = np.unique(np.concatenate([band.non_finite_joints() for band in self.bands]))
+        bad = np.unique(np.concatenate([band._non_finite_joints() for band in self.bands]))
         return f"non-finite monitoring signal of joint(s) {bad.tolist()}"
 
     def _fault(self, reason):
@@ -749,7 +681,7 @@ class StreamingMonitor(VersionedStateMixin):
         for array in (self.predicted, self.residual):
             array[:] = np.nan
         for band in self.bands:
-            band.fault()
+            band._reject()
         self.alarms[:] = False
         self.score = np.nan
         self.status = MonitorStatus.SENSOR_FAULT
@@ -774,14 +706,11 @@ class StreamingMonitor(VersionedStateMixin):
         result : Bunch
             ``status`` (ndarray of str), ``prediction`` (+1 / -1 as
             ``predict``, 0 for sensor faults), ``alarms`` (bool, (n_samples,
-            n_joints): joints that fired in some band), ``score`` (the batch
-            ``score_samples``, NaN for faults), ``predicted`` and
-            ``residual`` (float, (n_samples, n_joints)); ``bands``, one Bunch
-            per rule with its ``signal``, ``ratio``, ``alarms``, ``regime``
-            (int, (n_samples,): index into the rule's ``regime_names_``) and
-            ``level``; and the first band's ``signal``, ``ratio`` and
-            ``regime`` at the top level. After a sensor fault the float rows
-            are NaN and the alarms False.
+            n_joints)), ``score`` (the batch ``score_samples``), ``predicted``
+            and ``residual``; ``bands``, one Bunch per rule with its
+            ``signal``, ``ratio``, ``alarms``, ``regime`` and ``level``, the
+            first band's ``signal``, ``ratio`` and ``regime`` also at the top
+            level. Sensor faults leave NaN float rows and no alarm.
         """
         X = np.asarray(X, dtype=float)
         n = X.shape[0]
