@@ -23,11 +23,9 @@ _SAMPLE_TIME_RTOL = 0.2
 class SampleTimeWarning(UserWarning):
     """``CollisionDetector.sample_time`` differs from the data's sampling period.
 
-    The low-pass filter, the settle time and the false-alarm rates are
-    computed with ``sample_time``; when the recordings are sampled at another
-    rate all three are off by the same factor. Raised by
-    :meth:`CollisionDetector.fit` when ``time`` is given and the median time
-    step differs by more than 20 %; pass ``sample_time="auto"`` to take it
+    The filter, settle time and false-alarm rates are then all off by the
+    same factor. Raised by :meth:`CollisionDetector.fit` when the median step
+    of ``time`` differs by more than 20 %; ``sample_time="auto"`` takes it
     from the data.
 
     Examples
@@ -47,10 +45,7 @@ class SampleTimeWarning(UserWarning):
 
 
 def stack_currents(X, current):
-    """Append the measured currents to the model inputs, as the detector expects.
-
-    :class:`CollisionDetector` needs the measured currents at every call, so
-    they travel as the last ``n_joints`` columns of its input.
+    """Append the measured currents to the model inputs: the detector's input.
 
     Parameters
     ----------
@@ -84,46 +79,34 @@ def stack_currents(X, current):
 class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     """Proprioceptive collision detector: a residual model and alarm rules.
 
-    The detector is made of two parts.
-
     **The residual model.** A regressor learns the motor currents of
     collision-free motion, ``i_hat = f(x)`` (the paper's estimator, Eq. 17);
-    the residual is (paper Sec. III)
+    the residual :math:`s_l = i_l - \\hat{i}_l` (Sec. III) is optionally
+    normalised by the predictive standard deviation (``normalize="std"``,
+    :math:`u_l = s_l / \\sigma_l(x)`, a variance-aware band).
 
-    .. math:: s_l = i_l - \\hat{i}_l,
+    **The alarm rules.** An :class:`~sklearn_gpcd.detection.AlarmRule`
+    (filter, debounce, motion regimes, thresholds calibrated on the
+    collision-free rows) fires joint ``l`` when its monitoring signal
+    satisfies :math:`|m_l| > \\sigma_{CD,l}` for ``min_duration`` samples in
+    a row (:math:`f_{CD}`, Sec. II). Several rules are several *bands* on one
+    model (e.g. 2 Hz for pushes, 10 Hz for short taps): a sample is a
+    collision when some joint fires in some band.
 
-    optionally normalised by the predictive standard deviation
-    (``normalize="std"``, :math:`u_l = s_l / \\sigma_l(x)`, a variance-aware
-    band).
-
-    **The alarm rules.** An :class:`~sklearn_gpcd.detection.AlarmRule` turns
-    the residual into alarms: causal low-pass filter, debounce, motion
-    regimes with the rest re-reference, and a threshold per joint (and
-    regime) calibrated on the collision-free rows (:math:`f_{CD}`, Sec. II):
-    joint ``l`` fires when its monitoring signal :math:`m_l` satisfies
-    :math:`|m_l| > \\sigma_{CD,l}` for ``min_duration`` samples in a row.
-    Several rules are several *bands* on one model (e.g. 2 Hz for pushes,
-    10 Hz for short taps): a sample is a collision when some joint fires in
-    some band.
-
-    **Input layout.** The measured currents are needed whenever the detector
-    is asked anything, so they are the **last** ``n_joints`` **columns of**
-    ``X``; the columns before them are the regressor inputs (build ``X`` with
-    :func:`stack_currents`). This keeps the scikit-learn outlier-detector API
-    (``fit(X)``, ``predict(X)``) and lets the detector sit in pipelines and
+    **Input layout.** The measured currents are the **last** ``n_joints``
+    **columns of** ``X``, after the regressor inputs (:func:`stack_currents`),
+    so the detector keeps the outlier-detector API and sits in pipelines and
     grid searches (e.g. over ``sigma_v`` or ``rules__min_duration``).
 
     **Time series.** With no filter and ``min_duration=1`` (the default
-    rule) every row is judged on its own. Otherwise the rows are one time
-    series sampled every ``sample_time`` seconds; pass ``groups`` (recording
-    id per row) to restart the filter and debounce state where a new
-    recording begins.
+    rule) every row is judged on its own; otherwise the rows are a time
+    series sampled every ``sample_time`` seconds, and ``groups`` (recording
+    id per row) restarts the filter and debounce state at each recording.
 
-    **Calibration data.** The thresholds come from the residuals on the
-    collision-free training rows. A GP nearly interpolates its support
-    points, so residuals there understate those on new data: condition the
-    GP on a subset (``n_support``, the paper's :math:`D_{SDP}`), or choose the
-    thresholds on other recordings with
+    **Calibration data.** A GP nearly interpolates its support points, so
+    the residuals on the training rows understate those on new data:
+    condition the GP on a subset (``n_support``, the paper's
+    :math:`D_{SDP}`), or choose the thresholds on other recordings with
     :func:`~sklearn_gpcd.detection.calibrate_across_recordings`.
 
     **Scores** follow :class:`~sklearn.ensemble.IsolationForest`: with the
@@ -136,14 +119,13 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     Parameters
     ----------
     regressor : regressor, default=None
-        Model of the collision-free currents, fitted on ``(X[:, :-n_joints],
-        X[:, -n_joints:])`` (a clone is fitted). ``None`` builds the paper's
-        SP_P estimator (:func:`default_regressor`: ``make_sp_p`` without
-        robot model, 5,000 support rows), which expects the augmented inputs
-        of Eq. 13 (``6 * n_joints`` columns). ``normalize="std"`` and
-        ``threshold="std"`` need a regressor whose ``predict`` accepts
-        ``return_std``. Wrap an already fitted model in
-        :class:`sklearn.frozen.FrozenEstimator` to calibrate on it as it is.
+        Model of the collision-free currents, fitted (a clone) on
+        ``(X[:, :-n_joints], X[:, -n_joints:])``. ``None``: the paper's SP_P
+        estimator (:func:`default_regressor`), on the augmented inputs of
+        Eq. 13 (``6 * n_joints`` columns). ``normalize="std"`` and
+        ``threshold="std"`` need ``predict(..., return_std=True)``. Wrap a
+        fitted model in :class:`sklearn.frozen.FrozenEstimator` to calibrate
+        on it as it is.
     rules : AlarmRule or list of AlarmRule, default=None
         How the residual becomes alarms; a list for several bands. None is
         ``AlarmRule()``: no filter, no debounce, a contamination threshold.
@@ -152,30 +134,27 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     normalize : {None, "std"}, default=None
         Divide the residual by the predictive std before the rules.
     sample_time : float or "auto", default=0.008
-        Sampling period in seconds (the paper's UR10 logs at 8 ms, the UR10e
-        logs of Mamedov et al. at 10 ms); used by the filters, the regimes
-        and the false-alarm rates. ``"auto"`` takes the median time step of
-        ``time`` passed to :meth:`fit`; a number that differs from it by more
-        than 20 % warns (:class:`SampleTimeWarning`).
+        Sampling period [s] of the filters, regimes and false-alarm rates
+        (the paper's UR10 logs at 8 ms, the UR10e logs of Mamedov et al. at
+        10 ms). ``"auto"`` takes the median time step of ``time`` passed to
+        :meth:`fit`; a number more than 20 % off it warns
+        (:class:`SampleTimeWarning`).
     sigma_v : float, default=None
         Velocity threshold of the quasi-static gate (Sec. IV-B, the paper
-        uses ``1e-2``). When set, it is passed on as the regressor's
-        ``sigma_v`` parameter (a frozen model keeps its own); ``None`` keeps
-        the regressor's own value. The regimes use it too (``1e-2`` when
-        None).
+        uses ``1e-2``), passed on as the regressor's ``sigma_v`` (a frozen
+        model keeps its own; None keeps the regressor's value) and used by
+        the regimes (``1e-2`` when None).
     velocity_columns : list of int or None, default=None
         Columns of the regressor inputs holding the joint velocities, for
-        rules with regimes. None takes the ``qd`` block of the paper's
-        layout (:mod:`sklearn_gpcd.layout`) when the inputs have
-        ``3 * n_joints`` or ``6 * n_joints`` columns.
+        rules with regimes. None: the ``qd`` block of the paper's layout
+        (:mod:`sklearn_gpcd.layout`), with ``3`` or ``6 * n_joints`` inputs.
 
     Attributes
     ----------
     regressor_ : regressor
         The fitted clone of ``regressor``.
     rules_ : list of AlarmRule
-        The fitted rules (one per band), each with its ``scale_``,
-        ``offset_``, ``thresholds_`` and ``regime_names_``.
+        The fitted rules, one per band.
     thresholds_ : ndarray of shape (n_joints,) or (n_regimes, n_joints)
         :math:`\\sigma_{CD}` per joint (and regime) of the first rule, in
         units of the monitoring signal (A, or standard deviations with
@@ -189,8 +168,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     velocity_columns_ : list of int or None
         Velocity columns of the regressor inputs read by the regimes.
     acceleration_columns_ : list of int or None
-        Acceleration columns read by a braking regime or a motion envelope (None
-        without either).
+        Acceleration columns read by a braking regime or a motion envelope.
     motion_columns_ : list of int or None
         Velocity columns, then acceleration columns: what the regimes read.
     n_features_in_ : int
@@ -200,9 +178,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
     Notes
     -----
-    With one ``AlarmRule(threshold="contamination")`` the fraction of
-    flagged training samples is exactly ``contamination`` (up to ties), the
-    contract that scikit-learn's outlier checks test.
+    With one ``AlarmRule(threshold="contamination")`` exactly the fraction
+    ``contamination`` of the training samples is flagged (up to ties).
 
     See Also
     --------
@@ -306,19 +283,17 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     def fit_residuals(self, X, *, labels=None, groups=None, time=None, return_std=None):
         """The residual model's half of :meth:`fit`: the regressor, on collision-free rows.
 
-        Checks the parameters, sets ``sample_time_`` and fits ``regressor_``;
-        returns the residuals of the collision-free rows, which
-        :meth:`calibrate` turns into thresholds. Calibrating several rules on
-        one fitted model calls this once and :meth:`calibrate` once per
-        setting (e.g. on copies of the detector with other ``rules``).
+        Sets ``sample_time_`` and ``regressor_``; the residuals it returns are
+        what :meth:`calibrate` turns into thresholds, once per setting when
+        several rules are compared on one fitted model.
 
         Parameters
         ----------
         X, labels, groups, time
             As for :meth:`fit`.
         return_std : bool, default=None
-            Also return the predictive std (None: where this detector reads
-            it, :meth:`needs_std` with ``fitting=True``).
+            Also return the predictive std (None: where the calibration or
+            the monitoring signal reads it).
 
         Returns
         -------
@@ -332,7 +307,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         rules = self.alarm_rules()
         self.sample_time_ = self._check_sample_time(time, groups, _num_samples(X))
         if return_std is None:
-            return_std = self.needs_std(fitting=True)
+            return_std = self._needs_std(fitting=True)
         X = validate_data(self, X, dtype=np.float64)
         n = self.n_joints
         if X.shape[1] <= n:
@@ -364,8 +339,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         """The alarm rules' half of :meth:`fit`: thresholds from collision-free residuals.
 
         ``regressor_`` and ``sample_time_`` must be set, by :meth:`fit` or
-        :meth:`fit_residuals` (possibly on a copy of this detector with other
-        ``rules``: the rules act after the regressor).
+        :meth:`fit_residuals` (possibly on a copy with other ``rules``).
 
         Parameters
         ----------
@@ -486,14 +460,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples, n_inputs + n_joints)
-            Regressor inputs followed by the measured currents.
-        y : None
-            Ignored.
-        labels : array-like of shape (n_samples,), default=None
-            Contact labels used to select the training rows (see :meth:`fit`).
-        groups : array-like of shape (n_samples,), default=None
-            Recording id of each row.
+        X, y, labels, groups
+            As for :meth:`fit`.
 
         Returns
         -------
@@ -539,19 +507,9 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             regressor.set_params(sigma_v=self.sigma_v)
         return regressor
 
-    def needs_std(self, fitting=False):
-        """Whether the monitoring signal (or, ``fitting``, the calibration) reads
-        the predictive std.
-
-        Parameters
-        ----------
-        fitting : bool, default=False
-            For :meth:`fit` (rules with ``threshold="std"`` read it there).
-
-        Returns
-        -------
-        needs : bool
-        """
+    def _needs_std(self, fitting=False):
+        """Whether the monitoring signal (or, ``fitting``, the calibration, where
+        rules with ``threshold="std"`` read it) reads the predictive std."""
         if self.normalize == "std":
             return True
         return fitting and any(rule.needs_std for rule in self.alarm_rules())
@@ -592,7 +550,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             As for :meth:`monitoring_signal`.
         return_std : bool, default=None
             Also the predictive std (None: where the monitoring signal reads
-            it, :meth:`needs_std`).
+            it).
 
         Returns
         -------
@@ -604,7 +562,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         check_is_fitted(self)
         X = validate_data(self, X, dtype=np.float64, reset=False)
         if return_std is None:
-            return_std = self.needs_std()
+            return_std = self._needs_std()
         starts = segment_starts(X.shape[0], groups)
         predicted, std = self._predict_currents(self._inputs(X), return_std,
                                                 current=X[:, -self.n_joints:], starts=starts)
@@ -622,12 +580,15 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         Returns
         -------
         result : Bunch
-            ``bands``: one Bunch per rule with ``signal``, ``regime``,
-            ``reference``, ``ratio``, ``alarms`` and ``level`` (the rule's
-            :math:`\\gamma`); ``alarms`` (bool, (n_samples, n_joints): joints
-            that fired in some band), ``score`` and ``decision`` (the
-            :meth:`score_samples` and :meth:`decision_function` values).
-            With one rule its stages are also at the top level.
+            ``bands``: one Bunch per rule with ``signal`` (``m``: normalised,
+            filtered, re-referenced at rest), ``regime`` (code per sample),
+            ``reference`` (the rest reference subtracted, or None), ``ratio``
+            (debounced ``|m|`` over the scale of the sample's regime),
+            ``alarms`` and ``level`` (the rule's :math:`\\gamma`); ``alarms``
+            (bool, (n_samples, n_joints): joints that fired in some band),
+            ``score`` and ``decision`` (the :meth:`score_samples` and
+            :meth:`decision_function` values). With one rule its stages are
+            also at the top level.
         """
         u = self._normalized(residuals.residual, residuals.std)
         bands = [Bunch(level=-float(rule.offset_),
@@ -658,14 +619,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         result : Bunch
             ``predicted`` (``i_hat``), ``std`` (predictive std, or None when
             not needed) and ``residual`` (``s = i - i_hat``), of shape
-            (n_samples, n_joints), and what :meth:`stages` returns: ``bands``
-            (per rule: ``signal`` ``m``, normalised, filtered and
-            re-referenced at rest; ``reference``, the rest reference
-            subtracted, or None; ``ratio``, debounced ``|m|`` over the scale
-            of the sample's regime; ``alarms``; ``regime``, the regime code of
-            each sample; ``level``), ``alarms`` (bool, joints that fired in
-            some band), ``score`` and ``decision``; with one rule, its ``signal``,
-            ``regime``, ``reference`` and ``ratio`` at the top level too.
+            (n_samples, n_joints), and what :meth:`stages` returns.
 
         Examples
         --------
@@ -727,8 +681,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         y_pred : ndarray of shape (n_samples,)
             -1 where some joint fired in some band: where
             :meth:`decision_function` is negative, and during an alarm's
-            release time (``Regimes(alarm_release=...)``), when the score is
-            back above zero but the contact is still judged on.
+            release time (``Regimes(alarm_release=...)``).
         """
         return np.where(self.monitoring_signal(X, groups).alarms.any(axis=1), -1, 1)
 
@@ -753,16 +706,14 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
 def reads_currents(model):
     """Whether a residual model's ``predict`` reads the measured currents.
 
-    A dynamic residual model -- the momentum observer
-    (:class:`~sklearn_gpcd.dynamics.MomentumObserver`) -- computes the
-    expected current of a sample from the measured currents of the samples
-    up to it, in the same recording. Its ``predict`` takes them as a
-    ``current`` argument, and the recording of each row as ``groups``;
-    :class:`CollisionDetector` then passes both (the recordings from its
-    ``groups``, and a gap of rows left out by ``labels`` starts a new one),
-    so the observer is calibrated and monitored by the same alarm rules as
-    any regressor. (:class:`StreamingMonitor` does not run such a model: it
-    would need the model's own per-tick state.)
+    A dynamic residual model (the momentum observer,
+    :class:`~sklearn_gpcd.dynamics.MomentumObserver`) computes the expected
+    current of a sample from the measured currents up to it in the same
+    recording: its ``predict`` takes them as ``current`` and the recording of
+    each row as ``groups``, which :class:`CollisionDetector` passes (a gap of
+    rows left out by ``labels`` starts a new recording), so the same alarm
+    rules calibrate and monitor it. :class:`StreamingMonitor` does not run
+    such a model (it would need the model's own per-tick state).
 
     Parameters
     ----------
@@ -821,10 +772,9 @@ def _check_joint_count(n_inputs, n_joints, per_joint, what):
 def default_regressor(n_joints):
     """The paper's SP_P estimator for ``n_joints`` joints, without robot model.
 
-    Eq. 17 with a zero parametric mean (no robot model is known here), the
-    paper's :math:`\\sigma_v = 10^{-2}` and a support set of at most 5,000
-    training rows (the size of the paper's :math:`D_{SDP}`, Sec. V-A), drawn
-    with a fixed seed so that fitting twice gives the same detector.
+    Eq. 17 with a zero parametric mean, the paper's :math:`\\sigma_v =
+    10^{-2}` and at most 5,000 support rows (the size of the paper's
+    :math:`D_{SDP}`, Sec. V-A), drawn with a fixed seed.
 
     Parameters
     ----------
