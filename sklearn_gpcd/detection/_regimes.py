@@ -15,9 +15,8 @@ re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
     \\beta = 1 - e^{-T/\\tau},
 
 so a contact shows in full while the slow relaxation of the current held
-after a stop does not. :class:`AlarmState` is the per-sample decision of one
-band that the batch detector and :class:`~sklearn_gpcd.detection.StreamingMonitor`
-share.
+after a stop does not. :class:`AlarmState`: one band's per-sample decision,
+shared by batch and streaming.
 """
 
 import numpy as np
@@ -28,11 +27,6 @@ from .._gate import quasi_static
 #: with a braking limit).
 REGIME_NAMES = ("moving", "settling", "rest", "braking")
 MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
-
-
-def regime_names(braking):
-    """Names of the regime codes in use ("braking" only with a braking limit)."""
-    return REGIME_NAMES if braking else REGIME_NAMES[:BRAKING]
 
 
 class RegimeState:
@@ -94,17 +88,15 @@ class RegimeState:
         return MOVING
 
     def step(self, motion, signal, hold=None):
-        """Regime of one sample; ``signal`` is re-referenced in place at rest.
+        """Regime of one sample (``motion``: velocities, then accelerations with a
+        braking limit); ``signal`` is re-referenced in place at rest.
 
-        The braking regime overrides the others for the thresholds only: the
-        rest reference follows the motion regimes as without it.
-
-        **A contact never relaxes its own threshold**: while the band is in
-        alarm the caller passes the regime of the alarm's onset as ``hold``; it
-        is returned (at rest the reference is subtracted, not tracked) for
-        ``alarm_hold`` samples at most, while the counters advance.
-        ``motion``: the sample's velocities (then accelerations with a
-        braking limit).
+        Braking overrides the others for the thresholds only: the rest
+        reference follows the motion regimes. **A contact never relaxes its
+        own threshold**: while the band is in alarm the caller passes the
+        regime of the alarm's onset as ``hold``, returned (at rest the
+        reference subtracted, not tracked) for ``alarm_hold`` samples at most
+        while the counters advance.
         """
         n = self.n_joints
         regime = self.regime(motion[:n])
@@ -156,15 +148,13 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
 class AlarmState:
     """One band's decision, sample by sample: the state batch and streaming share.
 
-    Per sample: the regime (a :class:`RegimeState`, the regime of an alarm's
-    onset held while the alarm lasts), the debounce over the last
-    ``min_duration`` samples (a ring of rows), the ratio to the scale of the
-    regime, over the motion envelope while moving (the factor frozen while
-    an alarm lasts, like the regime), and the alarm: the joints above
-    ``level``; it ends after ``release`` samples at or below it, meanwhile
-    the joints that fired last stay in alarm. Preallocated: a sample
-    allocates no array. ``settings``: :class:`RegimeState` settings
-    (``AlarmRule.regime_settings()``; None: no regimes, regime 0).
+    Per sample: the regime (:class:`RegimeState` with ``settings``, None: no
+    regimes), the debounce over the last ``min_duration`` samples (a ring),
+    the ratio to the regime's scale, over the motion envelope while moving,
+    and the joints above ``level``. While an alarm lasts its regime and
+    envelope factor are frozen; it ends after ``release`` samples at or below
+    the level (meanwhile the joints that fired last stay in alarm). A sample
+    allocates no array.
     """
 
     def __init__(self, n_joints, settings, scales, level, min_duration, release=0):
@@ -230,23 +220,20 @@ class AlarmState:
         return top
 
 
-def held_regime_pass(signal, motion, starts, settings, scales, level, min_duration,
-                     envelope=None, release=0):
-    """:class:`AlarmState` over a batch, as a streaming monitor runs it.
+def held_regime_pass(signal, motion, settings, scales, level, min_duration, envelope=None,
+                     release=0):
+    """:class:`AlarmState` over one segment, as a streaming monitor runs it.
 
-    ``envelope``: the motion envelope factor of each sample
-    (``AlarmRule.envelope``). Returns those of :func:`regime_pass`, then
-    ``ratio`` (debounced ``|m|`` over the scale of each sample's regime) and
-    ``alarms`` (bool, joints in alarm).
+    ``envelope``: the held motion envelope factor of each sample. Returns
+    those of :func:`regime_pass`, then ``ratio`` (debounced ``|m|`` over the
+    scale of each sample's regime) and ``alarms`` (bool, joints in alarm).
     """
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     ratio = np.empty_like(out)
     alarms = np.zeros(signal.shape, dtype=bool)
-    bounds = np.append(starts, signal.shape[0])
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        state = AlarmState(signal.shape[1], settings, scales, level, min_duration, release)
-        for k in range(lo, hi):
-            state.step(out[k], motion[k], None if envelope is None else envelope[k:k + 1])
-            regimes[k], ratio[k], alarms[k] = state.regime, state.ratio, state.alarms
+    state = AlarmState(signal.shape[1], settings, scales, level, min_duration, release)
+    for k in range(signal.shape[0]):
+        state.step(out[k], motion[k], None if envelope is None else envelope[k:k + 1])
+        regimes[k], ratio[k], alarms[k] = state.regime, state.ratio, state.alarms
     return out, regimes, signal - out, ratio, alarms

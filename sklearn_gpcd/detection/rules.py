@@ -1,27 +1,21 @@
 """Alarm rules: from the current residual to alarms (paper Sec. II-III).
 
-A :class:`~sklearn_gpcd.detection.CollisionDetector` is made of two parts:
-the *residual model* (the regressor of the collision-free currents, paper
-Eq. 17, and the scale of its residual) and an :class:`AlarmRule`, which
-turns the residual :math:`s_l = i_l - \\hat i_l` into alarms:
+An :class:`AlarmRule` turns the residual :math:`s_l = i_l - \\hat i_l` of a
+:class:`~sklearn_gpcd.detection.CollisionDetector` into alarms:
 
-1. **signal** -- the residual, normalised by the detector when it asks so,
-   low-pass filtered (``filter_cutoff``, ``filter_order``; the moving-phase
-   residual is high-frequency, Sec. IV-C) and, with :class:`Regimes`,
-   re-referenced at rest: the monitoring signal :math:`m_l`;
-2. **ratio** -- :math:`r_l = \\tilde m_l / \\text{scale}_{g l}` with
+1. **signal** -- the residual (normalised where the detector asks so),
+   low-pass filtered (the moving-phase residual is high-frequency, Sec.
+   IV-C) and, with :class:`Regimes`, re-referenced at rest: :math:`m_l`;
+2. **ratio** -- :math:`r_l = \\tilde m_l / \\text{scale}_{g l}`, with
    :math:`\\tilde m_l` the smallest :math:`|m_l|` over the last
-   ``min_duration`` samples (the debounce) and :math:`g` the regime of the
-   sample;
+   ``min_duration`` samples and :math:`g` the sample's regime;
 3. **alarm** -- joint :math:`l` fires when :math:`r_l > \\gamma` (the
-   paper's :math:`f_{CD}`, Sec. II, with :math:`\\sigma_{CD,l} =
-   \\gamma\\,\\text{scale}_l`), and a sample is a collision when one joint
-   fires.
+   paper's :math:`f_{CD}`, Sec. II, :math:`\\sigma_{CD,l} =
+   \\gamma\\,\\text{scale}_l`).
 
-:meth:`AlarmRule.calibrate` sets ``scale_`` and :math:`\\gamma` from the
-collision-free residuals by the rule's ``threshold``. Several rules on one
-residual model are several *bands* (e.g. a 2 Hz band for pushes and a 10 Hz
-one for short taps); the detector alarms when any does.
+:meth:`AlarmRule.calibrate` sets ``scale_`` and :math:`\\gamma` from
+collision-free residuals. Several rules on one residual model are several
+*bands*; the detector alarms when any does.
 """
 
 from numbers import Integral, Real
@@ -38,7 +32,7 @@ from ._envelope import (
     over_envelope,
     window_peaks,
 )
-from ._regimes import MOVING, held_regime_pass, regime_names, regime_pass
+from ._regimes import BRAKING, MOVING, REGIME_NAMES, held_regime_pass, regime_pass
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
@@ -56,10 +50,6 @@ THRESHOLD_RULES = ("contamination", "false_alarm_rate", "per_joint", "std")
 #: Velocity threshold [rad/s] of the regimes when the detector gives none
 #: (the paper's :math:`\sigma_v`).
 DEFAULT_SIGMA_V = 1e-2
-
-
-def _positive_or_inf():
-    return [Interval(Real, 0, None, closed="neither"), Options(Real, {np.inf})]
 
 
 class Regimes(BaseEstimator):
@@ -119,13 +109,12 @@ class Regimes(BaseEstimator):
     >>> from sklearn_gpcd.detection import Regimes
     >>> Regimes(brake_limit=5.0).names
     ('moving', 'settling', 'rest', 'braking')
-    >>> Regimes(rest_reference=2.0).settings(sample_time=0.01)["settle"]
-    50
     """
 
     _parameter_constraints = {
         "settle_time": [Interval(Real, 0, None, closed="left")],
-        "rest_reference": [None, *_positive_or_inf()],
+        "rest_reference": [None, Interval(Real, 0, None, closed="neither"),
+                           Options(Real, {np.inf})],
         "brake_limit": [None, Interval(Real, 0, None, closed="neither")],
         "brake_hold": [Interval(Real, 0, None, closed="left")],
         "alarm_hold": [Interval(Real, 0, None, closed="left")],
@@ -145,53 +134,21 @@ class Regimes(BaseEstimator):
 
     @property
     def names(self):
-        return regime_names(self.brake_limit is not None)
+        return REGIME_NAMES if self.brake_limit is not None else REGIME_NAMES[:BRAKING]
 
     @property
     def reads_accelerations(self):
         """Whether the regimes read the joint accelerations (braking, envelope)."""
         return self.brake_limit is not None or self.motion_envelope is not None
 
-    def settings(self, sample_time, sigma_v=None):
-        """Keyword arguments of the regime pass at ``sample_time`` [s].
-
-        Parameters
-        ----------
-        sample_time : float
-            Sampling period [s].
-        sigma_v : float or None, default=None
-            Velocity threshold [rad/s] (None: 1e-2, the paper's).
-
-        Returns
-        -------
-        settings : dict
-            ``sigma_v``; ``settle``, ``brake_hold`` and ``alarm_hold`` in
-            samples; ``beta`` (the rest reference's smoothing factor, None
-            without it) and ``brake_limit``.
-        """
-        beta = None
-        if self.rest_reference is not None:
-            beta = float(-np.expm1(-sample_time / self.rest_reference))
-        return {
-            "sigma_v": DEFAULT_SIGMA_V if sigma_v is None else float(sigma_v),
-            "settle": int(round(self.settle_time / sample_time)),
-            "beta": beta,
-            "brake_limit": self.brake_limit,
-            "brake_hold": int(round(self.brake_hold / sample_time)),
-            "alarm_hold": int(round(self.alarm_hold / sample_time)),
-        }
-
 
 class AlarmRule(BaseEstimator):
     """Filter, debounce, regimes and thresholds: how a residual becomes alarms.
 
-    Joint ``l`` fires when its monitoring signal :math:`m_l` leaves the
-    band (the paper's :math:`f_{CD}`, Sec. II)
-
-    .. math:: |m_l| > \\sigma_{CD,l} \\quad \\text{for ``min_duration``
-              consecutive samples.}
-
-    Fitted by :meth:`calibrate` on the residuals of collision-free rows (a
+    Joint ``l`` fires when its monitoring signal leaves the band,
+    :math:`|m_l| > \\sigma_{CD,l}` for ``min_duration`` consecutive samples
+    (the paper's :math:`f_{CD}`, Sec. II). Fitted by :meth:`calibrate` on the
+    residuals of collision-free rows (a
     :class:`~sklearn_gpcd.detection.CollisionDetector` does it in ``fit``).
 
     Parameters
@@ -200,19 +157,16 @@ class AlarmRule(BaseEstimator):
             default="contamination"
         Rule that sets :math:`\\sigma_{CD}` from the calibration residuals:
 
-        - ``"contamination"``: ``scale_`` is the RMS of each joint's signal
-          and the level flags the fraction ``contamination`` of the
-          calibration samples (IsolationForest convention);
-        - ``"false_alarm_rate"``: same scale, smallest level whose alarm
-          onsets on the calibration data stay within ``false_alarm_rate`` per
-          hour;
-        - ``"per_joint"``: a level per joint (and per regime): the budget
-          ``false_alarm_rate`` is split equally across joints and regimes,
-          each level is the smallest whose onsets stay within its share;
-          ``margin`` multiplies every level;
-        - ``"std"``: ``k`` predictive standard deviations (with the
-          detector's ``normalize="std"`` the band follows
-          :math:`\\sigma_l(x)` sample by sample).
+        - ``"contamination"``: ``scale_`` is the RMS of each joint's signal,
+          the level flags the fraction ``contamination`` of the calibration
+          samples (IsolationForest convention);
+        - ``"false_alarm_rate"``: same scale, the smallest level whose alarm
+          onsets stay within ``false_alarm_rate`` per hour;
+        - ``"per_joint"``: a level per joint (and regime), each the smallest
+          whose onsets stay within an equal share of ``false_alarm_rate``,
+          times ``margin``;
+        - ``"std"``: ``k`` predictive standard deviations (with
+          ``normalize="std"`` the band follows :math:`\\sigma_l(x)`).
     contamination : float in (0, 0.5], default=0.001
         Fraction of calibration samples flagged by ``"contamination"``.
     false_alarm_rate : float >= 0, default=1.0
@@ -220,10 +174,9 @@ class AlarmRule(BaseEstimator):
     k : float > 0, default=3.0
         Band width in predictive standard deviations, for ``"std"``.
     margin : float >= 1, array-like or "loro", default=1.0
-        Factor on the levels of ``"per_joint"``: a scalar, one value per
-        joint or per regime and joint; ``"loro"`` learns it by leaving one
-        recording out (the largest factor by which a recording's peak
-        exceeds the level of the others, :func:`~sklearn_gpcd.detection.loro_margin`).
+        Factor on the levels of ``"per_joint"``: a scalar, one per joint or
+        per regime and joint; ``"loro"`` learns it by leaving one recording
+        out (:func:`~sklearn_gpcd.detection.loro_margin`).
     filter_cutoff : float or None, default=None
         Cut-off frequency [Hz] of the causal low-pass filter (None: none).
     filter_order : {1, 2}, default=1
@@ -243,8 +196,7 @@ class AlarmRule(BaseEstimator):
     filter_coefficients_ : tuple of ndarray or None
         ``(b, a)`` of the low-pass filter.
     regime_names_ : tuple of str
-        Rows of ``scale_`` / ``thresholds_``: the regimes' names, or
-        ``("all",)`` without regimes.
+        Rows of ``scale_`` / ``thresholds_`` (``("all",)`` without regimes).
     scale_ : ndarray of shape (n_joints,) or (n_regimes, n_joints)
         Per-joint scale of the monitoring signal.
     margin_ : ndarray of the shape of ``scale_``
@@ -253,8 +205,8 @@ class AlarmRule(BaseEstimator):
         :math:`-\\gamma`: a joint fires when ``ratio > -offset_``.
     thresholds_ : ndarray of the shape of ``scale_``
         :math:`\\sigma_{CD}` per joint (and regime) in units of the signal
-        (with a motion envelope, the moving row is that of a smoothly
-        sliding joint at zero acceleration, times :math:`e_\\ell(x)`).
+        (with a motion envelope, a moving sample's threshold is the moving
+        row times :math:`e_\\ell(x)`).
     envelope_ : ndarray of shape (n_joints, 3) or None
         Coefficients :math:`a, b, c` of the moving thresholds' envelope
         (:mod:`~sklearn_gpcd.detection._envelope`; None without one).
@@ -314,7 +266,7 @@ class AlarmRule(BaseEstimator):
             self.regimes._validate_params()
             if self.threshold == "std":
                 raise ValueError("AlarmRule: regimes cannot be combined with threshold='std'")
-        if (self.threshold != "per_joint" if _is_loro(self.margin)
+        if (self.threshold != "per_joint" if isinstance(self.margin, str)  # "loro"
                 else not _valid_margin(self.margin)):
             raise ValueError("AlarmRule: margin must be a float >= 1, an array of floats >= 1 "
                              f"or 'loro' (with threshold='per_joint'), got {self.margin!r}")
@@ -327,11 +279,8 @@ class AlarmRule(BaseEstimator):
 
     # ------------------------------------------------------------ stages
     def prepare(self, sample_time, sigma_v=None):
-        """Set what :meth:`signal` needs before calibration; return self.
-
-        ``sample_time_``, ``sigma_v_``, ``filter_coefficients_`` and
-        ``regime_names_`` (e.g. to compare settings on residuals already
-        predicted).
+        """Set ``sample_time_``, ``sigma_v_``, ``filter_coefficients_`` and
+        ``regime_names_``: what :meth:`signal` needs before calibration.
 
         Parameters
         ----------
@@ -360,17 +309,28 @@ class AlarmRule(BaseEstimator):
         Returns
         -------
         settings : dict or None
-            See :meth:`Regimes.settings`.
+            ``sigma_v`` (1e-2 when the detector gives none); ``settle``,
+            ``brake_hold`` and ``alarm_hold`` in samples; ``beta`` (the rest
+            reference's smoothing factor, None without it) and ``brake_limit``.
         """
-        if self.regimes is None:
+        regimes, dt = self.regimes, self.sample_time_
+        if regimes is None:
             return None
-        return self.regimes.settings(self.sample_time_, self.sigma_v_)
+        beta = None
+        if regimes.rest_reference is not None:
+            beta = float(-np.expm1(-dt / regimes.rest_reference))
+        return {
+            "sigma_v": DEFAULT_SIGMA_V if self.sigma_v_ is None else float(self.sigma_v_),
+            "settle": int(round(regimes.settle_time / dt)),
+            "beta": beta,
+            "brake_limit": regimes.brake_limit,
+            "brake_hold": int(round(regimes.brake_hold / dt)),
+            "alarm_hold": int(round(regimes.alarm_hold / dt)),
+        }
 
     def signal(self, u, starts=None, motion=None):
-        """Monitoring signal :math:`m`, regime codes and rest reference.
-
-        Without the alarm hold (:meth:`stages` applies it): what calibration
-        reads.
+        """Monitoring signal :math:`m`, regime codes and rest reference, without
+        the alarm hold of :meth:`stages`: what calibration reads.
 
         Parameters
         ----------
@@ -466,10 +426,9 @@ class AlarmRule(BaseEstimator):
     def stages(self, u, starts=None, motion=None):
         """Every stage from the residual to the alarms.
 
-        With regimes, the regime of an alarm's onset is held while the alarm
-        lasts (a contact never relaxes its own threshold): the recordings
-        with an alarm run again sample by sample with the hold, as a
-        :class:`~sklearn_gpcd.detection.StreamingMonitor` runs.
+        With regimes, the regime of an alarm's onset is held while it lasts
+        (a contact never relaxes its own threshold): the recordings with an
+        alarm run again sample by sample, as a streaming monitor runs.
 
         Parameters
         ----------
@@ -507,8 +466,8 @@ class AlarmRule(BaseEstimator):
             rows = slice(lo, hi)
             (signal[rows], regime[rows], reference[rows], ratio[rows],
              held[rows]) = held_regime_pass(
-                filtered[rows], motion[rows], np.array([0]), self.regime_settings(), scales,
-                -self.offset_, self.min_duration, None if factor is None else factor[rows],
+                filtered[rows], motion[rows], self.regime_settings(), scales, -self.offset_,
+                self.min_duration, None if factor is None else factor[rows],
                 self.release_samples())
         return signal, regime, reference, ratio, held
 
@@ -530,10 +489,8 @@ class AlarmRule(BaseEstimator):
             the detector where it asks so).
         starts, motion
             As for :meth:`signal`.
-        sample_time : float
-            Sampling period [s].
-        sigma_v : float or None, default=None
-            Velocity threshold of the regimes [rad/s].
+        sample_time, sigma_v
+            As for :meth:`prepare`.
         std : ndarray of shape (n_samples, n_joints), default=None
             Predictive std, for ``threshold="std"``.
         normalized : bool, default=False
@@ -596,7 +553,7 @@ class AlarmRule(BaseEstimator):
     def _margin(self, debounced, regimes, recordings, shape):
         """The given margin, checked against the levels' shape, or the LORO one."""
         n_joints = debounced.shape[1]
-        if not _is_loro(self.margin):
+        if not isinstance(self.margin, str):  # checked: a string is "loro"
             margin = np.asarray(self.margin, dtype=float)
             if margin.shape not in ((), (n_joints,), shape):
                 raise ValueError(
@@ -658,10 +615,6 @@ class AlarmRule(BaseEstimator):
 def _starts(u, starts):
     """Segment starts (row indices): the given ones, or one segment."""
     return segment_starts(len(u)) if starts is None else starts
-
-
-def _is_loro(margin):
-    return isinstance(margin, str) and margin == "loro"
 
 
 def _valid_margin(margin):
