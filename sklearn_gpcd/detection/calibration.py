@@ -60,10 +60,9 @@ def regime_excursions(detector, blocks):
     Returns
     -------
     series : dict of str -> tuple
-        ``(debounced, regime, peaks)``: debounced ``|m|`` of shape
-        (n_samples, n_joints) in the signal's unit (A), regime code per
-        sample, and peaks of shape (n_regime_rows, n_joints) (zero where the
-        regime does not occur).
+        ``(debounced, regime, peaks)``: debounced ``|m|`` (n_samples,
+        n_joints) in the signal's unit (A), regime code per sample, and peaks
+        (n_regime_rows, n_joints; zero where the regime does not occur).
 
     Examples
     --------
@@ -211,12 +210,10 @@ def nested_false_alarms(series, times, rule="global"):
 
     Parameters
     ----------
-    series : dict of str -> tuple
-        From :func:`regime_excursions`.
+    series, rule
+        As for :func:`nested_alarms`.
     times : dict of str -> ndarray of shape (n_samples,)
         Time stamps [s] of each recording.
-    rule : {"global", "joint", "regime", "cell"}, default="global"
-        As :func:`loro_margin`.
 
     Returns
     -------
@@ -254,9 +251,9 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     """Fit a detector with a leave-one-recording-out margin; count nested false alarms.
 
     Each alarm rule (band) of ``detector`` is calibrated by the rule above on
-    one prediction of the recordings; a recording alarms where some band
-    does, and the nested false alarms count the alarm onsets of that union
-    (each band with margin and levels chosen without the recording).
+    one prediction of the recordings; the nested false alarms count the
+    onsets of the union of the bands (each with margin and levels chosen
+    without the recording).
 
     With ``param_grid``, the settings of the **last** rule are chosen too:
     each candidate is calibrated by the rule above and scored by the
@@ -282,8 +279,8 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     ----------
     detector : CollisionDetector
         Unfitted template whose rules have ``threshold="per_joint"`` and
-        ``false_alarm_rate=0`` (their ``margin`` is replaced); wrap a trained
-        regressor in :class:`sklearn.frozen.FrozenEstimator` so it is not
+        ``false_alarm_rate=0`` (their ``margin`` is replaced); a trained
+        regressor wrapped in :class:`sklearn.frozen.FrozenEstimator` is not
         refitted.
     blocks : dict of str -> ndarray of shape (n_samples, n_inputs + n_joints)
         Detector input of each collision-free recording (at least 2).
@@ -292,13 +289,10 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     rule : {"global", "joint", "regime", "cell"}, default="global"
         As :func:`loro_margin`.
     param_grid : dict or list of dicts, default=None
-        Candidate settings of the last rule, as for
-        :class:`sklearn.model_selection.ParameterGrid`, with
-        :class:`~sklearn_gpcd.detection.AlarmRule` parameter names (nested
-        for its regimes), e.g. ``{"regimes__settle_time": [0.5, 1, 2, 3],
-        "regimes__rest_reference": [None, 2, 5]}`` or ``{"filter_cutoff":
-        [8, 10, 20], "min_duration": [2, 3]}``. None calibrates the rules
-        as given.
+        Candidate settings of the last rule (:class:`~sklearn_gpcd.detection.AlarmRule`
+        parameter names, as for :class:`sklearn.model_selection.ParameterGrid`),
+        e.g. ``{"regimes__settle_time": [0.5, 1, 2], "filter_cutoff": [8, 10]}``.
+        None calibrates the rules as given.
 
     Returns
     -------
@@ -306,21 +300,18 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         ``detector`` (fitted on all recordings at the operating point),
         ``folds`` (:func:`nested_false_alarms` of the union of the bands,
         each recording at the candidate chosen without it; empty with 2
-        recordings), ``n_false_alarms`` (their total), ``hours`` and
+        recordings), ``n_false_alarms`` (their total), ``hours``,
         ``false_alarms_per_hour`` (None with fewer than 3 recordings),
-        ``settings`` (the chosen candidate, ``{}`` without ``param_grid``),
-        ``candidates`` (per candidate: ``params``, ``score`` :math:`J`,
-        ``margin``, ``n_false_alarms`` of the union, nested at that fixed
-        candidate, and ``rank``: 0 for the operating point, which has the
-        fewest ``n_false_alarms``, then the smallest ``score``),
-        ``fold_settings`` (the candidate chosen without each recording, with
-        more than one candidate) and ``bands``: per rule, ``rule`` (fitted),
-        ``margin`` and ``levels`` (n_regime_rows, n_joints), ``series``
+        ``settings`` (the chosen candidate), ``candidates`` (per candidate:
+        ``params``, ``score`` :math:`J`, ``margin``, ``n_false_alarms`` of
+        the union at that candidate, and ``rank``, 0 for the operating
+        point), ``fold_settings`` (the candidate chosen without each
+        recording) and ``bands``: per rule, ``rule`` (fitted), ``margin`` and
+        ``levels`` (n_regime_rows, n_joints), ``series``
         (:func:`regime_excursions` at a unit margin), ``folds``,
-        ``n_false_alarms`` and ``false_alarms_per_hour`` of the band alone
-        (the last band at the chosen candidate) and ``regime_names``. The
-        first band's ``margin``, ``levels``, ``series`` and ``regime_names``
-        are also at the top level.
+        ``n_false_alarms`` and ``false_alarms_per_hour`` of the band alone,
+        and ``regime_names``; the first band's ``margin``, ``levels``,
+        ``series`` and ``regime_names`` also at the top level.
 
     Examples
     --------
@@ -366,9 +357,9 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
     residuals = base.fit_residuals(Z, groups=groups, time=time)
     u = _recording_residuals(base, keys, groups, residuals)
-    prepared = [_prepared(base, rule) for rule in rules]
-    fixed = [_band_run(r, u, times, rule) for r in prepared[:-1]]
-    runs = [_band_run(_prepared(base, clone(rules[-1]).set_params(**params)), u, times, rule)
+    timing = (base.sample_time_, base.sigma_v)  # what the rules' signal stages need
+    fixed = [_band_run(r.prepare(*timing), u, times, rule) for r in rules[:-1]]
+    runs = [_band_run(clone(rules[-1]).set_params(**params).prepare(*timing), u, times, rule)
             for params in candidates]
     fixed_series = [run.series for run in fixed]
 
@@ -446,11 +437,6 @@ def _candidates(param_grid, rule):
                     "(AlarmRule parameters, regimes__settle_time and the like for its "
                     "regimes)") from None
     return candidates
-
-
-def _prepared(detector, rule):
-    """``rule`` with what its signal stages need (the fitted detector's timing)."""
-    return rule.prepare(detector.sample_time_, detector.sigma_v)
 
 
 def _recording_residuals(detector, keys, groups, residuals):

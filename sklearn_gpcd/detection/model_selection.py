@@ -21,15 +21,14 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
 
     A :class:`~sklearn.model_selection.GridSearchCV` with the detection
     scorer :class:`~sklearn_gpcd.metrics.DetectionScorer` and the refit rule
-    :class:`~sklearn_gpcd.metrics.DetectionRefit`, run under scikit-learn's
-    metadata routing: ``labels``, ``groups`` and ``time`` reach each fold's
-    ``fit``, ``groups`` the splitter, ``groups`` and ``time`` the scorer. Each
-    fold trains the detector on the collision-free rows (label 0) of its
-    training recordings and scores the held-out ones; folds never split a
-    recording. The winner follows
-    :func:`~sklearn_gpcd.metrics.select_candidate`: **maximise recall, then
-    minimise false alarms per hour, among the candidates with mean delay <=
-    max_delay**; the means ignore folds where a metric is undefined (NaN).
+    :class:`~sklearn_gpcd.metrics.DetectionRefit`, under metadata routing
+    (``labels``, ``groups`` and ``time`` reach each fold's ``fit``, the
+    splitter and the scorer). Each fold trains on the collision-free rows of
+    its training recordings and scores the held-out ones (folds never split
+    a recording). The winner (:func:`~sklearn_gpcd.metrics.select_candidate`)
+    **maximises recall, then minimises false alarms per hour, among the
+    candidates with mean delay <= max_delay**; the means ignore undefined
+    (NaN) folds.
 
     Parameters
     ----------
@@ -120,10 +119,9 @@ class CollisionThresholdCV(VersionedStateMixin, MetaEstimatorMixin, BaseEstimato
         groups : array-like of shape (n_samples,)
             Recording id of each row.
         time : array-like of shape (n_samples,), default=None
-            Time stamps [s] of the rows: each fold's detector checks (or,
-            with ``sample_time="auto"``, takes) its sampling period from
-            them, and the delays and false alarms per hour are measured on
-            them; without ``time`` they use the detector's ``sample_time_``.
+            Time stamps [s] of the rows, for each fold's ``sample_time``
+            check (or "auto") and the delays and false alarms per hour
+            (without: the detector's ``sample_time_``).
 
         Returns
         -------
