@@ -1,16 +1,14 @@
 """Collision detection on the current residual (Dalla Libera et al., Sec. II-III).
 
-* :class:`CollisionDetector` -- scikit-learn outlier detector made of two
-  parts: the residual model (a regressor of the collision-free currents,
-  optionally normalised by its predictive std) and one or more
-  :class:`AlarmRule` (filter, debounce, :class:`Regimes`, thresholds
-  ``sigma_CD``); several rules are several bands, and a sample is a
+* :class:`CollisionDetector` -- scikit-learn outlier detector: a residual
+  model (a regressor of the collision-free currents, optionally normalised
+  by its predictive std) and one :class:`AlarmRule` per band (filter,
+  debounce, :class:`Regimes`, thresholds ``sigma_CD``); a sample is a
   collision when any band alarms;
-* :class:`StreamingMonitor` -- the same decisions one sample at a time, with
-  bounded memory and a compiled single-sample GP prediction;
-* :func:`calibrate_across_recordings` -- thresholds (and optionally the
-  settings of the last rule) chosen across recordings (leave-one-recording-out
-  margin, nested false alarms);
+* :class:`StreamingMonitor` -- the same decisions one sample at a time;
+* :func:`calibrate_across_recordings` -- thresholds (and the settings of the
+  last rule) chosen across recordings (leave-one-recording-out margin,
+  nested false alarms);
 * :class:`CollisionThresholdCV` -- ``GridSearchCV`` over labelled recordings
   with the detection scorer of :mod:`sklearn_gpcd.metrics`;
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.

@@ -1,15 +1,11 @@
 """Moving thresholds that follow the motion: the envelope of the residual.
 
-Our extension of the paper (issue 38). A threshold per joint for the whole
-``moving`` regime is set by the worst motion of the calibration data: on the
-real UR10e, joint 1's by the joint-by-joint runs in which joint 1 stands
-**still** while another joint moves (its dry friction then holds any torque
-up to the breakaway level, which no model predicts), joint 2's by a run with
-hard accelerations. A task that moves all joints smoothly then gets
-thresholds several times its own residual, and misses its collisions.
-
-The envelope makes the moving threshold of joint :math:`\\ell` a function of
-the state,
+Our extension of the paper (issue 38). One threshold per joint for the
+whole ``moving`` regime is set by the worst motion of the calibration data
+(on the real UR10e: a joint standing **still**, its dry friction holding any
+torque up to breakaway, while another moves; hard accelerations), so a task
+that moves all joints smoothly misses its collisions. The envelope makes the
+moving threshold of joint :math:`\\ell` a function of the state,
 
 .. math::
 
@@ -55,8 +51,7 @@ def envelope_features(motion, n_joints, still_speed):
 
 
 def envelope_factor(features, coef):
-    """``1 + a stuck + b |qdd| + c |qd|`` per sample and joint (``coef``: (n_joints, 3)).
-    """
+    """``1 + a stuck + b |qdd| + c |qd|`` per sample and joint (``coef``: (n_joints, 3))."""
     return 1.0 + np.einsum("nlk,lk->nl", features[..., 1:], coef)
 
 

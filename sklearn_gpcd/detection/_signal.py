@@ -15,9 +15,8 @@ from scipy.signal import butter, lfilter, lfilter_zi
 def lowpass_coefficients(cutoff, sample_time, order=1):
     """Coefficients ``(b, a)`` of a causal low-pass filter.
 
-    The paper notes that in moving phases the residual ``s = i - i_hat`` is
-    high-frequency (Sec. IV-C, Fig. 2) and "might be easily canceled with a
-    low pass filter". Two filters are offered:
+    The moving-phase residual is high-frequency and "might be easily
+    canceled with a low pass filter" (paper Sec. IV-C, Fig. 2):
 
     - ``order=1``: the exact discretisation of a first-order lag with time
       constant ``tau = 1 / (2 pi f_c)``,
@@ -49,11 +48,6 @@ def recording_index(groups, labels=None):
     """Recording index ``0 .. n - 1`` of each collision-free row (None without ``groups``).
 
     Rows with a non-zero label are dropped, as the detector drops them.
-
-    Examples
-    --------
-    >>> recording_index(["b", "b", "a", "a"], labels=[0, 1, 0, 0]).tolist()
-    [1, 0, 0]
     """
     if groups is None:
         return None
@@ -68,13 +62,6 @@ def segment_starts(n_samples, groups=None, keep=None):
 
     A segment starts where ``groups`` changes and, with ``keep`` (bool mask of
     the rows kept), after a gap of dropped rows; indices refer to the kept rows.
-
-    Examples
-    --------
-    >>> segment_starts(6, groups=[0, 0, 1, 1, 1, 2]).tolist()
-    [0, 2, 5]
-    >>> segment_starts(5, keep=np.array([1, 1, 0, 1, 1], bool)).tolist()
-    [0, 2]
     """
     new = np.zeros(n_samples, dtype=bool)
     if n_samples:
@@ -119,19 +106,10 @@ def window_segments(x, window, starts, reduce, pad=None):
 
     Causal; before its first row a segment sees ``pad``, or (None) its first
     row repeated; ``window <= 1`` returns ``x`` itself. The debounce is the
-    running minimum of ``|m|`` with ``pad=0``: a joint that exceeds the
-    threshold for ``min_duration`` consecutive samples is one whose minimum
-    over them does (a causal erosion), and the first ``min_duration - 1``
-    samples of a segment cannot fire. The motion envelope holds its running
-    maximum.
-
-    Examples
-    --------
-    >>> r = np.array([[2.0], [3.0], [1.0], [5.0], [6.0]])
-    >>> window_segments(r, 2, np.array([0]), np.min, pad=0.0)[:, 0].tolist()
-    [0.0, 2.0, 1.0, 1.0, 5.0]
-    >>> window_segments(r, 2, np.array([0, 3]), np.max)[:, 0].tolist()
-    [2.0, 3.0, 3.0, 5.0, 6.0]
+    running minimum of ``|m|`` with ``pad=0`` (a joint above the threshold
+    for ``min_duration`` samples in a row is one whose minimum over them is;
+    the first ``min_duration - 1`` samples of a segment cannot fire); the
+    motion envelope holds its running maximum.
     """
     if window <= 1:
         return x

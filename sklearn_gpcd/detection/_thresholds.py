@@ -12,13 +12,7 @@ import numpy as np
 
 
 def rms_scale(signal):
-    """Root mean square of each column, 1 where the column is all zero.
-
-    Examples
-    --------
-    >>> rms_scale(np.array([[3.0, 0.0], [-3.0, 0.0]])).tolist()
-    [3.0, 1.0]
-    """
+    """Root mean square of each column, 1 where the column is all zero."""
     scale = np.sqrt(np.mean(np.square(signal), axis=0))
     return np.where(scale > 0.0, scale, 1.0)
 

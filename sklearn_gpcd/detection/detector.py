@@ -98,10 +98,9 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     so the detector keeps the outlier-detector API and sits in pipelines and
     grid searches (e.g. over ``sigma_v`` or ``rules__min_duration``).
 
-    **Time series.** With no filter and ``min_duration=1`` (the default
-    rule) every row is judged on its own; otherwise the rows are a time
-    series sampled every ``sample_time`` seconds, and ``groups`` (recording
-    id per row) restarts the filter and debounce state at each recording.
+    **Time series.** With no filter and ``min_duration=1`` (the default) each
+    row is judged on its own; otherwise the rows are a time series sampled
+    every ``sample_time`` seconds, restarted at each recording of ``groups``.
 
     **Calibration data.** A GP nearly interpolates its support points, so
     the residuals on the training rows understate those on new data:
@@ -165,21 +164,15 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         with one rule, 0 with several.
     sample_time_ : float
         Sampling period used (``sample_time``, or the data's with "auto").
-    velocity_columns_ : list of int or None
-        Velocity columns of the regressor inputs read by the regimes.
-    acceleration_columns_ : list of int or None
-        Acceleration columns read by a braking regime or a motion envelope.
+    velocity_columns_, acceleration_columns_ : list of int or None
+        Columns of the regressor inputs that the regimes read (accelerations
+        with a braking limit or a motion envelope).
     motion_columns_ : list of int or None
-        Velocity columns, then acceleration columns: what the regimes read.
+        Both, velocities first.
     n_features_in_ : int
         Columns of ``X`` seen in fit (regressor inputs plus currents).
     feature_names_in_ : ndarray of str
         Column names, when ``X`` had string column names.
-
-    Notes
-    -----
-    With one ``AlarmRule(threshold="contamination")`` exactly the fraction
-    ``contamination`` of the training samples is flagged (up to ties).
 
     See Also
     --------
@@ -231,15 +224,13 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         Returns
         -------
         rules : list of AlarmRule
+            Clones; ``[AlarmRule()]`` for ``rules=None``.
 
         Examples
         --------
         >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector
         >>> CollisionDetector().alarm_rules()
         [AlarmRule()]
-        >>> len(CollisionDetector(rules=[AlarmRule(), AlarmRule(filter_cutoff=10.0)])
-        ...     .alarm_rules())
-        2
         """
         rules = self.rules
         if rules is None:
@@ -707,13 +698,12 @@ def reads_currents(model):
     """Whether a residual model's ``predict`` reads the measured currents.
 
     A dynamic residual model (the momentum observer,
-    :class:`~sklearn_gpcd.dynamics.MomentumObserver`) computes the expected
-    current of a sample from the measured currents up to it in the same
-    recording: its ``predict`` takes them as ``current`` and the recording of
-    each row as ``groups``, which :class:`CollisionDetector` passes (a gap of
-    rows left out by ``labels`` starts a new recording), so the same alarm
-    rules calibrate and monitor it. :class:`StreamingMonitor` does not run
-    such a model (it would need the model's own per-tick state).
+    :class:`~sklearn_gpcd.dynamics.MomentumObserver`) computes a sample's
+    expected current from the measured currents up to it in its recording:
+    its ``predict`` takes them as ``current`` and the recording of each row
+    as ``groups``, which :class:`CollisionDetector` passes (a gap left by
+    ``labels`` starts a new recording). :class:`StreamingMonitor` does not
+    run such a model (it has its own per-tick state).
 
     Parameters
     ----------

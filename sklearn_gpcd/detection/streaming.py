@@ -263,12 +263,11 @@ class StreamingMonitor(VersionedStateMixin):
     is a wiring error (``ValueError``, state unchanged). What a run of faults
     means is the caller's policy (user guide, streaming page).
 
-    **Raw samples.** Given ``features`` (the fitted
-    :class:`~sklearn_gpcd.features.CausalFeatures` that built the detector's
-    training inputs), :meth:`update_raw` builds the input row causally from
-    what the robot logs; :meth:`replay_recording` equals ``detector.predict``
-    on ``stack_currents(features.transform(rec), rec.current)``, sample for
-    sample.
+    **Raw samples.** Given the fitted
+    :class:`~sklearn_gpcd.features.CausalFeatures` that built the training
+    inputs, :meth:`update_raw` builds the input row causally from what the
+    robot logs; :meth:`replay_recording` equals ``detector.predict`` on
+    ``stack_currents(features.transform(rec), rec.current)``.
 
     Parameters
     ----------
@@ -384,12 +383,8 @@ class StreamingMonitor(VersionedStateMixin):
     _DT_CHECK_TICKS = 100
 
     def __getstate__(self):
-        """State to pickle: filters, debounce and counters, without derived objects.
-
-        The compiled predictor is rebuilt from ``detector`` on load, and
-        ``status`` is stored as its string value (so that :mod:`skops.io`
-        also restores it as a :class:`MonitorStatus`).
-        """
+        """State to pickle, without the views and the compiled predictor (rebuilt
+        on load); ``status`` as its string value, which :mod:`skops.io` restores."""
         state = super().__getstate__()
         for name in self._REBUILT:
             state.pop(name, None)
