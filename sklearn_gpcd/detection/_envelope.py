@@ -89,16 +89,6 @@ def fit_envelope(constraints):
     ``(level, coef)``: the constant term :math:`s_\\ell` per joint (the
     threshold of a smoothly sliding joint at zero acceleration, before any
     margin) and :math:`a, b, c` relative to it, shape (n_joints, 3).
-
-    Examples
-    --------
-    Peaks grow with the acceleration:
-
-    >>> qdd = np.linspace(0, 4, 50)
-    >>> F = np.stack([np.ones(50), np.zeros(50), qdd, np.zeros(50)], axis=-1)[:, None]
-    >>> level, coef = fit_envelope([(F, (1 + 0.5 * qdd)[:, None])])
-    >>> round(float(level[0]), 3), coef[0].round(3).tolist()
-    (1.0, [0.0, 0.5, 0.0])
     """
     features = np.concatenate([c[0] for c in constraints])
     peaks = np.concatenate([c[1] for c in constraints])

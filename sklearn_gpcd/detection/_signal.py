@@ -1,11 +1,9 @@
 """Causal post-processing of the monitoring signal: low-pass filter, debounce.
 
-Both operations are causal and carry state from one sample to the next, so
-batch processing (:class:`~sklearn_gpcd.detection.CollisionDetector`) and
-tick-by-tick processing (:class:`~sklearn_gpcd.detection.StreamingMonitor`)
-give the same numbers. Rows of a batch are one time series per *segment*;
-the state restarts at every segment start (a new recording, or a gap left by
-dropped rows).
+Both are causal, so batch and tick-by-tick processing give the same
+numbers. Rows of a batch are one time series per *segment*; the state
+restarts at every segment start (a new recording, or a gap left by dropped
+rows).
 """
 
 import numpy as np
@@ -84,13 +82,6 @@ def filter_segments(u, b, a, starts):
     Each segment starts in the steady state of its first sample
     (``scipy.signal.lfilter_zi``): a constant offset passes unchanged, with
     no start-up transient.
-
-    Examples
-    --------
-    >>> b, a = lowpass_coefficients(1.0, 0.01)
-    >>> y = filter_segments(np.ones((3, 1)), b, a, np.array([0]))
-    >>> np.allclose(y, 1.0)
-    True
     """
     y = np.empty_like(u)
     zi = lfilter_zi(b, a)

@@ -45,15 +45,6 @@ def false_alarm_level(peak, starts, sample_time, rate):
     ``rate`` onsets per hour of training data (``peak``: non-negative,
     ``sample_time`` in s); the count is not monotone in the level (raising
     it can split one alarm into two), hence "every higher one".
-
-    Examples
-    --------
-    >>> peak = np.array([0.0, 2.0, 0.0, 1.0, 0.0])   # two bumps
-    >>> hours = 5 * 1.0 / 3600
-    >>> false_alarm_level(peak, np.array([0]), 1.0, rate=1.5 / hours)  # 1.0, lifted
-    1.000000001
-    >>> false_alarm_level(peak, np.array([0]), 1.0, rate=0.0)
-    2.000000002
     """
     prev = np.empty_like(peak)
     prev[1:] = peak[:-1]

@@ -1,10 +1,9 @@
 """Thresholds chosen across recordings: leave-one-recording-out (LORO) margins.
 
-A detector calibrated with ``threshold="per_joint", false_alarm_rate=0`` sets
-each (regime, joint) level to the largest debounced excursion of its
-collision-free calibration data; on a recording it never saw, the excursions
-can be larger. The rule of ``gpcd calibrate`` and of the real-robot benchmark
-(:func:`calibrate_across_recordings` does all four):
+With ``threshold="per_joint", false_alarm_rate=0`` each (regime, joint)
+level is the largest debounced excursion of the calibration data, which a
+new recording can exceed. The rule of ``gpcd calibrate`` and of the
+real-robot benchmark (:func:`calibrate_across_recordings` does all four):
 
 1. **levels**: the largest peak debounced ``|m|`` per (regime, joint) cell
    over the recordings (:func:`regime_excursions`, :func:`regime_levels`);
