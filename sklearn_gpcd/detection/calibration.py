@@ -468,19 +468,15 @@ def _band_run(rule, residuals, times, margin_rule):
 
 class _FoldSeries(dict):
     """:func:`regime_excursions`-like series over a motion envelope fitted on all
-    recordings, with ``folds[r]``: the same over the envelope fitted without
-    ``r`` (what recording ``r`` is scored with when it is left out)."""
+    recordings; ``folds[r]``: the same over the one fitted without ``r``."""
 
     folds = None
 
 
 def _enveloped_series(rule, residuals):
-    """Series of a rule with a motion envelope: debounced ``|m|`` over the envelope.
-
-    The envelope is fitted on all recordings for the operating point and
-    again without each recording for its left-out figures, so that no
-    recording is scored against an envelope it shaped.
-    """
+    """Debounced ``|m|`` over the motion envelope, fitted on all recordings for
+    the operating point and without each recording for its left-out figures
+    (no recording is scored against an envelope it shaped)."""
     raw, constraints = {}, {}
     speed, hold = rule.regimes.motion_envelope, rule.envelope_hold()
     for key, (u, motion) in residuals.items():

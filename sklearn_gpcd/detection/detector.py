@@ -461,11 +461,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         return self.fit(X, labels=labels, groups=groups).predict(X, groups=groups)
 
     def _inputs(self, X):
-        """Regressor inputs: all but the current columns, named when X had names.
-
-        Named columns reach the regressor as a DataFrame, so kernels may
-        select them by name (e.g. ``ARDRBF(columns=["qd_0"])``).
-        """
+        """Regressor inputs: all but the current columns, as a DataFrame when X had
+        names (kernels may select columns by name, e.g. ``ARDRBF(columns=["qd_0"])``)."""
         inputs = X[:, : -self.n_joints]
         names = getattr(self, "feature_names_in_", None)
         if names is None:
@@ -506,12 +503,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         return fitting and any(rule.needs_std for rule in self.alarm_rules())
 
     def _predict_currents(self, inputs, return_std, current=None, starts=None):
-        """Predicted currents and (optionally) predictive std, both (n, n_joints).
-
-        A residual model that reads the measured currents (:func:`reads_currents`,
-        e.g. the momentum observer) gets them and the recording of each row
-        (from the segment ``starts``).
-        """
+        """Predicted currents and (optionally) predictive std, both (n, n_joints); a
+        model that :func:`reads_currents` gets them and each row's recording (``starts``)."""
         n_rows = inputs.shape[0]
         regressor = self.regressor_
         extra = {}

@@ -571,11 +571,8 @@ class AlarmRule(BaseEstimator):
         return loro_factors(peaks, "global").reshape(shape)
 
     def _regime_rows(self, per_regime, regimes, n_joints):
-        """``per_regime(rows)`` for each regime, stacked (one row without regimes).
-
-        A regime absent from the calibration data takes the largest value of
-        the others (no data, no tighter band).
-        """
+        """``per_regime(rows)`` for each regime, stacked (one row without regimes); an
+        absent regime takes the largest value of the others (no data, no tighter band)."""
         if self.regimes is None:
             return per_regime(slice(None))
         n_rows = len(self.regime_names_)
@@ -588,13 +585,9 @@ class AlarmRule(BaseEstimator):
         return fill_absent_regimes(table, present)
 
     def _joint_levels(self, debounced, regimes, starts):
-        """Per joint (and regime) false-alarm levels of the debounced |m|.
-
-        The budget ``false_alarm_rate`` is split equally over the joints and
-        the regimes present; joint ``l``'s level in regime ``g`` is the
-        false-alarm level of its debounced ``|m_l|``, set to zero outside
-        ``g``, with that share.
-        """
+        """Per joint (and regime) false-alarm levels of the debounced ``|m|``: joint
+        ``l``'s level in regime ``g`` is that of its ``|m_l|`` set to zero outside
+        ``g``, with an equal share of ``false_alarm_rate`` per joint and regime present."""
         n_joints = debounced.shape[1]
         n_regimes = len(np.unique(regimes)) if self.regimes is not None else 1
         share = self.false_alarm_rate / (n_joints * n_regimes)

@@ -179,12 +179,9 @@ class BandState:
         self._bind()
 
     def _bind(self):
-        """The views a tick reads and writes through (after construction or load).
-
-        ``_filter[0]`` is ``[u; z]`` (input, state), ``_filter[1]`` ``[y; z']``
-        (``signal``, next state): one product with ``_transition`` is one
-        filter step; ``z'`` becomes ``z`` only when the tick is accepted.
-        """
+        """The views a tick goes through: ``_filter[0]`` is ``[u; z]`` (input,
+        state), ``_filter[1]`` ``[y; z']`` (``signal``, next state); one product
+        with ``_transition`` is one filter step, ``z'`` becomes ``z`` on accept."""
         self._filter_flat = self._filter.reshape(-1)
         self._filter_in, self._filter_out = self._filter
         self._u, self._z = self._filter_in[0], self._filter_in[1:]
@@ -654,8 +651,7 @@ class StreamingMonitor(VersionedStateMixin):
 
     def _signal_reason(self):
         """Why a tick with finite inputs gave a non-finite value: the first stage
-        that did (prediction, std, residual, filter input ``u``, filter output
-        or state of some band)."""
+        that did (prediction, std, residual, or a band's filter input, output or state)."""
         stages = (
             ("predicted", "predicted current"),
             ("std", "predictive std"),
