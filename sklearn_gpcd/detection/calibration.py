@@ -501,12 +501,18 @@ def _enveloped_series(rule, residuals):
     return series
 
 
+def _left_out(series, r):
+    """The series recording ``r`` is scored on: over the motion envelope fitted
+    without ``r`` where the band has one (:class:`_FoldSeries`)."""
+    return series.folds[r] if getattr(series, "folds", None) else series
+
+
 def _fold_margin(series, keys, rule):
     """The LORO margin (:func:`loro_margin`), each left-out recording over the
     envelope fitted without it where the band has one."""
     factors = []
     for r in keys:
-        fold = series.folds[r] if getattr(series, "folds", None) else series
+        fold = _left_out(series, r)
         others = peak_levels(np.stack([fold[k][2] for k in keys if k != r]))
         factors.append(fold[r][2] / others)
     return shared_margin(factors, rule)
@@ -538,8 +544,7 @@ def _selection_score(series, keys, rule):
 def _held_out_alarm(series, keys, r, rule):
     """Alarms (any joint) of recording ``r`` with margin and levels from the
     other recordings of ``keys`` (over the envelope fitted without ``r``)."""
-    if getattr(series, "folds", None):
-        series = series.folds[r]
+    series = _left_out(series, r)
     thresholds = _loro_thresholds(series, [k for k in keys if k != r], rule)
     debounced, regimes, _ = series[r]
     return (debounced > thresholds[regimes]).any(axis=1)

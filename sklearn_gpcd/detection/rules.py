@@ -266,8 +266,8 @@ class AlarmRule(BaseEstimator):
             self.regimes._validate_params()
             if self.threshold == "std":
                 raise ValueError("AlarmRule: regimes cannot be combined with threshold='std'")
-        if (self.threshold != "per_joint" if isinstance(self.margin, str)  # "loro"
-                else not _valid_margin(self.margin)):
+        loro = isinstance(self.margin, str)  # the only string the constraints allow
+        if (self.threshold != "per_joint") if loro else not _valid_margin(self.margin):
             raise ValueError("AlarmRule: margin must be a float >= 1, an array of floats >= 1 "
                              f"or 'loro' (with threshold='per_joint'), got {self.margin!r}")
         return self
