@@ -28,6 +28,7 @@ from pathlib import Path
 
 import joblib
 
+from ._atomic import atomic_write
 from ._persistence import GPCDVersionWarning
 from .io.npz import npy_header
 
@@ -188,6 +189,10 @@ def save(estimator, path):
         If the extension is none of ``.joblib``, ``.pkl``, ``.skops``.
     ImportError
         If a ``.skops`` file is asked for and skops is not installed.
+    OSError
+        If the file cannot be written (disk full, a file-size limit): the
+        file is written to a temporary file in the same folder and renamed
+        only once complete, so a previous file of that name stays intact.
 
     See Also
     --------
@@ -210,10 +215,9 @@ def save(estimator, path):
     """
     path = Path(path)
     if _format(path) == "joblib":
-        joblib.dump(estimator, path)
-    else:
-        _skops().dump(estimator, path)
-    return path
+        return atomic_write(path, lambda handle: joblib.dump(estimator, handle))
+    sio = _skops()
+    return atomic_write(path, lambda handle: sio.dump(estimator, handle))
 
 
 def load(path, trusted=None, *, trust_pickle=False):

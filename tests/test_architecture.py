@@ -12,7 +12,7 @@ ROOT = Path(sklearn_gpcd.__file__).parent
 #: Top-level parts of the package by layer: a part imports only from its own
 #: layer or from earlier ones (CONTRIBUTING.md); "" is the package's __init__.
 LAYERS = [
-    {"_version", "layout", "_gate", "_progress"},
+    {"_version", "layout", "_gate", "_progress", "_atomic"},
     {"_persistence", "io", "metrics", "persistence"},
     {"robots", "dynamics"},
     {"features"},

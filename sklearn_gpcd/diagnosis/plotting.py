@@ -4,8 +4,11 @@ matplotlib is optional (``pip install sklearn-gpcd[plot]``); it is imported
 inside the functions.
 """
 
+from pathlib import Path
+
 import numpy as np
 
+from .._atomic import atomic_write
 from ..features import REGIMES
 
 
@@ -106,5 +109,6 @@ def plot_diagnosis(report, path=None):
     fig.suptitle(f"Diagnosis of {report.summary.get('robot', '')}: {names}")
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=110)
+        atomic_write(path, lambda handle: fig.savefig(handle, dpi=110,
+                                                      format=Path(path).suffix[1:] or "png"))
     return fig

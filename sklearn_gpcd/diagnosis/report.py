@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._atomic import atomic_write
 from .effects import _joint_list
 from .selection import separating_excitation
 
@@ -293,8 +294,7 @@ class DiagnosisReport:
         """
         text = json.dumps(self.to_dict(), indent=indent, default=_json_default)
         if path is not None:
-            with open(path, "w", encoding="utf-8") as handle:
-                handle.write(text + "\n")
+            atomic_write(path, lambda handle: handle.write(text + "\n"), mode="w")
         return text
 
     def text(self):

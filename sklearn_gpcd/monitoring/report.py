@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._atomic import atomic_write
+
 #: Line colours of the bands in a multi-band figure (C3, red, shades the events).
 BAND_COLORS = ("C0", "C2", "C4", "C1", "C5", "C6", "C8", "C9")
 
@@ -161,8 +163,10 @@ class _SessionReport:
                      fontsize=9)
         fig.tight_layout()
         path = Path(folder) / f"{Path(key).stem}.png"
-        fig.savefig(path, dpi=80)
-        plt.close(fig)
+        try:
+            atomic_write(path, lambda handle: fig.savefig(handle, dpi=80, format="png"))
+        finally:
+            plt.close(fig)
         return path
 
     def _draw_signal(self, ax, t, signal, regime, j):
