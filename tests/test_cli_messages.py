@@ -167,6 +167,42 @@ def _model_variant(s, tmp, name, features=True, training=None):
     return str(path)
 
 
+def _damaged(s, tmp):
+    """The detector file with its zip directory overwritten."""
+    data = bytearray(Path(s["det"]).read_bytes())
+    data[-256:] = bytes(256)
+    path = tmp / "damaged.skops"
+    path.write_bytes(bytes(data))
+    return str(path)
+
+
+def _nan_threshold(s, tmp):
+    """The detector file with its thresholds edited to NaN."""
+    import zipfile
+
+    with zipfile.ZipFile(s["det"]) as archive:
+        entries = {n: archive.read(n) for n in archive.namelist()}
+    stack, files = [json.loads(entries["schema.json"])], []
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            inner = node.get("content")
+            if isinstance(inner, dict) and "thresholds_" in inner.get("content", {}):
+                files.append(inner["content"]["thresholds_"]["file"])
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+    for name in files:
+        out = io.BytesIO()
+        np.save(out, np.load(io.BytesIO(entries[name])) * np.nan)
+        entries[name] = out.getvalue()
+    path = tmp / "nan.skops"
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    return str(path)
+
+
 def _no_limit(s):
     from sklearn_gpcd.workflow import load_model
 
@@ -323,6 +359,10 @@ T = {
     "not-a-model": lambda s, t, mp: dict(
         argv=["calibrate", s["det"], s["d0"], s["d1"], "-o", t / "x.skops"]),
     "not-a-detector": lambda s, t, mp: dict(argv=["monitor", s["model"], s["d0"]]),
+    "file-damaged": lambda s, t, mp: dict(argv=["monitor", _damaged(s, t), s["d0"]],
+                                          file="damaged.skops"),
+    "file-value-invalid": lambda s, t, mp: dict(argv=["monitor", _nan_threshold(s, t),
+                                                      s["d0"]], file="nan.skops"),
     "pickle-untrusted": lambda s, t, mp: dict(
         argv=["calibrate", _model_variant(s, t, "model.joblib"), s["d0"], s["d1"],
               "-o", t / "x.skops"]),

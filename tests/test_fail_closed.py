@@ -17,7 +17,7 @@ import zipfile
 
 import numpy as np
 import pytest
-from _live import free_runs, linear_bundle
+from _live import free_runs, linear_bundle, with_pushes
 from test_model_files import _Call, craft_skops
 
 from sklearn.linear_model import LinearRegression
@@ -49,8 +49,10 @@ def good(tmp_path_factory):
     model = save({"kind": MODEL_KIND, "regressor": regressor, "features": None,
                   "training": {}}, folder / "model.skops")
     recording = write_rtde_csv(runs[0], folder / "run.csv", robot_comment=True)
+    pushed = write_rtde_csv(with_pushes(runs[0], [0.5, 1.5]), folder / "push.csv",
+                            robot_comment=True)
     return {"folder": folder, "detector": path, "model": model, "recording": recording,
-            "objects": (detector, features)}
+            "objects": (detector, features), "run": runs[0], "pushed": pushed}
 
 
 # ------------------------------------------------------------------ crafting files
@@ -308,3 +310,164 @@ def test_untrusted_types_are_still_refused_first(good, tmp_path):
     path = craft_call(tmp_path / "cli.skops", good, "sklearn_gpcd.cli.main", [["robots"]])
     with pytest.raises(UntrustedTypesError):
         load(path)
+
+
+# ------------------------------------------------------------------ atomic writes
+def test_a_failed_save_leaves_the_old_detector_intact(good, tmp_path, monkeypatch):
+    """The disk fills up after part of the file is written (``fsync`` fails)."""
+    import os
+
+    path = tmp_path / "detector.skops"
+    path.write_bytes(good["detector"].read_bytes())
+    before = path.read_bytes()
+
+    def full(descriptor):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full)
+    detector, features = good["objects"]
+    with pytest.raises(OSError) as caught:
+        save_detector(CalibratedDetector(detector, features, {"new": True}), path)
+    message = str(caught.value)
+    assert "\n" not in message and str(path) in message
+    assert "No space left on device" in message and "previous file is intact" in message
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert load_detector(path).calibration == {"margin": 1.5}
+    assert [p.name for p in tmp_path.iterdir()] == ["detector.skops"]  # no temporary left
+
+
+SIZE_LIMITED = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))
+from sklearn_gpcd.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("what", ["detector", "report", "figure"])
+def test_a_file_size_limit_leaves_the_old_file_intact(good, tmp_path, what):
+    """RLIMIT_FSIZE in a child process: the detector file (20 kB limit, the file
+    has about 40 kB), the monitor's JSON report (300 bytes) or its figure
+    (20 kB) cannot be written; the old file of that name stays as it was."""
+    import subprocess
+    import sys
+
+    detector = tmp_path / "detector.skops"
+    detector.write_bytes(good["detector"].read_bytes())
+    report, figure = tmp_path / "report.json", tmp_path / "run.png"
+    report.write_text(json.dumps({"old": "x" * 30000}))
+    figure.write_bytes(b"old figure" * 3000)
+    monitor = ["monitor", str(detector), str(good["recording"]), "--duration", "1"]
+    if what == "detector":
+        assert detector.stat().st_size > 20000
+        code = ("import resource, sys\n"
+                "from sklearn_gpcd.workflow import load_detector, save_detector\n"
+                f"bundle = load_detector({str(detector)!r})\n"
+                "resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))\n"
+                "try:\n"
+                f"    save_detector(bundle, {str(detector)!r})\n"
+                "except OSError as exc:\n"
+                "    sys.exit(str(exc))\n")
+        args, target = [sys.executable, "-c", code], detector
+    elif what == "report":
+        args = [sys.executable, "-c", SIZE_LIMITED.format(limit=300), *monitor,
+                "--json", str(report)]
+        target = report
+    else:
+        args = [sys.executable, "-c", SIZE_LIMITED.format(limit=20000), *monitor,
+                "--plot", str(tmp_path)]
+        target = figure
+    before = target.read_bytes()
+    done = subprocess.run(args, capture_output=True, text=True, timeout=300,
+                          cwd=str(tmp_path), env=_env())
+    assert done.returncode != 0
+    err = [line for line in done.stderr.splitlines() if "not written" in line]
+    assert len(err) == 1 and "previous file is intact" in err[0], done.stderr[-2000:]
+    assert str(target) in err[0]
+    assert target.read_bytes() == before
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".part")]
+
+
+def _env():
+    import os
+    from pathlib import Path
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[1])
+    return env
+
+
+# ------------------------------------------------------------------ every stop is reported
+def test_a_dead_link_reports_its_blind_time(good, capsys):
+    """The controller dies at 1.2 s: blind until the session gives up (0.5 s of
+    reconnecting, more with the stall bound), and the report says how long."""
+    from sklearn_gpcd.io._rtde_live import LoopbackRTDEServer, RTDEClient
+    from sklearn_gpcd.monitoring import MonitorSession
+
+    detector, features = good["objects"]
+    session = MonitorSession(detector, features, stall_timeout=0.08)
+    with LoopbackRTDEServer(good["run"], speed=2.0, faults=[(600, "kill", 0)],
+                            max_duration=30.0) as server:
+        client = RTDEClient("127.0.0.1", server.port, 500.0, timeout=2.0).connect()
+        session.run_rtde(client, "loop", reconnect_timeout=0.5)
+    record = session.faults[-1]
+    assert record["kind"] == "link" and record["recovered_s"] is None
+    assert record["blind_s"] >= 0.5
+    total = sum(f["blind_s"] for f in session.faults)
+    assert f"blind {total:.3f} s in total" in session.summary_text(live=True)
+    assert "blind 0.000 s" not in session.summary_text(live=True)
+
+
+def _stop(args, signum, tmp_path, ready, server=None):
+    """Run ``gpcd monitor ARGS --json REPORT`` in a child, send ``signum`` once a
+    line of its output starts with ``ready``; (exit status, stderr, report)."""
+    import signal
+    import subprocess
+    import sys
+
+    report = tmp_path / "stopped.json"
+    process = subprocess.Popen([sys.executable, "-m", "sklearn_gpcd.cli", "monitor", *args,
+                                "--json", str(report)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, env=_env())
+    try:
+        for line in process.stdout:
+            if line.startswith(ready):
+                break
+        process.send_signal(signum)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert report.exists(), (process.returncode, err[-2000:])
+    return process.returncode, err, json.loads(report.read_text())
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("source", ["replay", "live", "offline"])
+def test_a_stop_signal_writes_the_report(good, tmp_path, name, source):
+    import shutil
+    import signal
+
+    from sklearn_gpcd.io._rtde_live import LoopbackRTDEServer
+
+    signum = getattr(signal, name)
+    detector = str(good["detector"])
+    if source == "replay":
+        status, err, report = _stop([detector, "--replay", str(good["pushed"])], signum,
+                                    tmp_path, "ALARM")
+    elif source == "offline":
+        copies = [shutil.copy(good["pushed"], tmp_path / f"run{k}.csv") for k in range(100)]
+        status, err, report = _stop([detector, *map(str, copies), "--hook",
+                                     "echo started"], signum, tmp_path, "started")
+    else:
+        with LoopbackRTDEServer(good["run"], speed=1.0, max_duration=60.0) as server:
+            status, err, report = _stop([detector, "--rtde", "127.0.0.1", "--port",
+                                         str(server.port)], signum, tmp_path, "monitoring")
+    assert status == 128 + signum
+    assert err.strip().splitlines()[-1].startswith(f"gpcd monitor: stopped by {name}")
+    assert "Traceback" not in err
+    assert report["end"] == {"reason": f"stopped by {name}", "abnormal": True,
+                             "exit_status": 3}
+    if source != "live":  # a live stop may come before the first sample
+        assert report["recordings"][0]["n_samples"] > 0
+

@@ -13,9 +13,12 @@ band alarms, and the report names the bands.
 """
 
 import json
+import sys
 import time
 from pathlib import Path
 
+from .._atomic import atomic_write
+from ..monitoring.stops import StopSignal, hold_stop_signals, stop_signals
 from ..workflow.calibration import load_detector, recording_keys
 from ._args import (
     column_map_arg,
@@ -113,31 +116,22 @@ def run(args):
                              keep_series=args.plot is not None, echo=live,
                              stall_timeout=args.stall_timeout)
     plots = []
-    try:
-        if args.rtde is not None:
-            client = session.connect_rtde(args.rtde, args.port, args.frequency)
-            print(f"monitoring {args.rtde}:{args.port} at {client.frequency:g} Hz (Ctrl-C "
-                  "stops)", flush=True)
-            session.run_rtde(client, f"rtde://{args.rtde}:{args.port}",
-                             duration=args.duration, reconnect_timeout=args.reconnect_timeout)
-        else:
-            paths = [args.replay] if args.replay is not None else args.recordings
-            args.robot = None
-            recordings = read_recordings(paths, args, "recordings",
-                                          progress=not (args.quiet or live))
-            keys = recording_keys(recordings)
-            for key, rec in zip(keys, recordings):
-                session.run_recording(rec, key, duration=args.duration,
-                                      speed=args.speed if args.replay is not None else None)
-                if args.plot is not None:
-                    plots.append(session.plot(key, Path(args.plot)))
-    except BaseException as exc:  # the report on every exit path, then as before
-        if session.recordings:
-            session.finish()  # the open event, the summary so far
-            session.end("interrupted" if isinstance(exc, KeyboardInterrupt)
-                        else f"error: {' '.join(str(exc).split())}", abnormal=True)
-            _write_report(args, session, calibration, plots)
-        raise
+    with stop_signals():  # SIGTERM and SIGHUP end the run like Ctrl-C
+        try:
+            _monitor(args, session, plots, live)
+        except BaseException as exc:  # the report on every exit path, then as before
+            hold_stop_signals()
+            stopped = isinstance(exc, StopSignal)
+            if session.recordings or stopped:  # a stop is reported, even before any sample
+                if session.recordings:
+                    session.finish()  # the open event, the summary so far
+                session.end(_end_reason(exc), abnormal=True)
+                _write_report(args, session, calibration, plots)
+            if not stopped:
+                raise
+            print(f"gpcd monitor: {exc}" + (f"; wrote {args.json}" if args.json else ""),
+                  file=sys.stderr)
+            return exc.exit_status
     print(session.summary_text(live))
     if args.json is not None:
         _write_report(args, session, calibration, plots)
@@ -149,6 +143,36 @@ def run(args):
     return session.exit_status
 
 
+def _monitor(args, session, plots, live):
+    """The run: a live RTDE stream, or recordings (offline or one paced replay)."""
+    if args.rtde is not None:
+        client = session.connect_rtde(args.rtde, args.port, args.frequency)
+        print(f"monitoring {args.rtde}:{args.port} at {client.frequency:g} Hz (Ctrl-C "
+              "stops)", flush=True)
+        session.run_rtde(client, f"rtde://{args.rtde}:{args.port}",
+                         duration=args.duration, reconnect_timeout=args.reconnect_timeout)
+        return
+    paths = [args.replay] if args.replay is not None else args.recordings
+    args.robot = None
+    recordings = read_recordings(paths, args, "recordings",
+                                 progress=not (args.quiet or live))
+    keys = recording_keys(recordings)
+    for key, rec in zip(keys, recordings):
+        session.run_recording(rec, key, duration=args.duration,
+                              speed=args.speed if args.replay is not None else None)
+        if args.plot is not None:
+            plots.append(session.plot(key, Path(args.plot)))
+
+
+def _end_reason(exc):
+    """The report's ``end.reason`` of a run that ended with ``exc``."""
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted"
+    if isinstance(exc, StopSignal):
+        return str(exc)  # "stopped by SIGTERM"
+    return f"error: {' '.join(str(exc).split())}"
+
+
 def _write_report(args, session, calibration, plots):
     """The JSON report of ``gpcd monitor`` (``--json``), if asked for."""
     if args.json is None:
@@ -157,4 +181,5 @@ def _write_report(args, session, calibration, plots):
               **session.report(), "figures": [str(p) for p in plots if p is not None]}
     if session.multiband:
         report["bands"] = session.band_labels
-    Path(args.json).write_text(json.dumps(report, indent=2))
+    text = json.dumps(report, indent=2)
+    atomic_write(args.json, lambda handle: handle.write(text), mode="w")

@@ -156,6 +156,16 @@ class _FaultStates:
         print(f"FAULT {self.name} t={rel:.3f} s: {reason}; blind, monitor reset", flush=True)
         self._run_hook({"GPCD_FAULT": reason, "GPCD_FAULT_TIME": f"{rel:.6f}"})
 
+    def _end_blind(self, now):
+        """A stream that ends (or stops) blind: the open fault record gets the blind
+        time up to ``now`` (a :func:`time.perf_counter` time) and the samples lost."""
+        record = getattr(self, "_open_fault", None)
+        if self.state != BLIND or record is None or record["blind_s"] is not None:
+            return
+        since = self._blind_since
+        record.update(blind_s=max((now if now is not None else since) - since, 0.0),
+                      samples_lost=self._lost)
+
     def end(self, reason, abnormal=False):
         """Record how the stream ended (``abnormal``: the exit status is non-zero).
 

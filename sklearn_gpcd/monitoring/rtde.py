@@ -129,6 +129,7 @@ class _RTDERunning:
                     continue
                 self.tick(fields.pop("time"), fields, received)
         finally:
+            self._end_blind(time.perf_counter())  # blind until now, however it ends
             client.close()
             gc.unfreeze()
         return self.finish()

@@ -392,9 +392,11 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self.open, self.cross_start = None, None
 
     def finish(self):
-        """Close the open event; the recording's summary."""
+        """Close the open event (and the blind period, when the stream ends blind);
+        the recording's summary."""
         if self.open is not None:
             self._close()
+        self._end_blind(self._last_received)
         summary = self.recordings[-1]
         summary.update(n_samples=self.n_samples, n_sensor_faults=self.n_faults,
                        n_events=sum(e["recording"] == self.name for e in self.events))
