@@ -12,6 +12,7 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import _num_samples, check_is_fitted, validate_data
 
 from ..layout import block_columns
+from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
 from ._signal import recording_index, segment_starts
 from .rules import AlarmRule
@@ -204,7 +205,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         "n_joints": [Interval(Integral, 1, None, closed="left")],
         "normalize": [None, StrOptions({"std"})],
         "sample_time": [StrOptions({"auto"}), Interval(Real, 0, None, closed="neither")],
-        "sigma_v": [None, Interval(Real, 0, None, closed="neither")],
+        "sigma_v": [None, SIGMA_V_CONSTRAINT],
         "velocity_columns": [None, "array-like"],
     }
 

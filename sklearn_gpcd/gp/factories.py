@@ -17,6 +17,7 @@ tens of thousands of rows; pass ``n_support=None`` for the exact GP.
 import numpy as np
 from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
 
+from .._gate import DEFAULT_SIGMA_V
 from ..layout import column_index, state_columns
 from ..kernels import ARDRBF, QuasiStaticGate
 from .mean import ParametricMean
@@ -122,7 +123,7 @@ def make_sp_s(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp
     return _estimator(kernels, means, gp_params)
 
 
-def make_sp_p(features, n_joints, *, sigma_v=1e-2, friction_columns="auto", **gp_params):
+def make_sp_p(features, n_joints, *, sigma_v=DEFAULT_SIGMA_V, friction_columns="auto", **gp_params):
     r"""SP_P: the proposed estimator (Eq. 17).
 
     .. math::

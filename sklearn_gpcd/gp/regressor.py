@@ -14,6 +14,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
 from ..kernels import resolve_columns
 from ._likelihood import _log_marginal_likelihood, single_threaded_blas
@@ -206,7 +207,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         "n_support": [None, StrOptions({"auto"}), Interval(numbers.Integral, 1, None,
                                                              closed="left")],
         "support_selection": [StrOptions(set(SUPPORT_SELECTIONS))],
-        "sigma_v": [None, Interval(numbers.Real, 0, None, closed="neither")],
+        "sigma_v": [None, SIGMA_V_CONSTRAINT],
         "n_jobs": [None, numbers.Integral],
         "random_state": ["random_state"],
         "verbose": ["verbose"],

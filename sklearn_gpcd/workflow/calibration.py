@@ -377,8 +377,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     grid = SELECT_GRID if select else None
     if band_candidates:
         grid = [{k: [v] for k, v in c.items()} for c in band_candidates]
+    # the model's sigma_v (train_model records it) sets the regimes: the frozen model keeps
+    # its own gates; None (a model file without it) means the regimes' default
     template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
-                                 sample_time="auto", rules=rules)
+                                 sample_time="auto", rules=rules,
+                                 sigma_v=trained.training.get("sigma_v"))
     result = calibrate_across_recordings(template, blocks, times, param_grid=grid)
     several = bool(bands or band_candidates)
     summary = _summary(result, trained, features, robot, keys=keys, split=split,

@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._gate import DEFAULT_SIGMA_V
+
 __all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", "OPTIMIZERS",
            "ROBOT_MODELS", "TRAIN_RULE", "TrainedModel", "TrainingSet", "acceleration_limit",
            "load_model", "save_model", "train_model", "training_report", "training_rows",
@@ -376,9 +378,11 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
     optimizer : {"auto", "adam", "fmin_l_bfgs_b"}, default="auto"
         Hyperparameter optimizer of the regressor ("auto": :data:`TRAIN_RULE`).
     sigma_v : float or None, default=None
-        Quasi-static velocity threshold; SP_P's and the GP's default is
-        0.01 rad/s, P_f and SP_S use the paper's unmasked friction unless
-        given.
+        Quasi-static velocity threshold [rad/s] of the model's gates and
+        masks and of the regimes of a detector calibrated on it (recorded in
+        ``training["sigma_v"]``). None: the package's default 1e-2 rad/s
+        (``DEFAULT_SIGMA_V``) for SP_P's and the GP's gates and for the
+        regimes, while P_f, SP_S and SP_C keep the paper's unmasked friction.
     seed : int, default=0
         ``random_state`` of the regressor (support rows, minibatches).
     n_jobs : int or None, default=None
@@ -445,7 +449,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
     params = dict(n_support=n_support, optimizer=optimizer,
                   batch_size=min(512, n_support), random_state=seed, n_jobs=n_jobs)
     if sigma_v is not None or model in ("sp_p", "gp"):
-        params["sigma_v"] = 1e-2 if sigma_v is None else sigma_v
+        params["sigma_v"] = DEFAULT_SIGMA_V if sigma_v is None else sigma_v
     regressor = _build(model, robot, n, params, coulomb_width)
     bar = _bar(progress, f"fitting {model.upper()} ({n} joints)", n)
     with (_count_fitted_outputs(bar) if progress is not None else contextlib.nullcontext()):
@@ -454,7 +458,8 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "model": model, "inputs": data.inputs, "n_support": int(n_support),
         "optimizer": optimizer, "optimizer_used": str(regressor.optimizer_),
         "batch_size": int(params["batch_size"]), "seed": seed,
-        "sigma_v": params.get("sigma_v"), "coulomb_width": coulomb_width,
+        # the detector's regimes take it from here (calibrate_detector), given or not
+        "sigma_v": params.get("sigma_v", DEFAULT_SIGMA_V), "coulomb_width": coulomb_width,
         "signals": list(features.signals_),
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
