@@ -25,7 +25,6 @@ This module imports nothing of the package, so every layer may use it.
 import numbers
 
 import numpy as np
-from sklearn.utils._param_validation import Interval
 
 __all__ = ["DEFAULT_SIGMA_V", "SIGMA_V_CONSTRAINT", "quasi_static", "check_sigma_v",
            "check_velocity"]
@@ -36,18 +35,29 @@ __all__ = ["DEFAULT_SIGMA_V", "SIGMA_V_CONSTRAINT", "quasi_static", "check_sigma
 DEFAULT_SIGMA_V = 1e-2
 
 
-class _PositiveVelocity(Interval):
-    """``Interval(Real, 0, inf, closed="neither")`` that refuses bools, as
-    :func:`check_velocity` does."""
+def __getattr__(name):
+    """``SIGMA_V_CONSTRAINT``, built on first use: the parameter constraint of
+    every estimator's ``sigma_v`` (``[None, SIGMA_V_CONSTRAINT]`` where None
+    means "no gate"), accepting what :func:`check_sigma_v` accepts.
 
-    def is_satisfied_by(self, val):
-        return not isinstance(val, (bool, np.bool_)) and super().is_satisfied_by(val)
+    Built lazily because it needs scikit-learn, which ``gpcd``'s start-up
+    (the workflow reads :data:`DEFAULT_SIGMA_V`) does not import.
+    """
+    if name != "SIGMA_V_CONSTRAINT":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    # deferred: scikit-learn is heavy and the CLI's start-up imports this module
+    from sklearn.utils._param_validation import Interval
 
+    class PositiveVelocity(Interval):
+        """``Interval(Real, 0, inf, closed="neither")`` refusing bools, as
+        :func:`check_velocity` does."""
 
-#: The parameter constraint of every estimator's ``sigma_v`` (``[None,
-#: SIGMA_V_CONSTRAINT]`` where None means "no gate"): what
-#: :func:`check_sigma_v` accepts, a finite real > 0.
-SIGMA_V_CONSTRAINT = _PositiveVelocity(numbers.Real, 0, np.inf, closed="neither")
+        def is_satisfied_by(self, val):
+            return not isinstance(val, (bool, np.bool_)) and super().is_satisfied_by(val)
+
+    constraint = PositiveVelocity(numbers.Real, 0, np.inf, closed="neither")
+    globals()[name] = constraint
+    return constraint
 
 
 def quasi_static(velocity, sigma_v):

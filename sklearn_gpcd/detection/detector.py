@@ -14,6 +14,7 @@ from sklearn.utils.validation import _num_samples, check_is_fitted, validate_dat
 from ..layout import block_columns
 from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
+from ..gp import make_sp_p
 from ._signal import recording_index, segment_starts
 from .rules import AlarmRule
 
@@ -775,6 +776,4 @@ def default_regressor(n_joints):
     >>> default_regressor(2).n_support
     5000
     """
-    from ..gp import make_sp_p
-
     return make_sp_p(None, n_joints, n_support=5000, random_state=0)

@@ -18,6 +18,7 @@ import numpy as np
 from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
 
 from .._gate import DEFAULT_SIGMA_V
+from ..dynamics import ControllerFeatures
 from ..layout import column_index, state_columns
 from ..kernels import ARDRBF, QuasiStaticGate
 from .mean import ParametricMean
@@ -226,8 +227,6 @@ def make_sp_c(n_joints, **gp_params):
     >>> round(float(gp.mean_.coef_[0]), 1)
     1.1
     """
-    from ..dynamics import ControllerFeatures
-
     features = [ControllerFeatures(joint, n_joints) for joint in range(n_joints)]
     return make_sp_s(features, n_joints, **gp_params)
 

@@ -645,6 +645,7 @@ def choose_model(data, robot=None, target_check=None, *, signals="auto", n_suppo
 SP_P needs the robot model (--robot); SP_S needs the robot model (--robot); \
 P_F needs the robot model (--robot); SP_C the recordings do not all log the target current')
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import resolve_n_support
 
     models, left_out = candidate_models(robot, data.features.signals_, target_check)

@@ -34,6 +34,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._gate import DEFAULT_SIGMA_V
+from ..io import Recording
+from ..layout import block_columns
 
 __all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", "OPTIMIZERS",
            "ROBOT_MODELS", "TRAIN_RULE", "TrainedModel", "TrainingSet", "acceleration_limit",
@@ -191,6 +193,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     >>> data.X.shape, data.y.shape, data.inputs
     ((100, 12), (100, 2), 'causal')
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..features import CausalFeatures, make_inputs
 
     if inputs not in INPUTS:
@@ -230,8 +233,6 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
 
 def _unused_columns(signals, n_joints):
     """Columns of the augmented layout that no signal of ``signals`` feeds."""
-    from ..layout import block_columns
-
     blocks = [] if "target_current" in signals else ["i_c"]
     if "target_q" not in signals:
         blocks.append("e_q")
@@ -276,7 +277,9 @@ class TrainedModel:
 
 
 def _build(model, robot, n_joints, params, coulomb_width=None):
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..dynamics import RigidBodyRegressor
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
     if model not in ROBOT_MODELS and coulomb_width is not None:
@@ -303,9 +306,8 @@ def _model_features(model, features):
     A :class:`~sklearn_gpcd.features.CausalFeatures` using no signal depends
     only on the joint count, so it is fitted on a two-sample stand-in.
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from sklearn.base import clone
-
-    from ..io import Recording
 
     if MODEL_SIGNALS[model] != () or not features.signals_:
         return features
@@ -346,8 +348,6 @@ def acceleration_limit(data):
     >>> round(acceleration_limit(data), 2)   # causal: low-passed, a little lower
     0.82
     """
-    from ..layout import block_columns
-
     n_joints = data.y.shape[1]
     return float(np.abs(data.X[:, block_columns("qdd", n_joints)]).max())
 
@@ -426,6 +426,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import resolve_n_support
 
     data = recordings if isinstance(recordings, TrainingSet) else None
@@ -535,6 +536,7 @@ def save_model(trained, path):
     >>> save_model(trained, pathlib.Path(tempfile.mkdtemp()) / "m.joblib").name
     'm.joblib'
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..persistence import save
 
     return save({"kind": MODEL_KIND, "regressor": trained.regressor,
@@ -573,6 +575,7 @@ def load_model(path, trust_pickle=False):
     >>> load_model(path, trust_pickle=True).training  # our own pickle
     {'inputs': 'causal'}
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..persistence import load
 
     bundle = load(path, trust_pickle=trust_pickle)
@@ -602,6 +605,7 @@ def _count_fitted_outputs(progress):
     output appends one byte to a temporary file, which a thread of this
     process polls.
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import regressor
 
     fit_output = regressor._fit_output
