@@ -144,7 +144,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         Velocity threshold of the quasi-static gate (Sec. IV-B, the paper
         uses ``1e-2``), passed on as the regressor's ``sigma_v`` (a frozen
         model keeps its own; None keeps the regressor's value) and used by
-        the regimes (``1e-2`` when None).
+        the regimes (``1e-2`` when None). ``gpcd calibrate`` sets it to the
+        value the model was trained with (``gpcd train --sigma-v``).
     velocity_columns : list of int or None, default=None
         Columns of the regressor inputs holding the joint velocities, for
         rules with regimes. None: the ``qd`` block of the paper's layout
