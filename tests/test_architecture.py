@@ -218,7 +218,8 @@ def _function_level_imports():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
         tree = ast.parse(text)
         guarded = {id(n) for t in ast.walk(tree) if isinstance(t, ast.Try)
-                   and any("ImportError" in ast.unparse(h.type or ast.Name("")) for h in t.handlers)
+                   and any("ImportError" in ast.unparse(h.type or ast.Name(""))
+                           for h in t.handlers)
                    for stmt in t.body for n in ast.walk(stmt)}
         for function in ast.walk(tree):
             if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):

@@ -124,7 +124,8 @@ def make_sp_s(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp
     return _estimator(kernels, means, gp_params)
 
 
-def make_sp_p(features, n_joints, *, sigma_v=DEFAULT_SIGMA_V, friction_columns="auto", **gp_params):
+def make_sp_p(features, n_joints, *, sigma_v=DEFAULT_SIGMA_V, friction_columns="auto",
+              **gp_params):
     r"""SP_P: the proposed estimator (Eq. 17).
 
     .. math::
