@@ -12,8 +12,12 @@ package that evaluates it -- the kernel
 :class:`~sklearn_gpcd.kernels.QuasiStaticGate` and its compiled node, the
 parametric mean, the friction features of ``dynamics``, the public
 :func:`~sklearn_gpcd.features.quasi_static_mask`, the streaming monitor and
-the experiments -- calls :func:`quasi_static`, and every ``sigma_v``
-parameter is validated by :func:`check_sigma_v`.
+the experiments -- calls :func:`quasi_static`; every ``sigma_v`` parameter
+defaults to :data:`DEFAULT_SIGMA_V` and is validated by :func:`check_sigma_v`
+(functions) or :data:`SIGMA_V_CONSTRAINT` (estimators' parameter
+constraints): a finite real > 0. Zero is refused: no velocity is below it, so
+the gate would never open and no sample would ever be quasi-static; where
+"no gate" is meaningful a parameter takes None instead.
 
 This module imports nothing of the package, so every layer may use it.
 """
@@ -22,7 +26,38 @@ import numbers
 
 import numpy as np
 
-__all__ = ["quasi_static", "check_sigma_v", "check_velocity"]
+__all__ = ["DEFAULT_SIGMA_V", "SIGMA_V_CONSTRAINT", "quasi_static", "check_sigma_v",
+           "check_velocity"]
+
+#: The default velocity threshold :math:`\sigma_v` [rad/s] of the whole package
+#: (Sec. III-C of the paper: :math:`10^{-2}` rad/s for a UR10 at 125 Hz): the
+#: gates and masks of the model, the detector's regimes, the analyses.
+DEFAULT_SIGMA_V = 1e-2
+
+
+def __getattr__(name):
+    """``SIGMA_V_CONSTRAINT``, built on first use: the parameter constraint of
+    every estimator's ``sigma_v`` (``[None, SIGMA_V_CONSTRAINT]`` where None
+    means "no gate"), accepting what :func:`check_sigma_v` accepts.
+
+    Built lazily because it needs scikit-learn, which ``gpcd``'s start-up
+    (the workflow reads :data:`DEFAULT_SIGMA_V`) does not import.
+    """
+    if name != "SIGMA_V_CONSTRAINT":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    # deferred: scikit-learn is heavy and the CLI's start-up imports this module
+    from sklearn.utils._param_validation import Interval
+
+    class PositiveVelocity(Interval):
+        """``Interval(Real, 0, inf, closed="neither")`` refusing bools, as
+        :func:`check_velocity` does."""
+
+        def is_satisfied_by(self, val):
+            return not isinstance(val, (bool, np.bool_)) and super().is_satisfied_by(val)
+
+    constraint = PositiveVelocity(numbers.Real, 0, np.inf, closed="neither")
+    globals()[name] = constraint
+    return constraint
 
 
 def quasi_static(velocity, sigma_v):

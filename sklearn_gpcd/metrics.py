@@ -16,6 +16,7 @@ and :class:`DetectionRefit` in a grid search.
 import warnings
 
 import numpy as np
+from scipy.stats import chi2
 from sklearn.utils.metadata_routing import MetadataRequest
 
 __all__ = [
@@ -424,8 +425,6 @@ def rate_upper_bound(count, hours, confidence=0.95):
     >>> round(rate_upper_bound(0, 20 / 3600), 0)  # nothing seen in 20 s
     539.0
     """
-    from scipy.stats import chi2
-
     if hours <= 0:
         return float("inf")
     return float(chi2.ppf(confidence, 2 * int(count) + 2) / (2.0 * hours))

@@ -382,7 +382,7 @@ def test_large_factor_is_rebuilt_on_demand_with_identical_results(monkeypatch):
 def test_weight_matrix_is_the_symmetric_inverse_minus_a_a_t(n):
     from scipy.linalg.lapack import dpotrf
 
-    from sklearn_gpcd.kernels.plan import _mirror_upper
+    from sklearn_gpcd.kernels.plan import mirror_upper
     from sklearn_gpcd.gp._likelihood import _negated_weight_matrix
 
     A = np.random.RandomState(n).normal(size=(n, n))
@@ -395,7 +395,7 @@ def test_weight_matrix_is_the_symmetric_inverse_minus_a_a_t(n):
     lower = _negated_weight_matrix(U, a, mirror=False)  # zeros above the diagonal
     assert lower.flags.c_contiguous and np.array_equal(lower, np.tril(V))
     upper = np.triu(A)
-    assert np.array_equal(_mirror_upper(upper.copy(), tile=64), upper + np.triu(upper, 1).T)
+    assert np.array_equal(mirror_upper(upper.copy(), tile=64), upper + np.triu(upper, 1).T)
 
 
 def test_single_output_keeps_blas_threads_multi_output_pins_them(monkeypatch):

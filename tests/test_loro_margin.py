@@ -1,6 +1,6 @@
 """The leave-one-recording-out margin as a detector parameter (issue 14).
 
-``CollisionDetector(margin="loro")`` learns the margin that
+``AlarmRule(margin="loro")`` (a detector's rule) learns the margin that
 ``calibrate_across_recordings`` (``gpcd calibrate``) chooses, so that
 ``CollisionThresholdCV`` with recordings as groups scores it on recordings
 it never saw, the same figure as the calibration's nested false alarms.

@@ -10,11 +10,13 @@ import warnings
 from pathlib import Path
 
 from .._progress import ProgressBar
+from ..io import COLUMN_PRESETS, load_recordings
 
 
 # ---------------------------------------------------------------- arguments
 def robot_arg(value):
     """Resolve ``--robot`` at parse time so a bad name fails with usage help."""
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
     from ..robots import load_robot
 
     try:
@@ -33,8 +35,6 @@ def joints_arg(value):
 
 def column_map_arg(value):
     """``--column-map``: a preset name, a JSON file or a JSON object."""
-    from ..io import COLUMN_PRESETS
-
     text = value.strip()
     if text in COLUMN_PRESETS:
         return text
@@ -103,6 +103,7 @@ def output_dir_arg(value):
 
 def model_file_arg(value):
     """``-o`` of ``gpcd train``: a writable ``.skops``, ``.joblib`` or ``.pkl`` file."""
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..persistence import PICKLE_EXTENSIONS, SKOPS_EXTENSION
 
     suffixes = (SKOPS_EXTENSION,) + tuple(PICKLE_EXTENSIONS)
@@ -148,8 +149,6 @@ def n_support_arg(value):
 def read_recordings(paths, args, what="recordings", progress=True):
     """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``,
     ``--units-confirmed``, ``--allow-short`` and ``--max-joint-speed``."""
-    from ..io import load_recordings
-
     kwargs = {"accept": ["degrees", "units"] * bool(getattr(args, "units_confirmed", False))
               + ["short"] * bool(getattr(args, "allow_short", False))}
     if getattr(args, "time_scale", None) is not None:
@@ -175,6 +174,7 @@ def read_recordings(paths, args, what="recordings", progress=True):
 
 def select_joints(args):
     """``--robot`` reduced to ``--joints`` (once); None without ``--robot``."""
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
     from ..robots import load_robot
 
     robot, joints = getattr(args, "robot", None), getattr(args, "joints", None)
@@ -188,6 +188,7 @@ def select_joints(args):
 
 def robot_for(args, recordings):
     """``--robot`` when given, else the robot named in the recordings' metadata."""
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
     from ..robots import load_robot
 
     names = sorted({str(rec.metadata.get("robot") or "") for rec in recordings})

@@ -8,6 +8,15 @@ import math
 import time
 from pathlib import Path
 
+from ..io.load import recording_paths
+from ..workflow import (
+    calibrate_detector,
+    calibration_report,
+    check_calibration_options,
+    load_model,
+    recording_keys,
+    save_detector,
+)
 from ._args import (
     ProgressBar,
     add_recording_options,
@@ -140,16 +149,6 @@ def _optional_robot(args, recordings):
 
 def run(args):
     """``gpcd calibrate``: thresholds across the recordings, saved with the model's features."""
-    from ..io.load import recording_paths
-    from ..workflow import (
-        calibrate_detector,
-        calibration_report,
-        check_calibration_options,
-        load_model,
-        recording_keys,
-        save_detector,
-    )
-
     start = time.perf_counter()
     paths = [Path(p).resolve() for p in recording_paths(args.recordings)]
     if (twice := sorted({str(p) for p in paths if paths.count(p) > 1})):

@@ -55,6 +55,7 @@ def _numbers(text, what):
 
 def run(args):
     """``gpcd diagnose``: fit the diagnosis on the recordings and print its report."""
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..diagnosis import DynamicsDiagnosis
 
     def load(paths, what):

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from .._atomic import atomic_write
 from ..monitoring.stops import StopSignal, hold_stop_signals, stop_signals
+from ..monitoring import MonitorSession
 from ..workflow.calibration import load_detector, recording_keys
 from ._args import (
     column_map_arg,
@@ -99,8 +100,6 @@ def run(args):
     errors included), and the exit status is 3 when a live stream was blind
     at some time or ended abnormally.
     """
-    from ..monitoring import MonitorSession
-
     sources = sum([bool(args.recordings), args.replay is not None, args.rtde is not None])
     if sources != 1:
         raise ValueError("give recordings, --replay FILE or --rtde HOST (exactly one)")

@@ -2,6 +2,7 @@
 
 import time
 
+from ..io import write_rtde_csv
 from ._args import output_dir_arg, output_file_arg, robot_arg
 
 #: The scenarios ``gpcd simulate --scenario`` writes.
@@ -41,6 +42,7 @@ def add_parsers(sub):
 
 def run_reproduce(args):
     """``gpcd reproduce``: :func:`sklearn_gpcd.experiments.reproduce`."""
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..experiments import reproduce
 
     reproduce(
@@ -56,8 +58,8 @@ def run_reproduce(args):
 
 def run_simulate(args):
     """``gpcd simulate``: one simulated scenario written as a UR RTDE CSV."""
+    # deferred: the simulator needs pinocchio and scikit-learn
     from .. import datasets
-    from ..io import write_rtde_csv
 
     makers = dict(zip(SCENARIOS, (datasets.make_d1, datasets.make_d2,
                                   datasets.make_joint1_cyclic,
@@ -74,6 +76,7 @@ def run_simulate(args):
 
 def run_robots(args):
     """``gpcd robots``: the built-in robot models and their joint counts."""
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
     from ..robots import list_robots, load_robot
 
     for name in list_robots():

@@ -2,9 +2,12 @@
 chosen by leave-one-recording-out error by default (:func:`sklearn_gpcd.workflow.train_model`,
 :func:`sklearn_gpcd.workflow.compare_models`, rule ``TRAIN_RULE``)."""
 
+import argparse
 import os
 import time
 
+from ..workflow import (choose_model, input_signals, save_model, train_model,
+                        training_report, training_set)
 from ..workflow.model_choice import CHOICE_RULE, FEEDBACK_RULE, SIGNALS
 from ..workflow.training import INPUTS, MODELS, OPTIMIZERS, ROBOT_MODELS, TRAIN_RULE
 from ._args import (
@@ -23,8 +26,6 @@ RECORDINGS = "recordings"
 
 def signals_arg(value):
     """``--signals``: auto, none, or a comma-separated list of controller signals."""
-    import argparse
-
     text = value.strip().lower()
     if text in ("auto", "none"):
         return text
@@ -92,6 +93,7 @@ def add_parser(sub):
 
 def _robot(args, recordings):
     """``(robot or None, why none)``: ``--robot``, else the robot the recordings name."""
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
     from ..robots import load_robot
 
     if args.robot is not None:
@@ -111,9 +113,8 @@ def _robot(args, recordings):
 
 def run(args):
     """``gpcd train``: choose and fit the model on the recordings, save it with its inputs."""
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
     from ..robots import list_robots
-    from ..workflow import (choose_model, input_signals, save_model, train_model,
-                            training_report, training_set)
 
     start = time.perf_counter()
     quiet = args.quiet

@@ -21,6 +21,7 @@ import numpy as np
 import pinocchio as pin
 from sklearn.utils import check_random_state
 
+from ..robots import resolve_robot
 from .contacts import Contact
 from .simulator import RobotSimulator
 from .trajectory import JointTrajectory, quintic_duration
@@ -41,8 +42,6 @@ D2_PERIOD = 1.5
 
 
 def _robot(robot):
-    from ..robots import resolve_robot
-
     return resolve_robot(robot)
 
 

@@ -67,6 +67,7 @@ from sklearn.utils import check_random_state
 
 from ..dynamics.friction import stribeck_friction
 from ..io import Recording
+from ..robots import Robot, resolve_robot
 from .contacts import Contact, contact_labels
 from .friction import JointFriction, default_friction
 from .plant import Plant, drive_parameters, plant_model
@@ -187,8 +188,6 @@ class RobotSimulator:
 
     # ------------------------------------------------------------------ setup
     def _validate(self, reference, contacts, effects):
-        from ..robots import Robot, resolve_robot
-
         if not isinstance(self.robot, (str, os.PathLike, Robot)):
             raise TypeError(
                 f"robot must be a robot name, a URDF path or a Robot, got "

@@ -133,8 +133,10 @@ def loro_margin(peaks, keys, rule="global"):
         \\frac{p^{(r)}_{g\\ell}}{\\max_{r' \\ne r} p^{(r')}_{g\\ell}}\\Big)
 
     for regime ``g`` and joint ``l`` (peaks ``p`` of the recordings ``r``),
-    then shared. ``CollisionDetector(margin="loro")`` applies this rule with
-    ``rule="global"`` in its ``fit``.
+    then shared. An alarm rule with ``margin="loro"``
+    (:class:`~sklearn_gpcd.detection.AlarmRule`, the detector's ``rules``)
+    applies this rule with ``rule="global"`` when the detector is fitted with
+    ``groups``.
 
     Parameters
     ----------

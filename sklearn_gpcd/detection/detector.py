@@ -12,7 +12,9 @@ from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import _num_samples, check_is_fitted, validate_data
 
 from ..layout import block_columns
+from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
+from ..gp import make_sp_p
 from ._signal import recording_index, segment_starts
 from .rules import AlarmRule
 
@@ -142,7 +144,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         Velocity threshold of the quasi-static gate (Sec. IV-B, the paper
         uses ``1e-2``), passed on as the regressor's ``sigma_v`` (a frozen
         model keeps its own; None keeps the regressor's value) and used by
-        the regimes (``1e-2`` when None).
+        the regimes (``1e-2`` when None). ``gpcd calibrate`` sets it to the
+        value the model was trained with (``gpcd train --sigma-v``).
     velocity_columns : list of int or None, default=None
         Columns of the regressor inputs holding the joint velocities, for
         rules with regimes. None: the ``qd`` block of the paper's layout
@@ -204,7 +207,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         "n_joints": [Interval(Integral, 1, None, closed="left")],
         "normalize": [None, StrOptions({"std"})],
         "sample_time": [StrOptions({"auto"}), Interval(Real, 0, None, closed="neither")],
-        "sigma_v": [None, Interval(Real, 0, None, closed="neither")],
+        "sigma_v": [None, SIGMA_V_CONSTRAINT],
         "velocity_columns": [None, "array-like"],
     }
 
@@ -774,6 +777,4 @@ def default_regressor(n_joints):
     >>> default_regressor(2).n_support
     5000
     """
-    from ..gp import make_sp_p
-
     return make_sp_p(None, n_joints, n_support=5000, random_state=0)

@@ -24,6 +24,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 
+from .._gate import DEFAULT_SIGMA_V
 from ._envelope import (
     HOLD_SECONDS,
     envelope_factor,
@@ -47,9 +48,6 @@ __all__ = ["THRESHOLD_RULES", "AlarmRule", "Regimes"]
 
 #: The rules that set the thresholds (``AlarmRule(threshold=...)``).
 THRESHOLD_RULES = ("contamination", "false_alarm_rate", "per_joint", "std")
-#: Velocity threshold [rad/s] of the regimes when the detector gives none
-#: (the paper's :math:`\sigma_v`).
-DEFAULT_SIGMA_V = 1e-2
 
 
 class Regimes(BaseEstimator):
@@ -309,7 +307,7 @@ class AlarmRule(BaseEstimator):
         Returns
         -------
         settings : dict or None
-            ``sigma_v`` (1e-2 when the detector gives none); ``settle``,
+            ``sigma_v`` (``DEFAULT_SIGMA_V`` when the detector gives none); ``settle``,
             ``brake_hold`` and ``alarm_hold`` in samples; ``beta`` (the rest
             reference's smoothing factor, None without it) and ``brake_limit``.
         """

@@ -10,6 +10,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from ..layout import column_names
 from .._persistence import VersionedStateMixin
+from ..features.inputs import as_recordings
 from ..gp import compile_predictor
 from ._regimes import AlarmState
 from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning, reads_currents
@@ -581,13 +582,11 @@ class StreamingMonitor(VersionedStateMixin):
         result : Bunch
             As :meth:`replay`.
         """
-        from ..features.inputs import _as_recordings
-
         if self._online is None:
             raise ValueError("replay_recording needs StreamingMonitor(detector, "
                              "features=CausalFeatures(...).fit(recordings)); use replay() "
                              "for ready-made input rows")
-        recordings = _as_recordings(recordings)
+        recordings = as_recordings(recordings)
         signals = self._online.signals
 
         def ticks():

@@ -12,6 +12,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from scipy import stats as _stats
 
+from .._gate import DEFAULT_SIGMA_V, SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
 from ..robots import Robot
 from ..io import degrees_note, units_note
@@ -328,7 +329,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         "effects": [str, list, tuple],
         "sigma_rest": [Interval(Real, 0, np.inf, closed="left")],
         "rest_guard": [Interval(Real, 0, np.inf, closed="left")],
-        "sigma_v": [Interval(Real, 0, np.inf, closed="left")],
+        "sigma_v": [SIGMA_V_CONSTRAINT],
         "n_splits": [Interval(Integral, 2, None, closed="left")],
         "min_gain": [Interval(Real, 0, 1, closed="left")],
         "min_t": [Interval(Real, 0, np.inf, closed="left")],
@@ -339,7 +340,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
     }
 
     def __init__(self, robot="ur10", torque_constants=None, friction=None, effects="all",
-                 sigma_rest=1e-3, rest_guard=0.04, sigma_v=1e-2, n_splits=5,
+                 sigma_rest=1e-3, rest_guard=0.04, sigma_v=DEFAULT_SIGMA_V, n_splits=5,
                  min_gain=MIN_GAIN, min_t=MIN_T,
                  max_effects=None, min_share=MIN_SHARE, check_units=True, base_model=None):
         self.robot = robot

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._gate import DEFAULT_SIGMA_V
 from ..features import REGIMES, regimes
 
 
@@ -109,7 +110,7 @@ def _rms(values):
     return float(np.sqrt(np.mean(values ** 2))) if values.size else np.nan
 
 
-def residual_breakdown(signals, residual, sigma_v=1e-2, sigma_rest=1e-3, n_regions=4,
+def residual_breakdown(signals, residual, sigma_v=DEFAULT_SIGMA_V, sigma_rest=1e-3, n_regions=4,
                        n_time_bins=10, units="A"):
     """Break a residual down by joint, regime, configuration region and time.
 

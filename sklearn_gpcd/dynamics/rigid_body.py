@@ -12,6 +12,7 @@ from sklearn.utils._param_validation import Interval
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..layout import block_columns
+from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
 from ..robots import Robot
 from ..robots.loading import resolve_robot
@@ -213,7 +214,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         "offset": ["boolean"],
         "base_parameters": ["boolean"],
         "rank_tol": [None, Interval(Real, 0, np.inf, closed="neither")],
-        "sigma_v": [None, Interval(Real, 0, np.inf, closed="neither")],
+        "sigma_v": [None, SIGMA_V_CONSTRAINT],
         "currents": ["boolean"],
         "random_state": ["random_state"],
         "coulomb_width": [None, Interval(Real, 0, np.inf, closed="neither")],

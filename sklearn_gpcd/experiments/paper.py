@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import datasets
-from .._gate import quasi_static
+from .._gate import DEFAULT_SIGMA_V, quasi_static
 from ..layout import block_columns
 from sklearn.frozen import FrozenEstimator
 
@@ -66,7 +66,7 @@ class PaperConfig:
     n_support: int = 5000
     batch_size: int = 512
     rest_duration: float = 30.0
-    sigma_v: float = 1e-2
+    sigma_v: float = DEFAULT_SIGMA_V
 
     @classmethod
     def quick(cls):
@@ -194,7 +194,7 @@ def cyclic_signals(models, X, y):
     return {name: y - models[name].predict(X) for name in ("SP_S", "SP_P")}
 
 
-def rest_phase_stats(recording, signal, joint=0, sigma_v=1e-2, min_samples=25):
+def rest_phase_stats(recording, signal, joint=0, sigma_v=DEFAULT_SIGMA_V, min_samples=25):
     """Mean |s| of ``joint`` in each rest phase (all joints below ``sigma_v``)."""
     n = recording.n_joints
     still = np.all(quasi_static(recording.qd, sigma_v), axis=1)

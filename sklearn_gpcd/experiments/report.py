@@ -4,6 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plotting import plot_monitoring
+
 #: The paper's three estimators, in the order of the tables and figures.
 ESTIMATORS = ("P_f", "SP_S", "SP_P")
 COLORS = {"P_f": "#7f7f7f", "SP_S": "#1f77b4", "SP_P": "#d62728"}
@@ -102,8 +104,6 @@ def plot_interaction(recording, predicted, detector, X, y, path, joint=0, alarm=
     plt = _pyplot()
     if plt is None:
         return None
-    from ..plotting import plot_monitoring
-
     axes = plot_monitoring(
         recording.time - recording.time[0], y, predicted, recording.qd,
         y - predicted, detector.thresholds_, labels=recording.labels, joint=joint,

@@ -56,8 +56,12 @@ class MissingSignalWarning(UserWarning):
     """
 
 
-def _as_recordings(recordings):
-    """A non-empty list of :class:`Recording`, from one or an iterable of them."""
+def as_recordings(recordings):
+    """A non-empty list of :class:`Recording`, from one or an iterable of them.
+
+    Package-internal (not in ``__all__``): shared with the streaming monitor's
+    ``replay_recording``.
+    """
     if isinstance(recordings, Recording):
         return [recordings]
     if isinstance(recordings, (str, bytes, np.ndarray)) or not hasattr(
@@ -132,7 +136,7 @@ def targets(recordings):
     >>> targets([rec, rec]).shape
     (6, 2)
     """
-    recordings = _as_recordings(recordings)
+    recordings = as_recordings(recordings)
     _check_joint_counts(recordings)
     for i, rec in enumerate(recordings):
         _check_finite(rec, i, "current", rec.current)
@@ -150,7 +154,7 @@ class _RecordingFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
     def _fitted_recordings(self, recordings):
         """``recordings`` as a list with the fitted joint count (ValueError otherwise)."""
         check_is_fitted(self)
-        recordings = _as_recordings(recordings)
+        recordings = as_recordings(recordings)
         n_joints = _check_joint_counts(recordings)
         if n_joints != self.n_joints_:
             raise ValueError(
@@ -331,7 +335,7 @@ default="target-minus-actual"
             Fitted transformer.
         """
         _check_options(self.differentiation, self.differentiation_options or {})
-        recordings = _as_recordings(recordings)
+        recordings = as_recordings(recordings)
         self.n_joints_ = _check_joint_counts(recordings)
         self.acceleration_sources_ = tuple(
             self._acceleration_source(rec, i) for i, rec in enumerate(recordings)
@@ -496,5 +500,5 @@ def make_inputs(
         differentiation_options=differentiation_options,
         sign=sign,
     )
-    recordings = _as_recordings(recordings)
+    recordings = as_recordings(recordings)
     return features.fit_transform(recordings), targets(recordings)

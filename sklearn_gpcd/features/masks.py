@@ -13,7 +13,7 @@ nulls the friction columns of :math:`\\bar\\phi_\\ell` (Eq. 17).
 
 import numpy as np
 
-from .._gate import check_sigma_v, quasi_static
+from .._gate import DEFAULT_SIGMA_V, check_sigma_v, quasi_static
 
 #: Labels returned by :func:`regimes`, from lowest to highest precedence.
 REGIMES = ("moving", "creep", "rest", "high_acceleration", "reversal")
@@ -39,7 +39,7 @@ def _check_positive(value, name):
         raise ValueError(f"{name} must be a positive number, got {value!r}")
 
 
-def quasi_static_mask(qd, sigma_v=1e-2):
+def quasi_static_mask(qd, sigma_v=DEFAULT_SIGMA_V):
     """Gate :math:`a_\\ell` of Eq. 15: True where :math:`|\\dot q_\\ell| < \\sigma_v`.
 
     Parameters
@@ -112,7 +112,7 @@ def _reversal_mask(qd, sigma_v, window):
 
 
 def regimes(
-    qd, qdd=None, sigma_v=1e-2, sigma_rest=None, sigma_a=5.0, reversal_window=10
+    qd, qdd=None, sigma_v=DEFAULT_SIGMA_V, sigma_rest=None, sigma_a=5.0, reversal_window=10
 ):
     """Label every sample of every joint with its motion regime.
 

@@ -46,11 +46,11 @@ from sklearn.utils.validation import check_is_fitted
 from .inputs import (
     _AUGMENTED_SIGNALS,
     MissingSignalWarning,
-    _as_recordings,
     _check_finite,
     _check_joint_counts,
     _label,
     _RecordingFeatures,
+    as_recordings,
 )
 
 
@@ -322,7 +322,7 @@ default="target-minus-actual"
         self : CausalFeatures
         """
         requested = self._requested_signals()
-        recordings = _as_recordings(recordings)
+        recordings = as_recordings(recordings)
         self.n_joints_ = _check_joint_counts(recordings)
         present = [
             s for s in _AUGMENTED_SIGNALS

@@ -17,7 +17,7 @@ from scipy.linalg.blas import dsyr
 from scipy.linalg.lapack import dpotrf, dpotri
 from threadpoolctl import ThreadpoolController
 
-from ..kernels.plan import _mirror_upper, compile_kernel, gram_matrix
+from ..kernels.plan import compile_kernel, gram_matrix, mirror_upper
 
 # jitter tried, relative to the mean of diag(K), when K is not numerically PD
 _JITTER_LADDER = 10.0 ** np.arange(-10, -1)
@@ -132,7 +132,7 @@ def _negated_weight_matrix(U, a, mirror=True):
         raise ValueError("Cholesky inverse failed.")
     V = dsyr(-1.0, a, a=inv, lower=0, overwrite_a=1)
     if mirror:
-        _mirror_upper(V)
+        mirror_upper(V)
     return V.T  # symmetric: the transpose of the Fortran-ordered result is C-ordered
 
 

@@ -47,6 +47,8 @@ Anything else falls back to ``regressor.predict`` on a one-row array.
 import warnings
 
 import numpy as np
+from sklearn.frozen import FrozenEstimator
+from sklearn.gaussian_process import GaussianProcessRegressor
 
 from .._gate import quasi_static
 from ..dynamics import ControllerFeatures, RigidBodyRegressor
@@ -506,8 +508,6 @@ class _GenericPredictor:
 
 def _gp_posteriors(regressor):
     """The per-output :class:`~sklearn_gpcd.gp.GPPosterior` of a fitted GP, or None."""
-    from sklearn.gaussian_process import GaussianProcessRegressor
-
 
     if isinstance(regressor, SemiParametricGPRegressor):
         return regressor.posteriors_
@@ -544,8 +544,6 @@ def _unwrap(regressor):
     compiled path of the inner one applies (and is checked against the
     wrapper's own ``predict``).
     """
-    from sklearn.frozen import FrozenEstimator
-
     while isinstance(regressor, FrozenEstimator):
         regressor = regressor.estimator
     return regressor

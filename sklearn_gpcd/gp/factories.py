@@ -17,6 +17,8 @@ tens of thousands of rows; pass ``n_support=None`` for the exact GP.
 import numpy as np
 from sklearn.gaussian_process.kernels import ConstantKernel, WhiteKernel
 
+from .._gate import DEFAULT_SIGMA_V
+from ..dynamics import ControllerFeatures
 from ..layout import column_index, state_columns
 from ..kernels import ARDRBF, QuasiStaticGate
 from .mean import ParametricMean
@@ -122,7 +124,8 @@ def make_sp_s(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp
     return _estimator(kernels, means, gp_params)
 
 
-def make_sp_p(features, n_joints, *, sigma_v=1e-2, friction_columns="auto", **gp_params):
+def make_sp_p(features, n_joints, *, sigma_v=DEFAULT_SIGMA_V, friction_columns="auto",
+              **gp_params):
     r"""SP_P: the proposed estimator (Eq. 17).
 
     .. math::
@@ -225,8 +228,6 @@ def make_sp_c(n_joints, **gp_params):
     >>> round(float(gp.mean_.coef_[0]), 1)
     1.1
     """
-    from ..dynamics import ControllerFeatures
-
     features = [ControllerFeatures(joint, n_joints) for joint in range(n_joints)]
     return make_sp_s(features, n_joints, **gp_params)
 

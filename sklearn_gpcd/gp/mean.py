@@ -8,7 +8,7 @@ from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .._gate import check_sigma_v, quasi_static
+from .._gate import SIGMA_V_CONSTRAINT, check_sigma_v, quasi_static
 from .._persistence import VersionedStateMixin
 
 
@@ -97,7 +97,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
         "features": [None, callable, HasMethods(["fit", "transform"])],
         "friction_columns": [None, StrOptions({"auto"}), "array-like"],
         "velocity_column": [None, numbers.Integral, str, "array-like"],
-        "sigma_v": [None, numbers.Real],
+        "sigma_v": [None, SIGMA_V_CONSTRAINT],
         "alpha": [Interval(numbers.Real, 0, None, closed="left")],
         "fit_intercept": ["boolean"],
     }

@@ -14,6 +14,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
 from ..kernels import resolve_columns
 from ._likelihood import _log_marginal_likelihood, single_threaded_blas
@@ -206,7 +207,7 @@ class SemiParametricGPRegressor(VersionedStateMixin, RegressorMixin, BaseEstimat
         "n_support": [None, StrOptions({"auto"}), Interval(numbers.Integral, 1, None,
                                                              closed="left")],
         "support_selection": [StrOptions(set(SUPPORT_SELECTIONS))],
-        "sigma_v": [None, Interval(numbers.Real, 0, None, closed="neither")],
+        "sigma_v": [None, SIGMA_V_CONSTRAINT],
         "n_jobs": [None, numbers.Integral],
         "random_state": ["random_state"],
         "verbose": ["verbose"],
@@ -607,6 +608,13 @@ def _check_mean(mean):
 
 def _set_sigma_v(obj, sigma_v):
     """Set every parameter named ``sigma_v`` (at any depth) of ``obj``.
+
+    "Every" is safe because the name has one meaning in the package: the
+    quasi-static threshold of Eq. 15 (the kernels' gates, a mean's
+    :math:`\bar\phi` mask and its feature map's, e.g. a
+    ``RigidBodyRegressor``). Depth is what ``get_params(deep=True)`` reaches
+    (kernel operands, a mean's ``features`` estimator); an object kept in a
+    plain list or a callable is not reached and keeps its own value.
 
     Returns the number of parameters set (0 for None).
     """

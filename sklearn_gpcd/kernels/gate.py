@@ -5,7 +5,7 @@ import numbers
 import numpy as np
 from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
-from .._gate import check_sigma_v, quasi_static
+from .._gate import DEFAULT_SIGMA_V, check_sigma_v, quasi_static
 from .columns import (
     _n_samples,
     _take_rows,
@@ -79,7 +79,7 @@ class QuasiStaticGate(Kernel):
     array([1., 1., 1.])
     """
 
-    def __init__(self, kernel, velocity_column, sigma_v=1e-2):
+    def __init__(self, kernel, velocity_column, sigma_v=DEFAULT_SIGMA_V):
         self.kernel = kernel
         self.velocity_column = velocity_column
         self.sigma_v = sigma_v

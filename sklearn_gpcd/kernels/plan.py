@@ -379,11 +379,12 @@ def _multiply(a, b, inplace):
     return a * b
 
 
-def _mirror_upper(A, tile=256):
+def mirror_upper(A, tile=256):
     """Copy the strict upper triangle of the square ``A`` onto its lower one, in place.
 
     Tile by tile, so that the transposed reads stay in cache (a plain
     ``A += A.T`` is several times slower for n in the thousands).
+    Package-internal (not in ``__all__``): the GP's likelihood uses it too.
     """
     n = A.shape[0]
     for i in range(0, n, tile):
@@ -454,9 +455,9 @@ def _se_gram(Z, out, scaled=None, lower=False):
         if scaled is not None:
             np.multiply(block, scaled[0], out=scaled[1][rows, cols])
     if not lower:  # the transposes are Fortran-ordered with the triangle above
-        _mirror_upper(out.T)
+        mirror_upper(out.T)
         if scaled is not None:
-            _mirror_upper(scaled[1].T)
+            mirror_upper(scaled[1].T)
     return out
 
 

@@ -193,6 +193,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
 
     def __init__(self, detector, features, *, hook=None, keep_series=False, echo=False,
                  band_labels=None, stall_timeout=None):
+        # deferred: gpcd starts without scikit-learn (test_architecture.py)
         from ..detection import StreamingMonitor
 
         self.monitor = StreamingMonitor(detector, features=features)

@@ -24,6 +24,7 @@ Options:
   that are left out in turn like recordings.
 """
 
+import warnings
 from collections import Counter
 from pathlib import Path
 from typing import NamedTuple
@@ -324,9 +325,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     >>> np.shape(calibrated.detector.thresholds_)
     (3, 1)
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from sklearn.base import clone
     from sklearn.frozen import FrozenEstimator
 
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..detection import (
         AlarmRule,
         CollisionDetector,
@@ -377,8 +380,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     grid = SELECT_GRID if select else None
     if band_candidates:
         grid = [{k: [v] for k, v in c.items()} for c in band_candidates]
+    # the model's sigma_v (train_model records it) sets the regimes: the frozen model keeps
+    # its own gates; None (a model file without it) means the regimes' default
     template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
-                                 sample_time="auto", rules=rules)
+                                 sample_time="auto", rules=rules,
+                                 sigma_v=trained.training.get("sigma_v"))
     result = calibrate_across_recordings(template, blocks, times, param_grid=grid)
     several = bool(bands or band_candidates)
     summary = _summary(result, trained, features, robot, keys=keys, split=split,
@@ -451,8 +457,7 @@ def calibration_coverage(result, times, split=False):
 
 def _warn_coverage(summary):
     """:class:`CalibrationWarning` for short data and thin regimes (with the numbers)."""
-    import warnings
-
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..metrics import rate_upper_bound
 
     seconds = summary["hours"] * 3600.0
@@ -573,7 +578,7 @@ def _check_model_inputs(model, features):
 
 
 def _brake_limit(braking, training):
-    """``CollisionDetector(brake_limit=...)`` from ``braking`` and the model's record."""
+    """``Regimes(brake_limit=...)`` from ``braking`` and the model's record."""
     if braking is None or braking != "model":
         return braking
     if (limit := training.get("acceleration_limit")) is None:
@@ -622,6 +627,7 @@ def _summary(result, trained, features, robot, *, keys, split, n_files, select, 
     if several:
         summary["bands"] = entries
     if chosen_band:
+        # deferred: gpcd starts without scikit-learn (test_architecture.py)
         from ..detection import AlarmRule
 
         summary["band_candidates"] = [
@@ -770,6 +776,7 @@ def _margin_line(entry, pad, out):
 
 
 def _false_alarm_line(summary, out, which=""):
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..metrics import rate_upper_bound
 
     if summary["false_alarms_per_hour"] is None:
@@ -836,6 +843,7 @@ def save_detector(calibrated, path):
     ...
     sklearn_gpcd.persistence.MalformedFileError: ...: field detector holds no fitted ...
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..persistence import save
 
     return save({"kind": DETECTOR_KIND, "detector": calibrated.detector,
@@ -882,6 +890,7 @@ def load_detector(path, trust_pickle=False):
     ...
     ValueError: ...not_a_detector.joblib: not a detector file written by gpcd calibrate...
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ._file_checks import check_detector_bundle, load_checked
 
     fix = f"rebuild it with gpcd calibrate MODEL RECORDINGS -o {path}"

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._gate import DEFAULT_SIGMA_V
 from .training import MODELS, ROBOT_MODELS, TrainingSet, train_model
 
 __all__ = ["CHOICE_RULE", "FEEDBACK_LIMIT", "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE",
@@ -38,10 +39,10 @@ FOLD_SUPPORT = 300
 #: ``current - target_current``.
 FEEDBACK_WINDOW = 0.1
 #: Speed [rad/s] above which a joint moves, for :func:`check_target_current`
-#: (SP_P's quasi-static threshold). A joint that never moves may need no
+#: (the quasi-static threshold's default). A joint that never moves may need no
 #: feedback at all (its feed-forward holds it exactly): its ``current -
 #: target_current`` is then white whatever the target is, and tells nothing.
-FEEDBACK_SPEED = 0.01
+FEEDBACK_SPEED = DEFAULT_SIGMA_V
 #: Windows in which a joint moves throughout that it needs for
 #: :func:`check_target_current` to judge it.
 FEEDBACK_MIN_WINDOWS = 20
@@ -644,6 +645,7 @@ def choose_model(data, robot=None, target_check=None, *, signals="auto", n_suppo
 SP_P needs the robot model (--robot); SP_S needs the robot model (--robot); \
 P_F needs the robot model (--robot); SP_C the recordings do not all log the target current')
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import resolve_n_support
 
     models, left_out = candidate_models(robot, data.features.signals_, target_check)

@@ -33,6 +33,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._gate import DEFAULT_SIGMA_V
+from ..io import Recording
+from ..layout import block_columns
+
 __all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", "OPTIMIZERS",
            "ROBOT_MODELS", "TRAIN_RULE", "TrainedModel", "TrainingSet", "acceleration_limit",
            "load_model", "save_model", "train_model", "training_report", "training_rows",
@@ -189,6 +193,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     >>> data.X.shape, data.y.shape, data.inputs
     ((100, 12), (100, 2), 'causal')
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..features import CausalFeatures, make_inputs
 
     if inputs not in INPUTS:
@@ -228,8 +233,6 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
 
 def _unused_columns(signals, n_joints):
     """Columns of the augmented layout that no signal of ``signals`` feeds."""
-    from ..layout import block_columns
-
     blocks = [] if "target_current" in signals else ["i_c"]
     if "target_q" not in signals:
         blocks.append("e_q")
@@ -274,7 +277,9 @@ class TrainedModel:
 
 
 def _build(model, robot, n_joints, params, coulomb_width=None):
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..dynamics import RigidBodyRegressor
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
     if model not in ROBOT_MODELS and coulomb_width is not None:
@@ -301,9 +306,8 @@ def _model_features(model, features):
     A :class:`~sklearn_gpcd.features.CausalFeatures` using no signal depends
     only on the joint count, so it is fitted on a two-sample stand-in.
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from sklearn.base import clone
-
-    from ..io import Recording
 
     if MODEL_SIGNALS[model] != () or not features.signals_:
         return features
@@ -344,8 +348,6 @@ def acceleration_limit(data):
     >>> round(acceleration_limit(data), 2)   # causal: low-passed, a little lower
     0.82
     """
-    from ..layout import block_columns
-
     n_joints = data.y.shape[1]
     return float(np.abs(data.X[:, block_columns("qdd", n_joints)]).max())
 
@@ -376,9 +378,11 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
     optimizer : {"auto", "adam", "fmin_l_bfgs_b"}, default="auto"
         Hyperparameter optimizer of the regressor ("auto": :data:`TRAIN_RULE`).
     sigma_v : float or None, default=None
-        Quasi-static velocity threshold; SP_P's and the GP's default is
-        0.01 rad/s, P_f and SP_S use the paper's unmasked friction unless
-        given.
+        Quasi-static velocity threshold [rad/s] of the model's gates and
+        masks and of the regimes of a detector calibrated on it (recorded in
+        ``training["sigma_v"]``). None: the package's default 1e-2 rad/s
+        (``DEFAULT_SIGMA_V``) for SP_P's and the GP's gates and for the
+        regimes, while P_f, SP_S and SP_C keep the paper's unmasked friction.
     seed : int, default=0
         ``random_state`` of the regressor (support rows, minibatches).
     n_jobs : int or None, default=None
@@ -422,6 +426,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
     if optimizer not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import resolve_n_support
 
     data = recordings if isinstance(recordings, TrainingSet) else None
@@ -445,7 +450,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
     params = dict(n_support=n_support, optimizer=optimizer,
                   batch_size=min(512, n_support), random_state=seed, n_jobs=n_jobs)
     if sigma_v is not None or model in ("sp_p", "gp"):
-        params["sigma_v"] = 1e-2 if sigma_v is None else sigma_v
+        params["sigma_v"] = DEFAULT_SIGMA_V if sigma_v is None else sigma_v
     regressor = _build(model, robot, n, params, coulomb_width)
     bar = _bar(progress, f"fitting {model.upper()} ({n} joints)", n)
     with (_count_fitted_outputs(bar) if progress is not None else contextlib.nullcontext()):
@@ -454,7 +459,8 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "model": model, "inputs": data.inputs, "n_support": int(n_support),
         "optimizer": optimizer, "optimizer_used": str(regressor.optimizer_),
         "batch_size": int(params["batch_size"]), "seed": seed,
-        "sigma_v": params.get("sigma_v"), "coulomb_width": coulomb_width,
+        # the detector's regimes take it from here (calibrate_detector), given or not
+        "sigma_v": params.get("sigma_v", DEFAULT_SIGMA_V), "coulomb_width": coulomb_width,
         "signals": list(features.signals_),
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
@@ -530,6 +536,7 @@ def save_model(trained, path):
     >>> save_model(trained, pathlib.Path(tempfile.mkdtemp()) / "m.joblib").name
     'm.joblib'
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..persistence import save
 
     return save({"kind": MODEL_KIND, "regressor": trained.regressor,
@@ -572,6 +579,7 @@ def load_model(path, trust_pickle=False):
     >>> load_model(path, trust_pickle=True).training  # our own pickle
     {'inputs': 'causal'}
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ._file_checks import check_model_bundle, load_checked
 
     fix = f"rebuild it with gpcd train RECORDINGS -o {path}"
@@ -603,6 +611,7 @@ def _count_fitted_outputs(progress):
     output appends one byte to a temporary file, which a thread of this
     process polls.
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import regressor
 
     fit_output = regressor._fit_output
