@@ -197,11 +197,15 @@ def main(argv=None):
             print(f"{run_name}: calibrate on {len(calib)}, monitor 2 push files and "
                   f"{len(held)} unseen collision-free logs")
             calib_out = run(commands[1], fdir, log)
+            sizes = {name: round((fdir / name).stat().st_size / 1e6, 1)
+                     for name in ("model.skops", "detector.skops") if (fdir / name).exists()}
+            print(f"  file sizes [MB]: {sizes} (issue #46: detector <= 40 MB)")
             run(monitor, fdir, log)
             events = json.loads((fdir / "events.json").read_text())
             res = score(events["events"], labels, bench.PUSHES, held)
             nested = events.get("calibration", {}).get("n_false_alarms_nested")
-            res.update(run=run_name, calibration_files=[Path(k).name for k in calib],
+            res.update(run=run_name, file_sizes_MB=sizes,
+                       calibration_files=[Path(k).name for k in calib],
                        calibration_nested_onsets=nested, calibration_report=calib_out)
             report["folds"].append(res)
             n_fa = sum(len(v) for v in res["false_alarms_unseen"].values())

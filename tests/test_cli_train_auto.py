@@ -208,3 +208,25 @@ def test_one_recording_is_compared_on_three_pieces():
 def test_bad_signals_are_usage_errors(value, capsys):
     assert main(["train", "a.csv", "-o", "m.skops", "--signals", value]) == 2
     assert "expected auto, none or a comma-separated list" in capsys.readouterr().err
+
+
+def test_the_smallest_thresholds_win_and_nmse_breaks_near_ties():
+    """Issue #46: the choice serves detection. A model with the smallest nMSE but
+    unstable extremes (a large leave-one-recording-out margin, so large
+    thresholds) loses; among thresholds within CHOICE_TIE the nMSE decides."""
+    from sklearn_gpcd.workflow import ModelComparison
+    from sklearn_gpcd.workflow.model_choice import CHOICE_TIE
+
+    errors = np.array([[0.01, 0.01], [0.03, 0.03], [0.02, 0.02]])
+    thresholds = np.array([[4.0, 4.0], [1.0, 1.0], [1.02, 1.0]])  # sp_c: margin 7.4
+    table = ModelComparison(["sp_c", "p_f", "sp_s"], errors, [1.0] * 3, ["a", "b", "c"], 200,
+                            thresholds=thresholds, margins=np.array([7.4, 1.5, 1.6]))
+    assert 1.02 ** 0.5 < CHOICE_TIE
+    assert table.best == "sp_s"  # tied with p_f on thresholds, smaller nMSE
+    table.thresholds = np.array([[4.0, 4.0], [1.0, 1.0], [1.2, 1.2]])
+    assert table.best == "p_f"
+    assert ModelComparison(["sp_c", "p_f"], errors[:2], [1.0] * 2, ["a"], 200).best == "sp_c"
+    lines = table.text()
+    assert lines[2].split()[0] == "P_f" and lines[2].endswith("<- chosen")
+    summary = table.summary()
+    assert summary["best"] == "p_f" and summary["margin"] == [7.4, 1.5, 1.6]

@@ -6,9 +6,11 @@ merely close ones: a loaded model is the same model.
 
 import pickle
 import warnings
+import zipfile
 
 import joblib
 import numpy as np
+from numpy.testing import assert_allclose
 import pinocchio as pin
 import pytest
 import sklearn
@@ -124,6 +126,32 @@ def test_gp_round_trip_gives_identical_predictions(name, fmt, data, tmp_path):
     assert np.array_equal(gp.log_marginal_likelihood_value_, copy.log_marginal_likelihood_value_)
     assert [repr(k) for k in copy.kernel_] == [repr(k) for k in gp.kernel_]
     assert copy.get_params(deep=False).keys() == gp.get_params(deep=False).keys()
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_gp_file_leaves_out_the_cholesky_factor(fmt, data, tmp_path):
+    """A model file holds what prediction needs, not the n x n factor: the
+    std, which needs it, is rebuilt exactly from the support rows."""
+    X, Y, X_test, _ = data
+    gp = make_sp_p(None, N_JOINTS, n_support=300, random_state=0, max_iter=20)  # all 120 rows
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gp.fit(X, Y)
+    factors = sum(out.posterior.L.nbytes for out in gp._outputs)  # 6 x 120^2 floats
+    path = save(gp, tmp_path / f"model.{fmt}")
+    if fmt == "skops":  # no stored array as large as one joint's factor (120^2 floats)
+        with zipfile.ZipFile(path) as archive:
+            arrays = [i.file_size for i in archive.infolist() if i.filename.endswith(".npy")]
+        assert max(arrays) < factors / N_JOINTS
+    else:
+        assert path.stat().st_size < factors / 2  # the support rows, 6 x 120 x 36 floats
+    copy = load(path, trust_pickle=fmt == "joblib")
+    assert all(out.posterior._L is None for out in copy._outputs)
+    assert np.array_equal(copy.predict(X_test), gp.predict(X_test))
+    mean, std = gp.predict(X_test, return_std=True)
+    mean2, std2 = copy.predict(X_test, return_std=True)
+    assert np.array_equal(mean, mean2)
+    assert_allclose(std2, std, rtol=1e-12, atol=1e-15)
 
 
 @pytest.mark.parametrize("fmt", FORMATS)

@@ -1,5 +1,5 @@
 """``gpcd train``: fit P_f, SP_S, SP_P, SP_C or the GP alone on a user's recordings,
-chosen by leave-one-recording-out error by default (:func:`sklearn_gpcd.workflow.train_model`,
+chosen by default by the thresholds its residual needs on left-out recordings (:func:`sklearn_gpcd.workflow.train_model`,
 :func:`sklearn_gpcd.workflow.compare_models`, rule ``TRAIN_RULE``)."""
 
 import argparse
@@ -46,7 +46,8 @@ def add_parser(sub):
         "causal input features gpcd calibrate and gpcd monitor reuse, and a record of how "
         "it was trained (sklearn_gpcd.workflow.train_model). By default (--model auto) the "
         "model is chosen among those the data allow -- P_f, SP_S, SP_P need --robot, SP_C "
-        "a target current that is a feed-forward -- by leave-one-recording-out error. "
+        "a target current that is a feed-forward -- by the detection thresholds each "
+        "would need on left-out recordings, nMSE breaking near ties. "
         + CHOICE_RULE + " Target current check: " + FEEDBACK_RULE + " " + TRAIN_RULE,
     )
     tra.add_argument("recordings", nargs="+",
@@ -56,7 +57,7 @@ def add_parser(sub):
                           "need no rigid-body model are fitted (sp_c, gp)")
     tra.add_argument("--model", choices=("auto",) + MODELS, default="auto",
                      help="estimator: auto (default: the smallest leave-one-recording-out "
-                     "error among those the data allow), sp_p (the paper's proposed), sp_s, "
+                     "detection thresholds among those the data allow), sp_p (the paper's proposed), sp_s, "
                      "p_f (these three need --robot), sp_c (the controller's target current "
                      "as mean; recordings must log it) or gp (the GP alone, no robot model)")
     tra.add_argument("--signals", type=signals_arg, default="auto",

@@ -10,10 +10,16 @@ Two questions, answered from the training recordings alone:
   included, so a mean made of it subtracts the contact it should reveal.
   :func:`candidate_models` lists the models possible and why the others
   are not.
-* **Which of them predicts best?** :func:`compare_models` fits each
-  candidate on all training recordings but one and scores it on the one
-  left out (:data:`CHOICE_RULE`): the smallest leave-one-recording-out
-  error wins.
+* **Which of them serves detection best?** :func:`compare_models` fits
+  each candidate on all training recordings but one and runs ``gpcd
+  calibrate``'s alarm rule on the residual of the one left out
+  (:data:`CHOICE_RULE`): the thresholds that rule would set across the
+  left-out recordings -- the largest excursions times the
+  leave-one-recording-out margin -- are what a contact must exceed, so the
+  smallest wins; the prediction error (nMSE) breaks near ties. A model
+  whose residual is small on average but whose extremes jump from one
+  recording to the next (a large margin) loses, though its nMSE is the
+  smallest.
 """
 
 import time
@@ -24,9 +30,10 @@ import numpy as np
 from .._gate import DEFAULT_SIGMA_V
 from .training import MODELS, ROBOT_MODELS, TrainingSet, train_model
 
-__all__ = ["CHOICE_RULE", "FEEDBACK_LIMIT", "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE",
+__all__ = ["CHOICE_RULE", "CHOICE_TIE", "FEEDBACK_LIMIT", "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE",
            "FEEDBACK_SPEED", "FEEDBACK_WINDOW",
-           "FOLD_SUPPORT", "SIGNALS", "ModelComparison", "TargetCurrentCheck",
+           "FOLD_ROWS", "FOLD_SUPPORT", "FOLD_TEST_ROWS", "SIGNALS", "ModelComparison",
+           "TargetCurrentCheck",
            "candidate_models", "check_target_current", "choose_model", "compare_models",
            "input_signals"]
 
@@ -34,7 +41,16 @@ __all__ = ["CHOICE_RULE", "FEEDBACK_LIMIT", "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RU
 SIGNALS = ("target_q", "target_qd", "target_current")
 #: GP support rows per joint of the fits :func:`choose_model` compares (fewer
 #: when the model's own ``n_support`` is smaller).
-FOLD_SUPPORT = 300
+FOLD_SUPPORT = 200
+#: Training rows of each fit :func:`compare_models` makes, at most (every
+#: k-th row of the recordings not left out).
+FOLD_ROWS = 5_000
+#: Rows of a left-out recording the fold's model predicts, at most (the first
+#: ones, contiguous: the alarm rule filters and debounces them in time).
+FOLD_TEST_ROWS = 30_000
+#: Candidates whose threshold score is within this factor of the smallest
+#: are tied; the smallest nMSE among them wins (:data:`CHOICE_RULE`).
+CHOICE_TIE = 1.05
 #: Length [s] of the windows over which :func:`check_target_current` averages
 #: ``current - target_current``.
 FEEDBACK_WINDOW = 0.1
@@ -77,13 +93,21 @@ FEEDBACK_RULE = (
 CHOICE_RULE = (
     "Leave-one-recording-out: up to 4 training recordings (evenly spread in their order; "
     "one recording is cut into 3 contiguous pieces) are each left out in turn; every "
-    "candidate is fitted on the others (every k-th row up to 20,000 rows, 300 GP support "
-    "rows per joint, the optimizer asked for) and predicts the one left out (every k-th row "
-    "up to 20,000 rows). The error of a "
-    "joint is the mean squared error over the left-out rows divided by the variance of the "
-    "joint's current over the training rows (nMSE); the candidate with the smallest "
-    "geometric mean over joints (every joint counts alike, whatever its scale: the mean log "
-    "threshold gpcd calibrate --select minimises scales the same way) is fitted on all rows."
+    "candidate is fitted on the others (every k-th row up to 5,000 rows, 200 GP support "
+    "rows per joint, the optimizer asked for) and predicts the one left out (its first "
+    "30,000 rows, contiguous). The residual of each left-out recording goes through gpcd "
+    "calibrate's alarm rule (2 Hz low-pass, 5-sample debounce, regimes moving / settling / "
+    "rest with a 5 s rest reference), and the thresholds that rule would set across the "
+    "left-out recordings are computed as gpcd calibrate does: per regime and joint the "
+    "largest excursion of the recordings times the leave-one-recording-out margin (the "
+    "largest factor by which one recording's excursion exceeds the others'). A contact "
+    "must exceed these thresholds, in A whatever the model, so the score is their "
+    "geometric mean over joints, weighted by the time in each regime (the mean log "
+    "threshold gpcd calibrate --select minimises); the smallest wins. Candidates within "
+    "5 % of the smallest are tied, and the smallest prediction error among them wins: "
+    "nMSE, the mean squared error over the left-out rows over the variance of the joint's "
+    "current over the training rows, geometric mean over joints. The winner is fitted on "
+    "all rows."
 )
 _NAMES = {"sp_p": "SP_P", "sp_s": "SP_S", "p_f": "P_f", "sp_c": "SP_C", "gp": "GP"}
 _NOISE_MAD = 0.6745 * np.sqrt(6.0)  # MAD of a second difference of unit white noise
@@ -335,6 +359,12 @@ class ModelComparison:
         The candidates, in the order of ``errors``' rows.
     errors : ndarray of shape (n_models, n_joints)
         nMSE per joint on the left-out rows (:data:`CHOICE_RULE`).
+    thresholds : ndarray of shape (n_models, n_joints)
+        Per joint, the thresholds the alarm rule would set across the
+        left-out recordings, geometric mean over the regimes weighted by
+        their time [A, or the recordings' current unit].
+    margins : ndarray of shape (n_models,)
+        Leave-one-recording-out margin of those thresholds.
     seconds : list of float
         Time spent fitting and predicting each candidate, all folds.
     held_out : list of str
@@ -348,9 +378,11 @@ class ModelComparison:
     --------
     >>> import numpy as np
     >>> table = ModelComparison(["sp_c", "gp"], np.array([[0.02, 0.04], [0.05, 0.06]]),
-    ...                         [1.0, 2.0], ["a", "b"], 300)
-    >>> table.best, table.score.round(4).tolist()
-    ('sp_c', [0.0283, 0.0548])
+    ...                         [1.0, 2.0], ["a", "b"], 200,
+    ...                         thresholds=np.array([[0.9, 1.6], [0.5, 0.8]]),
+    ...                         margins=np.array([3.0, 1.2]))
+    >>> table.best, table.threshold_score.round(3).tolist(), table.score.round(4).tolist()
+    ('gp', [1.2, 0.632], [0.0283, 0.0548])
     """
 
     models: list
@@ -359,17 +391,31 @@ class ModelComparison:
     held_out: list
     n_support: int
     left_out: dict = field(default_factory=dict)
+    thresholds: np.ndarray = None
+    margins: np.ndarray = None
 
     @property
     def score(self):
         """Geometric mean of the nMSE over joints, per model."""
-        errors = np.maximum(np.asarray(self.errors, float), np.finfo(float).tiny)
-        return np.exp(np.log(errors).mean(axis=1))
+        return _geometric_mean(self.errors)
+
+    @property
+    def threshold_score(self):
+        """Geometric mean of :attr:`thresholds` over joints, per model (None without)."""
+        return None if self.thresholds is None else _geometric_mean(self.thresholds)
 
     @property
     def best(self):
-        """The model with the smallest :attr:`score`."""
-        return self.models[int(np.argmin(self.score))]
+        """The smallest :attr:`threshold_score`; the smallest nMSE among near ties.
+
+        Candidates within :data:`CHOICE_TIE` of the smallest threshold score
+        are tied (:data:`CHOICE_RULE`); without thresholds, the smallest nMSE.
+        """
+        score, tied = self.score, np.ones(len(self.models), bool)
+        if self.thresholds is not None:
+            detection = self.threshold_score
+            tied = detection <= detection.min() * CHOICE_TIE
+        return self.models[int(np.argmin(np.where(tied, score, np.inf)))]
 
     def text(self):
         """The comparison table, best first, in lines.
@@ -381,22 +427,34 @@ class ModelComparison:
         Examples
         --------
         >>> import numpy as np
-        >>> table = ModelComparison(["gp"], np.array([[0.05, 0.06]]), [2.0], ["a", "b"], 300)
+        >>> table = ModelComparison(["gp"], np.array([[0.05, 0.06]]), [2.0], ["a", "b"], 200,
+        ...                         thresholds=np.array([[0.4, 0.9]]), margins=np.array([1.3]))
         >>> print("\\n".join(table.text()[1:]))
-          model  nMSE per joint (left-out rows)  geometric mean    time
-          GP     0.0500 0.0600                   0.0548           2.0 s  <- chosen
+          model  thresholds per joint  geo. mean  margin  nMSE (geo. mean)    time
+          GP     0.400 0.900           0.600      1.30    0.0548             2.0 s  <- chosen
         """
         errors = np.asarray(self.errors, float)
-        width = max(len("nMSE per joint (left-out rows)"), 7 * errors.shape[1] - 1)
+        detection = self.threshold_score
+        if detection is None:
+            detection = np.full(len(self.models), np.nan)
+            thresholds = np.full_like(errors, np.nan)
+            margins = np.full(len(self.models), np.nan)
+        else:
+            thresholds, margins = np.asarray(self.thresholds), np.asarray(self.margins)
+        width = max(len("thresholds per joint"), 6 * errors.shape[1] - 1)
         lines = [f"model choice (--model auto), leave-one-recording-out over "
                  f"{len(self.held_out)} fold(s) (left out: {', '.join(self.held_out)}), "
-                 f"{self.n_support} support rows per joint:",
-                 f"  model  {'nMSE per joint (left-out rows)':<{width}}  geometric mean"
-                 "    time"]
-        for k in np.argsort(self.score, kind="stable"):
-            joints = " ".join(f"{e:.4f}" for e in errors[k])
+                 f"{self.n_support} support rows per joint; the smallest thresholds the "
+                 "alarm rule would set on the left-out recordings win, nMSE breaks ties "
+                 f"within {CHOICE_TIE - 1:.0%}:",
+                 f"  model  {'thresholds per joint':<{width}}  geo. mean  margin  "
+                 "nMSE (geo. mean)    time"]
+        order = np.lexsort((self.score, np.nan_to_num(detection, nan=np.inf)))
+        for k in order:
+            joints = " ".join(f"{e:.3f}" for e in thresholds[k])
             lines.append(f"  {_NAMES[self.models[k]]:<5}  {joints:<{width}}  "
-                         f"{self.score[k]:<14.4f}{self.seconds[k]:6.1f} s"
+                         f"{detection[k]:<9.3f}  {margins[k]:<6.2f}  {self.score[k]:<16.4f}"
+                         f"{self.seconds[k]:6.1f} s"
                          + ("  <- chosen" if self.models[k] == self.best else ""))
         for model, why in self.left_out.items():
             lines.append(f"  {_NAMES[model]:<5}  not compared: {why}")
@@ -413,15 +471,30 @@ class ModelComparison:
         Examples
         --------
         >>> import numpy as np
-        >>> ModelComparison(["gp"], np.array([[0.05]]), [2.0], ["a"], 300).summary()["best"]
+        >>> ModelComparison(["gp"], np.array([[0.05]]), [2.0], ["a"], 200).summary()["best"]
         'gp'
         """
-        return {"rule": "leave-one-recording-out nMSE, geometric mean over joints",
+        detection = self.threshold_score
+        return {"rule": "leave-one-recording-out thresholds of the alarm rule, geometric "
+                        "mean over joints; nMSE breaks ties within "
+                        f"{CHOICE_TIE - 1:.0%}",
                 "best": self.best, "models": list(self.models),
+                "thresholds": (None if self.thresholds is None else
+                               [[float(e) for e in row] for row in self.thresholds]),
+                "threshold_score": (None if detection is None
+                                    else [float(v) for v in detection]),
+                "margin": (None if self.margins is None
+                           else [float(m) for m in self.margins]),
                 "nmse": [[float(e) for e in row] for row in np.asarray(self.errors)],
                 "score": [float(s) for s in self.score],
                 "seconds": [float(s) for s in self.seconds], "held_out": list(self.held_out),
                 "n_support": int(self.n_support), "left_out": dict(self.left_out)}
+
+
+def _geometric_mean(values):
+    """Geometric mean over the last axis (zeros count as the tiniest float)."""
+    values = np.maximum(np.asarray(values, float), np.finfo(float).tiny)
+    return np.exp(np.log(values).mean(axis=-1))
 
 
 def _folds(data, n_folds):
@@ -448,13 +521,59 @@ def _subset(data, rows, name):
     """A :class:`TrainingSet` of ``data``'s ``rows`` (same features)."""
     return TrainingSet(X=data.X[rows], y=data.y[rows], features=data.features,
                        inputs=data.inputs, names=[name], n_rows=int(len(rows)), step=1,
-                       has_target_current=data.has_target_current, sizes=(int(len(rows)),))
+                       has_target_current=data.has_target_current, sizes=(int(len(rows)),),
+                       sample_time=data.sample_time)
 
 
-def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
-                   max_rows=20_000, optimizer="auto", sigma_v=None, seed=0, n_jobs=None,
+def _alarm_template(data, sigma_v):
+    """The detector of ``gpcd calibrate``'s default alarm rule, without a regressor yet."""
+    from ..detection import AlarmRule, CollisionDetector, Regimes
+    from .calibration import DEFAULT_REST_REFERENCE, DETECTOR_RULE
+
+    rule = AlarmRule(**DETECTOR_RULE, regimes=Regimes(rest_reference=DEFAULT_REST_REFERENCE))
+    extra = {} if sigma_v is None else {"sigma_v": sigma_v}
+    return CollisionDetector(None, n_joints=data.y.shape[1],
+                             sample_time=data.sample_time or 1.0, rules=rule, **extra)
+
+
+def _excursions(template, regressor, X, y):
+    """Peaks per (regime, joint) of the debounced residual, and samples per regime."""
+    from sklearn.base import clone
+    from sklearn.frozen import FrozenEstimator
+
+    from ..detection import regime_excursions, stack_currents
+
+    block = stack_currents(X, y)
+    detector = clone(template).set_params(regressor=FrozenEstimator(regressor)).fit(block)
+    _, regime, peaks = regime_excursions(detector, {"fold": block})["fold"]
+    return peaks, np.bincount(regime, minlength=peaks.shape[0])
+
+
+def _fold_thresholds(peaks, counts):
+    """Thresholds per joint (geometric mean over regimes weighted by time) and margin.
+
+    .. math::
+
+        T_\\ell = \\exp \\sum_g \\frac{n_g}{n} \\log\\big(\\mu\\, L_{g\\ell}\\big)
+
+    with :math:`L` the largest peak of the left-out recordings per regime and
+    joint and :math:`\\mu` their leave-one-recording-out margin
+    (:func:`~sklearn_gpcd.detection.loro_margin`), as ``gpcd calibrate``.
+    """
+    from ..detection import loro_margin, regime_levels
+
+    keys = list(peaks)
+    margin = loro_margin(peaks, keys)
+    thresholds = np.maximum(margin * regime_levels(peaks, keys), np.finfo(float).tiny)
+    weights = np.asarray(sum(counts.values()), float)
+    weights /= weights.sum()
+    return np.exp(weights @ np.log(thresholds)), float(margin.max())
+
+
+def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=FOLD_SUPPORT,
+                   max_rows=FOLD_ROWS, optimizer="auto", sigma_v=None, seed=0, n_jobs=None,
                    coulomb_width=None, progress=None):
-    """Leave-one-recording-out error of candidate models (:data:`CHOICE_RULE`).
+    """Leave-one-recording-out thresholds and error of candidate models (:data:`CHOICE_RULE`).
 
     Parameters
     ----------
@@ -467,15 +586,15 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
         inputs' signals.
     n_folds : int, default=4
         Recordings left out at most (pieces when there is one recording).
-    n_support : int, default=300
+    n_support : int, default=FOLD_SUPPORT
         GP support rows per joint of each fit.
-    max_rows : int, default=20000
-        Training rows of each fit, and left-out rows it predicts, at most
-        (every k-th row).
+    max_rows : int, default=FOLD_ROWS
+        Training rows of each fit at most (every k-th row).
     optimizer : {"auto", "adam", "fmin_l_bfgs_b"}, default="auto"
         Of each fit.
     sigma_v : float or None, default=None
-        Of each fit (:func:`~sklearn_gpcd.workflow.train_model`).
+        Of each fit (:func:`~sklearn_gpcd.workflow.train_model`) and of the
+        alarm rule's regimes.
     seed : int, default=0
         Of each fit.
     n_jobs : int or None, default=None
@@ -506,6 +625,8 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
     >>> table = compare_models(training_set(runs), n_support=50)
     >>> table.models, table.best, table.held_out
     (['sp_c', 'gp'], 'sp_c', ['run0', 'run1', 'run2'])
+    >>> table.thresholds.shape, bool(table.margins.min() >= 1)
+    ((2, 1), True)
     """
     left_out = {}
     if models is None:
@@ -516,7 +637,10 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
     var = np.var(data.y, axis=0)
     var[var == 0] = 1.0
     folds = _folds(data, n_folds)
+    template = _alarm_template(data, sigma_v)
     sse = np.zeros((len(models), data.y.shape[1]))
+    peaks = [{} for _ in models]
+    counts = [{} for _ in models]
     seconds = [0.0] * len(models)
     n_test = 0
     bar = progress("comparing models (leave one recording out)",
@@ -525,8 +649,7 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
         train_rows = np.flatnonzero(~test)
         train_rows = train_rows[::max(1, -(-len(train_rows) // max_rows))]
         fold = _subset(data, train_rows, f"all but {name}")
-        test_rows = np.flatnonzero(test)
-        test_rows = test_rows[::max(1, -(-len(test_rows) // max_rows))]
+        test_rows = np.flatnonzero(test)[:FOLD_TEST_ROWS]  # contiguous: filtered in time
         X_test, y_test = data.X[test_rows], data.y[test_rows]
         n_test += len(y_test)
         for k, model in enumerate(models):
@@ -537,12 +660,19 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=300,
                 coulomb_width=coulomb_width if model in ROBOT_MODELS else None)
             predicted = np.reshape(fitted.regressor.predict(X_test), y_test.shape)
             sse[k] += ((predicted - y_test) ** 2).sum(axis=0)
+            peaks[k][name], counts[k][name] = _excursions(template, fitted.regressor,
+                                                          X_test, y_test)
             seconds[k] += time.perf_counter() - tic
             if bar is not None:
                 bar.update()
+    thresholds, margins = None, None
+    if len(folds) >= 2:
+        pairs = [_fold_thresholds(p, c) for p, c in zip(peaks, counts)]
+        thresholds = np.array([t for t, _ in pairs])
+        margins = np.array([m for _, m in pairs])
     return ModelComparison(models=models, errors=sse / n_test / var, seconds=seconds,
                            held_out=[name for name, _ in folds], n_support=int(n_support),
-                           left_out=left_out)
+                           left_out=left_out, thresholds=thresholds, margins=margins)
 
 
 def input_signals(recordings, signals="auto", model="auto"):

@@ -130,6 +130,10 @@ class TrainingSet:
     sizes : tuple of int
         Rows of ``X`` from each recording, in order (for splits by
         recording, e.g. :func:`~sklearn_gpcd.workflow.compare_models`).
+    sample_time : float or None
+        Median time between consecutive rows of ``X`` [s] (the recordings'
+        sample time times ``step``), for the alarm rule of
+        :func:`~sklearn_gpcd.workflow.compare_models`.
 
     Examples
     --------
@@ -152,6 +156,7 @@ class TrainingSet:
     step: int
     has_target_current: bool = True
     sizes: tuple = ()
+    sample_time: float = None
 
 
 def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
@@ -209,6 +214,8 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     bar = _bar(progress, f"computing GP inputs ({inputs})", len(recordings))
     unused = _unused_columns(features.signals_, features.n_joints_)
     X, y, sizes, offset = [], [], [], 0
+    steps = np.concatenate([np.diff(np.asarray(rec.time, float)) for rec in recordings])
+    sample_time = float(np.median(steps)) * step if steps.size else None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         while recordings:  # thin each block to the global every-step-th row, free as we go
@@ -228,7 +235,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     _warn_once_per_kind(caught, len(names))
     return TrainingSet(X=np.vstack(X), y=np.vstack(y), features=features, inputs=inputs,
                        names=names, n_rows=n_rows, step=step, has_target_current=has_ic,
-                       sizes=tuple(sizes))
+                       sizes=tuple(sizes), sample_time=sample_time)
 
 
 def _unused_columns(signals, n_joints):
