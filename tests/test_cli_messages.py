@@ -338,6 +338,7 @@ T = {
               s["d1"], "-o", t / "x.skops"]),
     "calibration-short": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "regime-coverage": lambda s, t, mp: dict(output=s["calibrate_output"]),
+    "calibration-short-of-good": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "monitor-source": lambda s, t, mp: dict(argv=["monitor", s["det"]]),
     "plot-rtde": lambda s, t, mp: dict(
         argv=["monitor", s["det"], "--rtde", "127.0.0.1", "--plot", t / "figures"]),
@@ -399,13 +400,13 @@ def test_message_names_its_fix(key, sims, tmp_path, monkeypatch):
     assert len(found) == 1, f"{key}: said {len(found)} times"
 
 
-def test_select_prints_the_false_alarms_of_the_settings_it_chose(sims):
-    """``gpcd calibrate`` (``--select`` by default) prints, beside the nested figure,
-    the expected false alarms of the settings it marks as chosen (issue #37)."""
+def test_calibrate_prints_one_false_alarm_figure(sims):
+    """``gpcd calibrate`` (``--select`` by default) prints one expected false-alarm
+    figure, the nested one, with its bound (issue 46: not a second figure "at the
+    chosen settings alone")."""
     _, out, _ = sims["calibrate_output"]
-    chosen = [line for line in out.splitlines() if line.endswith("<- chosen")]
-    assert len(chosen) == 1
-    settle, rest, n_alarms = re.match(
-        r"\s+settle\s+(.+?), rest reference\s+(.+?): alarms (\d+),", chosen[0]).groups()
-    line = next(line for line in out.splitlines() if "at the chosen settings" in line)
-    assert f"(settle {settle}, rest reference {rest}) alone: {n_alarms} onset(s) = " in line
+    assert len([line for line in out.splitlines() if line.endswith("<- chosen")]) == 1
+    figures = [line for line in out.splitlines() if "per hour" in line]
+    assert len(figures) == 2, figures
+    assert figures[0].lstrip().startswith("expected false alarms: ")
+    assert figures[1].lstrip().startswith("95 % upper bound: ")

@@ -316,3 +316,11 @@ def test_install_page_lists_every_extra():
     extras = set(_extras((REPO / "pyproject.toml").read_text())) - {"all", "second-engine"}
     missing = sorted(e for e in extras if f"``{e}``" not in text)
     assert not missing, f"docs/install.rst's extras table omits {missing}"
+
+
+def test_readme_good_calibration_is_what_gpcd_calibrate_checks():
+    """The README's "good calibration" is the bar below which gpcd calibrate warns."""
+    from sklearn_gpcd.workflow.calibration import GOOD_MARGIN
+
+    text = " ".join(README.read_text().split())
+    assert f"margin of at most {GOOD_MARGIN:g} and expects no false alarm" in text
