@@ -143,3 +143,33 @@ def test_a_regime_without_data_takes_the_largest_thresholds_of_the_others(traine
     assert any("no calibration data in the rest regime" in m for m in messages)
     report = calibration_report(summary)
     assert "largest of the regimes with data" in report
+
+
+def test_units_are_checked_between_model_and_recordings():
+    """A torque model calibrated on recordings read as currents is refused (issue 46)."""
+    torques = [_recording(20, p, seed=s, name=f"t{s}.csv").replace(units="Nm")
+               for s, p in enumerate((0.0, 1.0, 2.0))]
+    trained = train_model(torques[:1], model="sp_c", n_support=30)
+    assert trained.training["units"] == "Nm"
+    currents = [_recording(20, p, seed=s, name=f"calib/c{s}.csv") for s, p in ((4, 1.5),
+                                                                              (5, 2.5))]
+    with pytest.raises(ValueError, match=r"calib/c4.csv: its currents are read as motor "
+                                         r"currents \[A\], but the model was trained on "
+                                         r"joint torques \[Nm\].*--column-map"):
+        calibrate_detector(trained, currents)
+    with pytest.raises(ValueError, match=r"mix joint torques \[Nm\] \(t0.csv\) and motor "
+                                         r"currents \[A\] \(calib/c4.csv\)"):
+        train_model([torques[0], currents[0]], model="sp_c", n_support=30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        summary = calibrate_detector(trained, torques[1:]).calibration
+    assert summary["units"] == "Nm" and "thresholds [Nm]:" in calibration_report(summary)
+
+
+def test_wrong_joint_count_names_the_file(trained):
+    rec = _recording(20, 1.0, name="calib/two.csv")
+    two = rec.replace(**{k: np.hstack([getattr(rec, k)] * 2)
+                         for k in ("q", "qd", "current", "target_current")})
+    with pytest.raises(ValueError, match=r"calib/two.csv: 2 joints, but the model was "
+                                         r"trained on recordings of 1 joints.*gpcd train"):
+        calibrate_detector(trained, [two, two])

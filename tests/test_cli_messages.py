@@ -336,6 +336,14 @@ T = {
         argv=["calibrate", s["model"], _rtde(s["rec"].replace(
             target_q=None, target_qd=None, target_current=None), t / "nosignals.csv"),
               s["d1"], "-o", t / "x.skops"]),
+    "calibrate-joints": lambda s, t, mp: dict(
+        argv=["calibrate", s["model"], _five_joints(s, t), _five_joints(s, t, "five_b.csv"),
+              "--column-map", FIVE_MAP, "-o", t / "x.skops"], file="five.csv"),
+    "units-mismatch": lambda s, t, mp: dict(
+        argv=["calibrate", _model_variant(s, t, "torque.skops", training=_in_nm(s)),
+              s["d0"], s["d1"], "-o", t / "x.skops"], file="d0.csv"),
+    "monitor-units": lambda s, t, mp: dict(
+        argv=["monitor", _detector_in_nm(s, t), s["d1"]], file="d1.csv"),
     "calibration-short": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "regime-coverage": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "calibration-short-of-good": lambda s, t, mp: dict(output=s["calibrate_output"]),
@@ -361,9 +369,26 @@ T = {
 }
 
 
-def _five_joints(s, t):
+def _in_nm(s):
+    """The training record of the fixture's model, as if trained on joint torques."""
+    from sklearn_gpcd.workflow import load_model
+
+    return dict(load_model(s["model"]).training, units="Nm")
+
+
+def _detector_in_nm(s, t):
+    """The fixture's detector, as if calibrated on joint torques."""
+    from sklearn_gpcd.workflow import CalibratedDetector, load_detector, save_detector
+
+    detector, features, calibration = load_detector(s["det"])
+    path = t / "torque_detector.skops"
+    save_detector(CalibratedDetector(detector, features, dict(calibration, units="Nm")), path)
+    return str(path)
+
+
+def _five_joints(s, t, name="five.csv"):
     rec = s["rec"]
-    path = t / "five.csv"
+    path = t / name
     np.savetxt(path, np.hstack([rec.time[:, None], rec.q[:, :5], rec.qd[:, :5],
                                 rec.current[:, :5]]), delimiter=",", fmt="%.9g")
     return str(path)

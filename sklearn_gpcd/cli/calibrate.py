@@ -149,6 +149,7 @@ def run(args):
         recording_keys,
         save_detector,
     )
+    from ..workflow.calibration import check_recordings
 
     start = time.perf_counter()
     paths = [Path(p).resolve() for p in recording_paths(args.recordings)]
@@ -167,6 +168,10 @@ def run(args):
     options["motion_envelope"] = args.motion_envelope or None  # 0: none
     trained = load_model(args.model, trust_pickle=args.trust_pickle)
     recordings = read_recordings(args.recordings, args, "calibration recordings")
+    if trained.features is not None:
+        check_recordings(recordings, f"the model {args.model}",
+                         n_joints=trained.features.n_joints_,
+                         units=trained.training.get("units"))
     robot = _optional_robot(args, recordings)
     calibrated = calibrate_detector(
         trained, recordings, keys=recording_keys(recordings), split=args.split, robot=robot,

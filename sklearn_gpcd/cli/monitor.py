@@ -16,7 +16,7 @@ import json
 import time
 from pathlib import Path
 
-from ..workflow.calibration import load_detector, recording_keys
+from ..workflow.calibration import check_recordings, load_detector, recording_keys
 from ._args import (
     column_map_arg,
     existing_file,
@@ -125,6 +125,8 @@ def run(args):
             args.robot = None
             recordings = read_recordings(paths, args, "recordings",
                                           progress=not (args.quiet or live))
+            check_recordings(recordings, f"the detector {args.detector}",
+                             units=calibration.get("units"))
             keys = recording_keys(recordings)
             for key, rec in zip(keys, recordings):
                 session.run_recording(rec, key, duration=args.duration,

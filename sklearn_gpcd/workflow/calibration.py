@@ -367,6 +367,8 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     if features is None:
         raise ValueError("the model file holds no input features (written by an earlier "
                          "gpcd train): train the model again with gpcd train")
+    check_recordings(recordings, "the model", n_joints=features.n_joints_,
+                     units=trained.training.get("units"))
     _check_model_inputs(model, features)
     if split is not None:
         keys, recordings = split_recordings(keys, recordings, split)
@@ -621,6 +623,54 @@ def check_calibration_options(*, regimes=True, rest_reference=None, settle_time=
                          "--band-candidate there are several: drop --select or the bands")
     if braking is not None and not regimes:
         raise ValueError("--braking is a regime: drop --no-regimes")
+
+
+#: What the current columns of a recording hold, by ``Recording.units``.
+_UNITS_WORDS = {"A": "motor currents [A]", "Nm": "joint torques [Nm]"}
+
+
+def check_recordings(recordings, source, *, n_joints=None, units=None):
+    """Refuse recordings a model or detector was not trained for, naming the file.
+
+    Parameters
+    ----------
+    recordings : list of Recording
+    source : str
+        The model or detector in the user's words, e.g. ``"the model model.skops"``.
+    n_joints : int or None, default=None
+        Joints it was trained on (None: not checked).
+    units : {"A", "Nm"} or None, default=None
+        What its currents are (``Recording.units`` of its training recordings;
+        None: not recorded, not checked).
+
+    Raises
+    ------
+    ValueError
+        A recording with another number of joints, or currents in other units.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> rec = Recording(time=np.arange(5.0), q=np.zeros((5, 2)), qd=np.zeros((5, 2)),
+    ...                 current=np.zeros((5, 2)), name="calib/a.csv")
+    >>> check_recordings([rec], "the model m.skops", n_joints=2, units="Nm")
+    Traceback (most recent call last):
+    ...
+    ValueError: calib/a.csv: its currents are read as motor currents [A], but the model ...
+    """
+    for rec in recordings:
+        if n_joints is not None and rec.n_joints != n_joints:
+            raise ValueError(
+                f"{rec.name}: {rec.n_joints} joints, but {source} was trained on recordings "
+                f"of {n_joints} joints: give recordings of the arm it was trained on, or "
+                "train a model on this arm's recordings with gpcd train")
+        if units is not None and rec.units != units:
+            raise ValueError(
+                f"{rec.name}: its currents are read as {_UNITS_WORDS.get(rec.units, rec.units)}"
+                f", but {source} was trained on {_UNITS_WORDS.get(units, units)}: read it with "
+                "the column map of the training recordings (--column-map, with "
+                + (f'"units": "{units}")' if units != "A" else 'no "units": "Nm")'))
 
 
 def _check_model_inputs(model, features):

@@ -126,6 +126,9 @@ class TrainingSet:
     sizes : tuple of int
         Rows of ``X`` from each recording, in order (for splits by
         recording, e.g. :func:`~sklearn_gpcd.workflow.compare_models`).
+    units : {"A", "Nm"}
+        What ``y`` holds: motor currents [A] or joint torques [Nm]
+        (``Recording.units``, from the column map's ``"units"``).
 
     Examples
     --------
@@ -148,6 +151,7 @@ class TrainingSet:
     step: int
     has_target_current: bool = True
     sizes: tuple = ()
+    units: str = "A"
 
 
 def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
@@ -196,6 +200,12 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     recordings = recordings if isinstance(recordings, list) else list(recordings)
     if not recordings:
         raise ValueError("no training recordings")
+    if len(units := {rec.units for rec in recordings}) > 1:
+        torques = next(rec.name for rec in recordings if rec.units == "Nm")
+        currents = next(rec.name for rec in recordings if rec.units != "Nm")
+        raise ValueError(f"the training recordings mix joint torques [Nm] ({torques}) and "
+                         f"motor currents [A] ({currents}): read them all with one column "
+                         "map (its \"units\")")
     features = CausalFeatures(allow_missing=allow_missing, signals=signals).fit(recordings)
     names = [rec.name for rec in recordings]
     has_ic = all(rec.target_current is not None for rec in recordings)
@@ -223,7 +233,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     _warn_once_per_kind(caught, len(names))
     return TrainingSet(X=np.vstack(X), y=np.vstack(y), features=features, inputs=inputs,
                        names=names, n_rows=n_rows, step=step, has_target_current=has_ic,
-                       sizes=tuple(sizes))
+                       sizes=tuple(sizes), units=units.pop())
 
 
 def _unused_columns(signals, n_joints):
@@ -254,7 +264,8 @@ class TrainedModel:
         used), ``batch_size``, ``seed``, ``sigma_v``, ``coulomb_width``,
         ``signals``, ``robot``,
         ``recordings``, ``n_rows``, ``n_rows_used``, ``step``,
-        ``acceleration_limit`` (:func:`acceleration_limit`).
+        ``acceleration_limit`` (:func:`acceleration_limit`), ``units`` (of
+        the target: "A" for motor currents, "Nm" for joint torques).
 
     Examples
     --------
@@ -458,7 +469,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "signals": list(features.signals_),
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
-        "acceleration_limit": acceleration_limit(data),
+        "acceleration_limit": acceleration_limit(data), "units": data.units,
     }
     return TrainedModel(regressor=regressor, features=features, training=training)
 
