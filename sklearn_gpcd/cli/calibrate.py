@@ -52,6 +52,14 @@ def _braking_arg(value):
     return limit
 
 
+def _grid_text(name):
+    """The candidates of ``--select`` for one setting, in words: "none, 2, 5 s"."""
+    from ..workflow.calibration import SELECT_GRID
+
+    values = SELECT_GRID[f"regimes__{name}"]
+    return ", ".join("none" if v is None else f"{v:g}" for v in values) + " s"
+
+
 def add_parser(sub):
     """Register ``calibrate`` on the ``gpcd`` subparsers ``sub``."""
     cal = sub.add_parser(
@@ -72,14 +80,18 @@ def add_parser(sub):
     add_recording_options(cal, "built-in name or URDF path, for thresholds in Nm "
                                "(default: the robot named in the recordings' metadata)")
     cal.add_argument("--rest-reference", type=non_negative_float, default=None,
-                     help="time constant [s] of the rest re-reference (0: none; default 5)")
+                     help="time constant [s] of the rest re-reference (0: none; default: "
+                     f"chosen across the recordings among {_grid_text('rest_reference')} "
+                     "(--select), 5 with --no-select)")
     cal.add_argument("--settle-time", type=non_negative_float, default=None,
                      metavar="SECONDS",
                      help="seconds the arm must be still after a motion before it is at "
-                     "rest (default 0.5)")
+                     f"rest (default: chosen across the recordings among "
+                     f"{_grid_text('settle_time')} (--select), 0.5 with --no-select)")
     cal.add_argument("--select", action=argparse.BooleanOptionalAction, default="auto",
-                     help="choose the settle time (0.5, 1, 2, 3 s) and the rest reference "
-                     "(none, 2, 5 s) across the recordings: of the pairs with the fewest "
+                     help=f"choose the settle time ({_grid_text('settle_time')}) and the "
+                     f"rest reference ({_grid_text('rest_reference')}) across the "
+                     "recordings: of the pairs with the fewest "
                      "nested alarm onsets on the recordings, the one with the smallest "
                      "time-weighted thresholds at its own leave-one-recording-out margin; "
                      "the expected false alarms then count each recording at the pair "
