@@ -344,6 +344,8 @@ T = {
               s["d0"], s["d1"], "-o", t / "x.skops"], file="d0.csv"),
     "monitor-units": lambda s, t, mp: dict(
         argv=["monitor", _detector_in_nm(s, t), s["d1"]], file="d1.csv"),
+    "training-short": lambda s, t, mp: _stop_before_fit(mp) or dict(
+        argv=["train", s["d0"], s["d1"], "--model", "gp", "-q", "-o", t / "m.skops"]),
     "calibration-short": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "regime-coverage": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "calibration-short-of-good": lambda s, t, mp: dict(output=s["calibrate_output"]),

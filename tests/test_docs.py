@@ -324,3 +324,12 @@ def test_readme_good_calibration_is_what_gpcd_calibrate_checks():
 
     text = " ".join(README.read_text().split())
     assert f"margin of at most {GOOD_MARGIN:g} and expects no false alarm" in text
+
+
+def test_readme_training_duration_is_what_gpcd_train_checks():
+    """The recipe's "10+ min" is the bar below which gpcd train warns."""
+    from sklearn_gpcd.workflow.training import MIN_TRAINING_SECONDS
+
+    recipe = README.read_text().split("**The recipe.**", 1)[1].split("```", 2)[1]
+    train = next(line for line in recipe.splitlines() if line.startswith("gpcd train"))
+    assert f"# {MIN_TRAINING_SECONDS / 60:g}+ min" in train

@@ -4,9 +4,17 @@ chosen by leave-one-recording-out error by default (:func:`sklearn_gpcd.workflow
 
 import os
 import time
+import warnings
 
 from ..workflow.model_choice import CHOICE_RULE, FEEDBACK_RULE, SIGNALS
-from ..workflow.training import INPUTS, MODELS, OPTIMIZERS, ROBOT_MODELS, TRAIN_RULE
+from ..workflow.training import (
+    INPUTS,
+    MIN_TRAINING_SECONDS,
+    MODELS,
+    OPTIMIZERS,
+    ROBOT_MODELS,
+    TRAIN_RULE,
+)
 from ._args import (
     ProgressBar,
     add_recording_options,
@@ -109,6 +117,18 @@ def _robot(args, recordings):
     return robot_for(args, recordings), None
 
 
+def _warn_short(recordings):
+    """Warn when the training recordings last less than the recipe's 10 minutes."""
+    total = sum(rec.duration for rec in recordings)
+    if total < MIN_TRAINING_SECONDS:
+        warnings.warn(
+            f"the training recordings last {total / 60:.1f} min in all ({len(recordings)} "
+            f"recording(s), the longest {max(recordings, key=lambda r: r.duration).name}); "
+            f"a model needs {MIN_TRAINING_SECONDS / 60:g} min or more of varied collision-"
+            "free motion (the workspace, speeds and accelerations the robot will use): "
+            "record more and run gpcd train on all of them", UserWarning, stacklevel=2)
+
+
 def run(args):
     """``gpcd train``: choose and fit the model on the recordings, save it with its inputs."""
     from ..robots import list_robots
@@ -127,6 +147,7 @@ def run(args):
     signals, check = input_signals(recordings, args.signals, model)
     n_jobs = min(recordings[0].n_joints, os.cpu_count() or 1) if args.n_jobs is None else args.n_jobs
     bars = lambda label, total: ProgressBar(label, total, enabled=not quiet)  # noqa: E731
+    _warn_short(recordings)  # the inputs are usable: before the fits, which take minutes
     data = training_set(recordings, args.inputs, progress=bars, signals=signals)
     notes = []  # printed before the fits, which may take minutes
     if robot is None:

@@ -60,6 +60,9 @@ INPUTS = ("causal", "zero-phase")
 OPTIMIZERS = ("auto", "adam", "fmin_l_bfgs_b")
 #: What a model file written by :func:`save_model` holds.
 MODEL_KIND = "gpcd-model"
+#: Training recordings shorter than this in all [s] warn in ``gpcd train``:
+#: the README's recipe asks for 10 minutes or more of varied motion.
+MIN_TRAINING_SECONDS = 600.0
 #: Rows that enter a fit at most (see :data:`TRAIN_RULE`).
 MAX_TRAIN_ROWS = 200_000
 #: The rule :func:`train_model` (and ``gpcd train``) follows, safe on any log size.
