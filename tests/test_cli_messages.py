@@ -437,3 +437,18 @@ def test_calibrate_prints_one_false_alarm_figure(sims):
     assert len(figures) == 2, figures
     assert figures[0].lstrip().startswith("expected false alarms: ")
     assert figures[1].lstrip().startswith("95 % upper bound: ")
+
+
+def test_train_and_calibrate_print_the_size_of_the_file_they_wrote(sims):
+    """The docs say the commands print the file size (issue 46)."""
+    import os
+
+    _, out, _ = sims["calibrate_output"]
+    size = os.path.getsize(sims["det"])
+    line = next(line for line in out.splitlines() if "wrote" in line)
+    number, unit = re.search(r"wrote .*det\.skops, ([\d.]+) (GB|MB|kB|bytes)", line).groups()
+    scale = {"GB": 1e9, "MB": 1e6, "kB": 1e3, "bytes": 1}[unit]
+    assert float(number) * scale == pytest.approx(size, rel=0.01)
+    _, train_out, _ = _run(["train", sims["d0"], "--model", "gp", "--n-support", "30", "-q",
+                            "-o", sims["folder"] / "sized.skops"])
+    assert re.search(r"wrote .*sized\.skops, [\d.]+ (GB|MB|kB|bytes)", train_out)

@@ -12,6 +12,7 @@ from ._args import (
     ProgressBar,
     add_recording_options,
     existing_file,
+    file_size,
     model_file_arg,
     non_negative_float,
     positive_float,
@@ -191,5 +192,6 @@ def run(args):
         **options)
     save_detector(calibrated, args.output)
     print(calibration_report(calibrated.calibration))
-    print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}")
+    print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}, "
+          f"{file_size(args.output)}")
     return 0

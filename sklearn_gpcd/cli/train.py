@@ -18,6 +18,7 @@ from ..workflow.training import (
 from ._args import (
     ProgressBar,
     add_recording_options,
+    file_size,
     model_file_arg,
     n_support_arg,
     positive_float,
@@ -187,6 +188,6 @@ def run(args):
         print(f"  (model choice {choice_seconds:.1f} s)")
     print(training_report(trained))
     print(f"  inputs and fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "
-          f"wrote {args.output} (the model, its causal input features and how it was "
-          "trained)")
+          f"wrote {args.output}, {file_size(args.output)} (the model, its causal input "
+          "features and how it was trained)")
     return 0
