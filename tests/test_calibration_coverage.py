@@ -73,5 +73,103 @@ def test_enough_data_from_several_recordings_does_not_warn(trained):
             qd[600 * k + 400:600 * (k + 1)] = 0.0
         recordings.append(Recording(time=rec.time, q=rec.q, qd=qd, current=rec.current,
                                     target_current=rec.target_current))
-    _, messages = _calibrate(trained, recordings)
-    assert messages == []
+    calibrated, messages = _calibrate(trained, recordings)
+    summary = calibrated.calibration
+    # no coverage warning; the quality warning (issue 46) only for what the summary shows
+    coverage = [m for m in messages if not m.startswith("the calibration falls short")]
+    assert coverage == []
+    short_of_good = summary["margin"] > 2.0 or summary["n_false_alarms_nested"] > 0
+    assert len(messages) == int(short_of_good)
+
+
+def _summary(margin, count, hours=0.5, onsets=None):
+    return {"margin": margin, "n_false_alarms_nested": count, "hours": hours,
+            "false_alarms_per_hour": count / hours,
+            "nested_onsets_s": onsets or {"a.csv": [], "b.csv": [1.0] * count}}
+
+
+@pytest.mark.parametrize("margin, count, warns", [(1.5, 0, False), (2.0, 0, False),
+                                                  (3.07, 0, True), (1.2, 1, True),
+                                                  (3.07, 36, True)])
+def test_a_summary_short_of_good_warns_with_its_figures(margin, count, warns):
+    """Good (README): margin at most 2, no expected false alarm (issue 46)."""
+    from sklearn_gpcd.workflow.calibration import _warn_quality
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _warn_quality(_summary(margin, count))
+    messages = [str(w.message) for w in caught if w.category is CalibrationWarning]
+    assert len(messages) == int(warns)
+    if warns:
+        assert f"margin {margin:.2f}" in messages[0] and "gpcd calibrate" in messages[0]
+    if warns and count:
+        bound = rate_upper_bound(count, 0.5)
+        assert f"{count / 0.5:.0f} expected false alarms per hour" in messages[0]
+        assert f"95 % upper bound {bound:.0f}" in messages[0] and "b.csv" in messages[0]
+        assert "a.csv" not in messages[0]
+
+
+def test_the_summary_prints_one_false_alarm_figure(trained):
+    recordings = [_recording(30, p, seed=s) for s, p in enumerate((1.0, 2.0, 3.0))]
+    calibrated, _ = _calibrate(trained, recordings)
+    report = calibration_report(calibrated.calibration)
+    assert calibrated.calibration["candidates"]  # the settings were chosen (select)
+    assert len(re.findall(r"per hour", report)) == 2, report  # the figure and its bound
+    assert "alone" not in report
+
+
+def test_a_regime_without_data_takes_the_largest_thresholds_of_the_others(trained):
+    """A few samples at rest must not set rest thresholds far below the moving ones."""
+    recordings = []
+    for s, phase in enumerate((1.0, 2.0, 3.0)):
+        rec = _recording(30, phase, seed=s)
+        qd = rec.qd.copy()
+        qd[1500:1580] = 0.0  # 0.8 s still: 0.5 s settling, then 0.3 s at rest
+        recordings.append(rec.replace(qd=qd))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        calibrated = calibrate_detector(trained, recordings, settle_time=0.5)
+    messages = [str(w.message) for w in caught if w.category is CalibrationWarning]
+    summary = calibrated.calibration
+    seconds = {name: c["seconds"] for name, c in summary["coverage"].items()}
+    assert seconds["moving"] > 60 and 0.0 < seconds["rest"] < 1.0
+    assert "rest" in summary["regimes_without_data"]
+    thresholds = dict(zip(summary["regimes"], np.array(summary["thresholds_A"])))
+    with_data = [name for name in summary["regimes"]
+                 if name not in summary["regimes_without_data"]]
+    largest = np.max([thresholds[name] for name in with_data], axis=0)
+    np.testing.assert_allclose(thresholds["rest"], largest)
+    np.testing.assert_allclose(calibrated.detector.thresholds_[2], largest)
+    assert any("no calibration data in the rest regime" in m for m in messages)
+    report = calibration_report(summary)
+    assert "largest of the regimes with data" in report
+
+
+def test_units_are_checked_between_model_and_recordings():
+    """A torque model calibrated on recordings read as currents is refused (issue 46)."""
+    torques = [_recording(20, p, seed=s, name=f"t{s}.csv").replace(units="Nm")
+               for s, p in enumerate((0.0, 1.0, 2.0))]
+    trained = train_model(torques[:1], model="sp_c", n_support=30)
+    assert trained.training["units"] == "Nm"
+    currents = [_recording(20, p, seed=s, name=f"calib/c{s}.csv") for s, p in ((4, 1.5),
+                                                                              (5, 2.5))]
+    with pytest.raises(ValueError, match=r"calib/c4.csv: its currents are read as motor "
+                                         r"currents \[A\], but the model was trained on "
+                                         r"joint torques \[Nm\].*--column-map"):
+        calibrate_detector(trained, currents)
+    with pytest.raises(ValueError, match=r"mix joint torques \[Nm\] \(t0.csv\) and motor "
+                                         r"currents \[A\] \(calib/c4.csv\)"):
+        train_model([torques[0], currents[0]], model="sp_c", n_support=30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        summary = calibrate_detector(trained, torques[1:]).calibration
+    assert summary["units"] == "Nm" and "thresholds [Nm]:" in calibration_report(summary)
+
+
+def test_wrong_joint_count_names_the_file(trained):
+    rec = _recording(20, 1.0, name="calib/two.csv")
+    two = rec.replace(**{k: np.hstack([getattr(rec, k)] * 2)
+                         for k in ("q", "qd", "current", "target_current")})
+    with pytest.raises(ValueError, match=r"calib/two.csv: 2 joints, but the model was "
+                                         r"trained on recordings of 1 joints.*gpcd train"):
+        calibrate_detector(trained, [two, two])

@@ -104,3 +104,20 @@ def test_ci_runs_the_tests_in_a_fresh_virtual_environment():
     install = script.index('python -m pip install -e ".[tests]"')
     assert venv < activate < install
     assert '"$status" -eq 5' in script  # pytest collecting nothing fails CI
+
+
+def test_calibrate_help_gives_the_defaults_the_selection_uses():
+    """--rest-reference / --settle-time: chosen among the --select grid by default,
+    not a fixed number (issue 46: the help said "default 5")."""
+    from sklearn_gpcd.cli import build_parser
+    from sklearn_gpcd.workflow.calibration import DEFAULT_REST_REFERENCE, SELECT_GRID
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    options = {a.dest: a.help for a in sub.choices["calibrate"]._actions}
+    for name in ("rest_reference", "settle_time"):
+        text = " ".join(options[name].split())
+        grid = ", ".join("none" if v is None else f"{v:g}"
+                         for v in SELECT_GRID[f"regimes__{name}"])
+        assert f"default: chosen across the recordings among {grid} s (--select)" in text, text
+    assert f"{DEFAULT_REST_REFERENCE:g} with --no-select" in options["rest_reference"]
+    assert "default 5)" not in options["rest_reference"]

@@ -203,7 +203,14 @@ def test_braking_takes_the_limit_given_or_the_models_own(work, capsys):
         FrozenEstimator(trained.regressor), n_joints=6, sample_time="auto",
         rules=AlarmRule(**DETECTOR_RULE, regimes=Regimes(rest_reference=5.0, brake_limit=limit)))
     expected = calibrate_across_recordings(template, blocks, times)
-    np.testing.assert_allclose(detector.thresholds_, expected.detector.thresholds_)
+    # a regime with less than 1 s of data takes, joint by joint, the largest
+    # threshold of the regimes with data (issue 46)
+    thin = [calibration["regimes"].index(name) for name in calibration["regimes_without_data"]]
+    assert all(calibration["coverage"][calibration["regimes"][g]]["seconds"] < 1.0 for g in thin)
+    wanted = np.array(expected.detector.thresholds_, copy=True)
+    rich = [g for g in range(len(wanted)) if g not in thin]
+    wanted[thin] = wanted[rich].max(axis=0)
+    np.testing.assert_allclose(detector.thresholds_, wanted)
     assert any((expected.detector.monitoring_signal(b).regime == 3).any()
                for b in blocks.values())
     # without LIMIT: the one gpcd train recorded in the model file

@@ -376,8 +376,19 @@ T = {
         argv=["calibrate", s["model"], _rtde(s["rec"].replace(
             target_q=None, target_qd=None, target_current=None), t / "nosignals.csv"),
               s["d1"], "-o", t / "x.skops"]),
+    "calibrate-joints": lambda s, t, mp: dict(
+        argv=["calibrate", s["model"], _five_joints(s, t), _five_joints(s, t, "five_b.csv"),
+              "--column-map", FIVE_MAP, "-o", t / "x.skops"], file="five.csv"),
+    "units-mismatch": lambda s, t, mp: dict(
+        argv=["calibrate", _model_variant(s, t, "torque.skops", training=_in_nm(s)),
+              s["d0"], s["d1"], "-o", t / "x.skops"], file="d0.csv"),
+    "monitor-units": lambda s, t, mp: dict(
+        argv=["monitor", _detector_in_nm(s, t), s["d1"]], file="d1.csv"),
+    "training-short": lambda s, t, mp: _stop_before_fit(mp) or dict(
+        argv=["train", s["d0"], s["d1"], "--model", "gp", "-q", "-o", t / "m.skops"]),
     "calibration-short": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "regime-coverage": lambda s, t, mp: dict(output=s["calibrate_output"]),
+    "calibration-short-of-good": lambda s, t, mp: dict(output=s["calibrate_output"]),
     "monitor-source": lambda s, t, mp: dict(argv=["monitor", s["det"]]),
     "plot-rtde": lambda s, t, mp: dict(
         argv=["monitor", s["det"], "--rtde", "127.0.0.1", "--plot", t / "figures"]),
@@ -400,9 +411,26 @@ T = {
 }
 
 
-def _five_joints(s, t):
+def _in_nm(s):
+    """The training record of the fixture's model, as if trained on joint torques."""
+    from sklearn_gpcd.workflow import load_model
+
+    return dict(load_model(s["model"]).training, units="Nm")
+
+
+def _detector_in_nm(s, t):
+    """The fixture's detector, as if calibrated on joint torques."""
+    from sklearn_gpcd.workflow import CalibratedDetector, load_detector, save_detector
+
+    detector, features, calibration = load_detector(s["det"])
+    path = t / "torque_detector.skops"
+    save_detector(CalibratedDetector(detector, features, dict(calibration, units="Nm")), path)
+    return str(path)
+
+
+def _five_joints(s, t, name="five.csv"):
     rec = s["rec"]
-    path = t / "five.csv"
+    path = t / name
     np.savetxt(path, np.hstack([rec.time[:, None], rec.q[:, :5], rec.qd[:, :5],
                                 rec.current[:, :5]]), delimiter=",", fmt="%.9g")
     return str(path)
@@ -439,13 +467,28 @@ def test_message_names_its_fix(key, sims, tmp_path, monkeypatch):
     assert len(found) == 1, f"{key}: said {len(found)} times"
 
 
-def test_select_prints_the_false_alarms_of_the_settings_it_chose(sims):
-    """``gpcd calibrate`` (``--select`` by default) prints, beside the nested figure,
-    the expected false alarms of the settings it marks as chosen (issue #37)."""
+def test_calibrate_prints_one_false_alarm_figure(sims):
+    """``gpcd calibrate`` (``--select`` by default) prints one expected false-alarm
+    figure, the nested one, with its bound (issue 46: not a second figure "at the
+    chosen settings alone")."""
     _, out, _ = sims["calibrate_output"]
-    chosen = [line for line in out.splitlines() if line.endswith("<- chosen")]
-    assert len(chosen) == 1
-    settle, rest, n_alarms = re.match(
-        r"\s+settle\s+(.+?), rest reference\s+(.+?): alarms (\d+),", chosen[0]).groups()
-    line = next(line for line in out.splitlines() if "at the chosen settings" in line)
-    assert f"(settle {settle}, rest reference {rest}) alone: {n_alarms} onset(s) = " in line
+    assert len([line for line in out.splitlines() if line.endswith("<- chosen")]) == 1
+    figures = [line for line in out.splitlines() if "per hour" in line]
+    assert len(figures) == 2, figures
+    assert figures[0].lstrip().startswith("expected false alarms: ")
+    assert figures[1].lstrip().startswith("95 % upper bound: ")
+
+
+def test_train_and_calibrate_print_the_size_of_the_file_they_wrote(sims):
+    """The docs say the commands print the file size (issue 46)."""
+    import os
+
+    _, out, _ = sims["calibrate_output"]
+    size = os.path.getsize(sims["det"])
+    line = next(line for line in out.splitlines() if "wrote" in line)
+    number, unit = re.search(r"wrote .*det\.skops, ([\d.]+) (GB|MB|kB|bytes)", line).groups()
+    scale = {"GB": 1e9, "MB": 1e6, "kB": 1e3, "bytes": 1}[unit]
+    assert float(number) * scale == pytest.approx(size, rel=0.01)
+    _, train_out, _ = _run(["train", sims["d0"], "--model", "gp", "--n-support", "30", "-q",
+                            "-o", sims["folder"] / "sized.skops"])
+    assert re.search(r"wrote .*sized\.skops, [\d.]+ (GB|MB|kB|bytes)", train_out)

@@ -254,3 +254,82 @@ def test_docs_build_with_warnings_as_errors(tmp_path):
         assert (out / "_images" / f"sphx_glr_{example.stem}_001.png").is_file()
     for example in sorted(set((REPO / "examples").glob("[!_]*.py")) - set(executed)):
         assert (out / "auto_examples" / f"{example.stem}.html").is_file()  # shown, not run
+
+
+# -- the README: a manual, not a lab notebook (issue 46) ---------------------
+
+README = REPO / "README.md"
+
+
+def _quick_start_commands():
+    """The command lines of the README's quick-start block."""
+    block = README.read_text().split("## Quick start", 1)[1].split("```bash", 1)[1]
+    return [line for line in block.split("```", 1)[0].splitlines() if line.strip()]
+
+
+def _extras(pyproject_text):
+    """``{extra: {distribution, ...}}`` of pyproject.toml's optional dependencies."""
+    section = pyproject_text.split("[project.optional-dependencies]", 1)[1].split("\n[", 1)[0]
+    return {name: {re.split(r"[\[<>=]", dep)[0] for dep in re.findall(r'"([^"]+)"', deps)}
+            for name, deps in re.findall(r"^([a-z-]+) = \[(.*)\]$", section, flags=re.M)}
+
+
+def test_readme_is_short():
+    n_lines = len(README.read_text().splitlines())
+    assert n_lines < 120, f"README.md has {n_lines} lines; the measurements go to docs/results_*"
+
+
+def test_readme_quick_start_is_what_ci_runs():
+    """Two commands: the main job, then the tests; .ci/run runs the second verbatim."""
+    commands = _quick_start_commands()
+    assert len(commands) == 2, commands
+    assert "gpcd reproduce --quick" in commands[0]
+    ci_lines = [line.strip() for line in (REPO / ".ci" / "run").read_text().splitlines()]
+    assert commands[1].strip() in ci_lines, (
+        f".ci/run does not run the README's test command {commands[1]!r}")
+    assert "python -m pytest" in commands[1]
+
+
+def test_readme_recipe_runs_after_the_quick_start_install():
+    """The recipe writes .skops files: the quick start's install brings skops."""
+    readme = README.read_text()
+    recipe = readme.split("**The recipe.**", 1)[1].split("```bash", 1)[1].split("```", 1)[0]
+    assert ".skops" in recipe
+    install = re.search(r'pip install "\.\[([a-z,-]+)\]"', _quick_start_commands()[0])
+    assert install, "the quick start's first command installs the package with extras"
+    extras = _extras((REPO / "pyproject.toml").read_text())
+    installed = set().union(*(extras[name] for name in install.group(1).split(",")))
+    assert "skops" in installed, f"extras {install.group(1)} do not bring skops"
+
+
+def test_readme_figures_are_on_a_results_page_and_results_linked_once():
+    readme = README.read_text()
+    results = "".join(p.read_text() for p in DOCS.glob("results_*.rst"))
+    for figure in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", readme):
+        assert Path(figure).name in results, f"README figure {figure} is on no results page"
+    links = re.findall(r"\]\((docs/results_[^)]*)\)", readme)
+    assert len(links) == 1, f"link the results pages once, found {links}"
+
+
+def test_install_page_lists_every_extra():
+    text = (DOCS / "install.rst").read_text()
+    extras = set(_extras((REPO / "pyproject.toml").read_text())) - {"all", "second-engine"}
+    missing = sorted(e for e in extras if f"``{e}``" not in text)
+    assert not missing, f"docs/install.rst's extras table omits {missing}"
+
+
+def test_readme_good_calibration_is_what_gpcd_calibrate_checks():
+    """The README's "good calibration" is the bar below which gpcd calibrate warns."""
+    from sklearn_gpcd.workflow.calibration import GOOD_MARGIN
+
+    text = " ".join(README.read_text().split())
+    assert f"margin of at most {GOOD_MARGIN:g} and expects no false alarm" in text
+
+
+def test_readme_training_duration_is_what_gpcd_train_checks():
+    """The recipe's "10+ min" is the bar below which gpcd train warns."""
+    from sklearn_gpcd.workflow.training import MIN_TRAINING_SECONDS
+
+    recipe = README.read_text().split("**The recipe.**", 1)[1].split("```", 2)[1]
+    train = next(line for line in recipe.splitlines() if line.startswith("gpcd train"))
+    assert f"# {MIN_TRAINING_SECONDS / 60:g}+ min" in train

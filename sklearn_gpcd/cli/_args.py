@@ -252,3 +252,19 @@ def existing_file(value):
     if not Path(value).is_file():
         raise argparse.ArgumentTypeError(f"{value}: no such file")
     return value
+
+
+def file_size(path):
+    """The size of the file at ``path`` in words, e.g. ``"252 MB"``.
+
+    >>> import tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "x.bin"
+    >>> _ = path.write_bytes(b"0" * 2_500_000)
+    >>> file_size(path)
+    '2.5 MB'
+    """
+    size = os.path.getsize(path)
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{size} bytes"

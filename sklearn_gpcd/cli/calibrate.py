@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from ..io.load import recording_paths
+from ..workflow.calibration import SELECT_GRID, check_recordings
 from ..workflow import (
     calibrate_detector,
     calibration_report,
@@ -21,6 +22,7 @@ from ._args import (
     ProgressBar,
     add_recording_options,
     existing_file,
+    file_size,
     model_file_arg,
     non_negative_float,
     positive_float,
@@ -61,6 +63,12 @@ def _braking_arg(value):
     return limit
 
 
+def _grid_text(name):
+    """The candidates of ``--select`` for one setting, in words: "none, 2, 5 s"."""
+    values = SELECT_GRID[f"regimes__{name}"]
+    return ", ".join("none" if v is None else f"{v:g}" for v in values) + " s"
+
+
 def add_parser(sub):
     """Register ``calibrate`` on the ``gpcd`` subparsers ``sub``."""
     cal = sub.add_parser(
@@ -81,14 +89,18 @@ def add_parser(sub):
     add_recording_options(cal, "built-in name or URDF path, for thresholds in Nm "
                                "(default: the robot named in the recordings' metadata)")
     cal.add_argument("--rest-reference", type=non_negative_float, default=None,
-                     help="time constant [s] of the rest re-reference (0: none; default 5)")
+                     help="time constant [s] of the rest re-reference (0: none; default: "
+                     f"chosen across the recordings among {_grid_text('rest_reference')} "
+                     "(--select), 5 with --no-select)")
     cal.add_argument("--settle-time", type=non_negative_float, default=None,
                      metavar="SECONDS",
                      help="seconds the arm must be still after a motion before it is at "
-                     "rest (default 0.5)")
+                     f"rest (default: chosen across the recordings among "
+                     f"{_grid_text('settle_time')} (--select), 0.5 with --no-select)")
     cal.add_argument("--select", action=argparse.BooleanOptionalAction, default="auto",
-                     help="choose the settle time (0.5, 1, 2, 3 s) and the rest reference "
-                     "(none, 2, 5 s) across the recordings: of the pairs with the fewest "
+                     help=f"choose the settle time ({_grid_text('settle_time')}) and the "
+                     f"rest reference ({_grid_text('rest_reference')}) across the "
+                     "recordings: of the pairs with the fewest "
                      "nested alarm onsets on the recordings, the one with the smallest "
                      "time-weighted thresholds at its own leave-one-recording-out margin; "
                      "the expected false alarms then count each recording at the pair "
@@ -166,6 +178,10 @@ def run(args):
     options["motion_envelope"] = args.motion_envelope or None  # 0: none
     trained = load_model(args.model, trust_pickle=args.trust_pickle)
     recordings = read_recordings(args.recordings, args, "calibration recordings")
+    if trained.features is not None:
+        check_recordings(recordings, f"the model {args.model}",
+                         n_joints=trained.features.n_joints_,
+                         units=trained.training.get("units"))
     robot = _optional_robot(args, recordings)
     calibrated = calibrate_detector(
         trained, recordings, keys=recording_keys(recordings), split=args.split, robot=robot,
@@ -173,5 +189,6 @@ def run(args):
         **options)
     save_detector(calibrated, args.output)
     print(calibration_report(calibrated.calibration))
-    print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}")
+    print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}, "
+          f"{file_size(args.output)}")
     return 0

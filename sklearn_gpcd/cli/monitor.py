@@ -20,7 +20,7 @@ from pathlib import Path
 from .._atomic import atomic_write
 from ..monitoring.stops import StopSignal, hold_stop_signals, stop_signals
 from ..monitoring import MonitorSession
-from ..workflow.calibration import load_detector, recording_keys
+from ..workflow.calibration import check_recordings, load_detector, recording_keys
 from ._args import (
     column_map_arg,
     existing_file,
@@ -117,7 +117,7 @@ def run(args):
     plots = []
     with stop_signals():  # SIGTERM and SIGHUP end the run like Ctrl-C
         try:
-            _monitor(args, session, plots, live)
+            _monitor(args, session, plots, live, calibration)
         except BaseException as exc:  # the report on every exit path, then as before
             hold_stop_signals()
             stopped = isinstance(exc, StopSignal)
@@ -142,7 +142,7 @@ def run(args):
     return session.exit_status
 
 
-def _monitor(args, session, plots, live):
+def _monitor(args, session, plots, live, calibration):
     """The run: a live RTDE stream, or recordings (offline or one paced replay)."""
     if args.rtde is not None:
         client = session.connect_rtde(args.rtde, args.port, args.frequency)
@@ -155,6 +155,8 @@ def _monitor(args, session, plots, live):
     args.robot = None
     recordings = read_recordings(paths, args, "recordings",
                                  progress=not (args.quiet or live))
+    check_recordings(recordings, f"the detector {args.detector}",
+                     units=calibration.get("units"))
     keys = recording_keys(recordings)
     for key, rec in zip(keys, recordings):
         session.run_recording(rec, key, duration=args.duration,

@@ -5,14 +5,23 @@ chosen by default by the thresholds its residual needs on left-out recordings (:
 import argparse
 import os
 import time
+import warnings
 
 from ..workflow import (choose_model, input_signals, save_model, train_model,
                         training_report, training_set)
 from ..workflow.model_choice import CHOICE_RULE, FEEDBACK_RULE, SIGNALS
-from ..workflow.training import INPUTS, MODELS, OPTIMIZERS, ROBOT_MODELS, TRAIN_RULE
+from ..workflow.training import (
+    INPUTS,
+    MIN_TRAINING_SECONDS,
+    MODELS,
+    OPTIMIZERS,
+    ROBOT_MODELS,
+    TRAIN_RULE,
+)
 from ._args import (
     ProgressBar,
     add_recording_options,
+    file_size,
     model_file_arg,
     n_support_arg,
     positive_float,
@@ -112,6 +121,18 @@ def _robot(args, recordings):
     return robot_for(args, recordings), None
 
 
+def _warn_short(recordings):
+    """Warn when the training recordings last less than the recipe's 10 minutes."""
+    total = sum(rec.duration for rec in recordings)
+    if total < MIN_TRAINING_SECONDS:
+        warnings.warn(
+            f"the training recordings last {total / 60:.1f} min in all ({len(recordings)} "
+            f"recording(s), the longest {max(recordings, key=lambda r: r.duration).name}); "
+            f"a model needs {MIN_TRAINING_SECONDS / 60:g} min or more of varied collision-"
+            "free motion (the workspace, speeds and accelerations the robot will use): "
+            "record more and run gpcd train on all of them", UserWarning, stacklevel=2)
+
+
 def run(args):
     """``gpcd train``: choose and fit the model on the recordings, save it with its inputs."""
     # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
@@ -129,6 +150,7 @@ def run(args):
     signals, check = input_signals(recordings, args.signals, model)
     n_jobs = min(recordings[0].n_joints, os.cpu_count() or 1) if args.n_jobs is None else args.n_jobs
     bars = lambda label, total: ProgressBar(label, total, enabled=not quiet)  # noqa: E731
+    _warn_short(recordings)  # the inputs are usable: before the fits, which take minutes
     data = training_set(recordings, args.inputs, progress=bars, signals=signals)
     notes = []  # printed before the fits, which may take minutes
     if robot is None:
@@ -168,6 +190,6 @@ def run(args):
         print(f"  (model choice {choice_seconds:.1f} s)")
     print(training_report(trained))
     print(f"  inputs and fit {fit_seconds:.1f} s, total {time.perf_counter() - start:.1f} s; "
-          f"wrote {args.output} (the model, its causal input features and how it was "
-          "trained)")
+          f"wrote {args.output}, {file_size(args.output)} (the model, its causal input "
+          "features and how it was trained)")
     return 0

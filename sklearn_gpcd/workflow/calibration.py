@@ -58,10 +58,20 @@ DEFAULT_REST_REFERENCE = 5.0
 #: about 3 degrees per second. Not the default: on the real UR10e it costs
 #: one nested false alarm on the same task (results page, issue 38).
 MOTION_ENVELOPE_SPEED = 0.05
+#: A good calibration has a leave-one-recording-out margin of at most this and
+#: no expected false alarm; a summary that falls short warns
+#: (:class:`CalibrationWarning`): the levels of the others do not cover some
+#: recording, so the next day's data may not be covered either.
+GOOD_MARGIN = 2.0
 #: Calibration data shorter than this [s] warns (:class:`CalibrationWarning`).
 MIN_CALIBRATION_SECONDS = 120.0
 #: A regime with less calibration data than this [s] warns (moving, rest).
 MIN_REGIME_SECONDS = 10.0
+#: A regime with less calibration data than this [s] in all has no thresholds
+#: of its own: it takes, joint by joint, the largest threshold of the regimes
+#: with data (the detector's rule for a regime absent from the data). A few
+#: samples would otherwise set thresholds 10-100x tighter than any seen motion.
+MIN_REGIME_DATA_SECONDS = 1.0
 #: A transient regime (settling, braking) seen fewer times than this warns.
 MIN_REGIME_EPISODES = 5
 #: The regimes that last a fixed time after an event: counted in episodes.
@@ -76,7 +86,9 @@ class CalibrationWarning(UserWarning):
     arm (moving, settling, rest, braking) has little time
     (:data:`MIN_REGIME_SECONDS`), none, or comes from one recording alone:
     leave-one-recording-out then cannot tell how another recording would
-    differ. The message gives the numbers and what to record.
+    differ; and when the summary falls short of a good calibration (a
+    leave-one-recording-out margin above 2, or expected false alarms). The
+    message gives the numbers and what to record.
 
     Examples
     --------
@@ -358,6 +370,8 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     if features is None:
         raise ValueError("the model file holds no input features (written by an earlier "
                          "gpcd train): train the model again with gpcd train")
+    check_recordings(recordings, "the model", n_joints=features.n_joints_,
+                     units=trained.training.get("units"))
     _check_model_inputs(model, features)
     if split is not None:
         keys, recordings = split_recordings(keys, recordings, split)
@@ -387,17 +401,38 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
                                  sigma_v=trained.training.get("sigma_v"))
     result = calibrate_across_recordings(template, blocks, times, param_grid=grid)
     several = bool(bands or band_candidates)
+    coverage = calibration_coverage(result, times, split=split is not None)
+    without_data = _fill_regimes_without_data(result.detector, coverage)
     summary = _summary(result, trained, features, robot, keys=keys, split=split,
                        n_files=n_files, select=select, several=several,
                        chosen_band=bool(band_candidates))
+    summary["regimes_without_data"] = without_data
     summary["units"] = units.pop()  # of thresholds_A: "Nm" for torque logs
     if summary["units"] != "A":
         summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
         for entry in summary.get("bands", []):
             entry.pop("thresholds_Nm", None)
-    summary["coverage"] = calibration_coverage(result, times, split=split is not None)
+    summary["coverage"] = coverage
     _warn_coverage(summary)
+    _warn_quality(summary)
     return CalibratedDetector(result.detector, features, summary)
+
+
+def _fill_regimes_without_data(detector, coverage):
+    """Give the regimes with less than :data:`MIN_REGIME_DATA_SECONDS` of data, in
+    every band of the fitted ``detector``, the largest threshold of the regimes
+    with data (joint by joint); returns their names."""
+    names = list(coverage)
+    empty = np.array([coverage[name]["seconds"] < MIN_REGIME_DATA_SECONDS for name in names])
+    if not empty.any() or empty.all():
+        return []
+    for rule in detector.rules_:  # thresholds_ = gamma * scale_, gamma = -offset_
+        scale = np.array(rule.scale_, dtype=float, copy=True)
+        scale[empty] = scale[~empty].max(axis=0)
+        rule.scale_, rule.thresholds_ = scale, -rule.offset_ * scale
+    detector.scale_, detector.thresholds_ = (detector.rules_[0].scale_,
+                                             detector.rules_[0].thresholds_)
+    return [name for name, e in zip(names, empty) if e]
 
 
 def calibration_coverage(result, times, split=False):
@@ -471,9 +506,10 @@ def _warn_coverage(summary):
             "recordings, and run gpcd calibrate on them", CalibrationWarning, stacklevel=3)
     several = summary["n_files"] > 1
     for name, cov in summary["coverage"].items():
-        if cov["seconds"] == 0.0:
-            problem = (f"no calibration data in the {name} regime: its thresholds are the "
-                       "largest of the other regimes'")
+        if name in summary.get("regimes_without_data", ()) or cov["seconds"] == 0.0:
+            problem = (f"no calibration data in the {name} regime ({cov['seconds']:.2f} s, "
+                       f"less than {MIN_REGIME_DATA_SECONDS:g} s): its thresholds are, joint "
+                       "by joint, the largest of the regimes with data")
         elif cov["recordings"] <= 1 and several:
             problem = (f"one recording alone ({cov['largest']}) set every {name} threshold "
                        f"({cov['seconds']:.0f} s): leaving it out, no other recording shows "
@@ -488,6 +524,30 @@ def _warn_coverage(summary):
             continue
         warnings.warn(f"{problem}; add collision-free recordings with {_REGIME_ADVICE[name]} "
                       "to gpcd calibrate", CalibrationWarning, stacklevel=3)
+
+
+def _warn_quality(summary):
+    """:class:`CalibrationWarning` when the summary falls short of a good
+    calibration: a margin above :data:`GOOD_MARGIN` or expected false alarms."""
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from ..metrics import rate_upper_bound
+
+    margin, count = summary["margin"], summary["n_false_alarms_nested"]
+    alarms = summary["false_alarms_per_hour"] is not None and count > 0
+    if margin <= GOOD_MARGIN and not alarms:
+        return
+    figures = [f"margin {margin:.2f}"]
+    if alarms:
+        bound = rate_upper_bound(count, summary["hours"])
+        where = sorted(k for k, onsets in summary["nested_onsets_s"].items() if onsets)
+        figures.append(f"{summary['false_alarms_per_hour']:.0f} expected false alarms per "
+                       f"hour (95 % upper bound {bound:.0f}; on left-out {', '.join(where)})")
+    warnings.warn(
+        f"the calibration falls short of a good one (margin at most {GOOD_MARGIN:g}, no "
+        f"expected false alarm): {', '.join(figures)}; a recording unlike the others sets "
+        "them: add collision-free recordings of the motions the robot will make, or train "
+        "the model on more varied motion with gpcd train, and run gpcd calibrate again",
+        CalibrationWarning, stacklevel=3)
 
 
 #: What to record for each regime, in the coverage warnings.
@@ -567,6 +627,54 @@ def check_calibration_options(*, regimes=True, rest_reference=None, settle_time=
                          "--band-candidate there are several: drop --select or the bands")
     if braking is not None and not regimes:
         raise ValueError("--braking is a regime: drop --no-regimes")
+
+
+#: What the current columns of a recording hold, by ``Recording.units``.
+_UNITS_WORDS = {"A": "motor currents [A]", "Nm": "joint torques [Nm]"}
+
+
+def check_recordings(recordings, source, *, n_joints=None, units=None):
+    """Refuse recordings a model or detector was not trained for, naming the file.
+
+    Parameters
+    ----------
+    recordings : list of Recording
+    source : str
+        The model or detector in the user's words, e.g. ``"the model model.skops"``.
+    n_joints : int or None, default=None
+        Joints it was trained on (None: not checked).
+    units : {"A", "Nm"} or None, default=None
+        What its currents are (``Recording.units`` of its training recordings;
+        None: not recorded, not checked).
+
+    Raises
+    ------
+    ValueError
+        A recording with another number of joints, or currents in other units.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> rec = Recording(time=np.arange(5.0), q=np.zeros((5, 2)), qd=np.zeros((5, 2)),
+    ...                 current=np.zeros((5, 2)), name="calib/a.csv")
+    >>> check_recordings([rec], "the model m.skops", n_joints=2, units="Nm")
+    Traceback (most recent call last):
+    ...
+    ValueError: calib/a.csv: its currents are read as motor currents [A], but the model ...
+    """
+    for rec in recordings:
+        if n_joints is not None and rec.n_joints != n_joints:
+            raise ValueError(
+                f"{rec.name}: {rec.n_joints} joints, but {source} was trained on recordings "
+                f"of {n_joints} joints: give recordings of the arm it was trained on, or "
+                "train a model on this arm's recordings with gpcd train")
+        if units is not None and rec.units != units:
+            raise ValueError(
+                f"{rec.name}: its currents are read as {_UNITS_WORDS.get(rec.units, rec.units)}"
+                f", but {source} was trained on {_UNITS_WORDS.get(units, units)}: read it with "
+                "the column map of the training recordings (--column-map, with "
+                + (f'"units": "{units}")' if units != "A" else 'no "units": "Nm")'))
 
 
 def _check_model_inputs(model, features):
@@ -731,6 +839,11 @@ def _report_lines(summary, out):
         out.append("  data per regime: " + ", ".join(
             f"{name} {_duration_text(c['seconds'])} from {c['recordings']} recording(s)"
             for name, c in coverage.items()))
+    if (without := summary.get("regimes_without_data")):
+        out.append(f"  no calibration data (less than {MIN_REGIME_DATA_SECONDS:g} s) in the "
+                   f"{' and '.join(without)} regime"
+                   + ("s: their" if len(without) > 1 else ": its")
+                   + " thresholds are, joint by joint, the largest of the regimes with data")
     if summary.get("candidates"):
         out.append("  candidates, best first (alarms: nested onsets at that fixed candidate, "
               "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
@@ -794,14 +907,6 @@ def _false_alarm_line(summary, out, which=""):
     out.append(f"    95 % upper bound: {bound:.3g} per hour (Poisson, from "
                f"{summary['n_false_alarms_nested']} onset(s) in {summary['hours'] * 60:.1f} min: "
                "longer calibration data tightens it)")
-    chosen = [c for c in summary.get("candidates") or () if c["rank"] == 0]
-    if summary.get("selected") and chosen and summary["hours"] > 0:
-        c = chosen[0]
-        out.append(f"    at the chosen settings (settle {_seconds_text(c['params']['settle_time_s'])}"
-                   f", rest reference {_seconds_text(c['params']['rest_reference_s'])}) "
-                   f"alone: {c['n_false_alarms']} onset(s) = "
-                   f"{c['n_false_alarms'] / summary['hours']:.2f} per hour; the figure above "
-                   "also counts the choice, made without each recording")
 
 
 def _threshold_lines(entry, summary, pad, out):

@@ -527,6 +527,7 @@ def _subset(data, rows, name):
 
 def _alarm_template(data, sigma_v):
     """The detector of ``gpcd calibrate``'s default alarm rule, without a regressor yet."""
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..detection import AlarmRule, CollisionDetector, Regimes
     from .calibration import DEFAULT_REST_REFERENCE, DETECTOR_RULE
 
@@ -538,9 +539,11 @@ def _alarm_template(data, sigma_v):
 
 def _excursions(template, regressor, X, y):
     """Peaks per (regime, joint) of the debounced residual, and samples per regime."""
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from sklearn.base import clone
     from sklearn.frozen import FrozenEstimator
 
+    # deferred, as above
     from ..detection import regime_excursions, stack_currents
 
     block = stack_currents(X, y)
@@ -560,6 +563,7 @@ def _fold_thresholds(peaks, counts):
     joint and :math:`\\mu` their leave-one-recording-out margin
     (:func:`~sklearn_gpcd.detection.loro_margin`), as ``gpcd calibrate``.
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..detection import loro_margin, regime_levels
 
     keys = list(peaks)

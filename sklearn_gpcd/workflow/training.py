@@ -64,6 +64,9 @@ INPUTS = ("causal", "zero-phase")
 OPTIMIZERS = ("auto", "adam", "fmin_l_bfgs_b")
 #: What a model file written by :func:`save_model` holds.
 MODEL_KIND = "gpcd-model"
+#: Training recordings shorter than this in all [s] warn in ``gpcd train``:
+#: the README's recipe asks for 10 minutes or more of varied motion.
+MIN_TRAINING_SECONDS = 600.0
 #: Rows that enter a fit at most (see :data:`TRAIN_RULE`).
 MAX_TRAIN_ROWS = 200_000
 #: The rule :func:`train_model` (and ``gpcd train``) follows, safe on any log size.
@@ -134,6 +137,9 @@ class TrainingSet:
         Median time between consecutive rows of ``X`` [s] (the recordings'
         sample time times ``step``), for the alarm rule of
         :func:`~sklearn_gpcd.workflow.compare_models`.
+    units : {"A", "Nm"}
+        What ``y`` holds: motor currents [A] or joint torques [Nm]
+        (``Recording.units``, from the column map's ``"units"``).
 
     Examples
     --------
@@ -157,6 +163,7 @@ class TrainingSet:
     has_target_current: bool = True
     sizes: tuple = ()
     sample_time: float = None
+    units: str = "A"
 
 
 def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
@@ -206,6 +213,12 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     recordings = recordings if isinstance(recordings, list) else list(recordings)
     if not recordings:
         raise ValueError("no training recordings")
+    if len(units := {rec.units for rec in recordings}) > 1:
+        torques = next(rec.name for rec in recordings if rec.units == "Nm")
+        currents = next(rec.name for rec in recordings if rec.units != "Nm")
+        raise ValueError(f"the training recordings mix joint torques [Nm] ({torques}) and "
+                         f"motor currents [A] ({currents}): read them all with one column "
+                         "map (its \"units\")")
     features = CausalFeatures(allow_missing=allow_missing, signals=signals).fit(recordings)
     names = [rec.name for rec in recordings]
     has_ic = all(rec.target_current is not None for rec in recordings)
@@ -235,7 +248,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     _warn_once_per_kind(caught, len(names))
     return TrainingSet(X=np.vstack(X), y=np.vstack(y), features=features, inputs=inputs,
                        names=names, n_rows=n_rows, step=step, has_target_current=has_ic,
-                       sizes=tuple(sizes), sample_time=sample_time)
+                       sizes=tuple(sizes), sample_time=sample_time, units=units.pop())
 
 
 def _unused_columns(signals, n_joints):
@@ -264,7 +277,8 @@ class TrainedModel:
         used), ``batch_size``, ``seed``, ``sigma_v``, ``coulomb_width``,
         ``signals``, ``robot``,
         ``recordings``, ``n_rows``, ``n_rows_used``, ``step``,
-        ``acceleration_limit`` (:func:`acceleration_limit`).
+        ``acceleration_limit`` (:func:`acceleration_limit`), ``units`` (of
+        the target: "A" for motor currents, "Nm" for joint torques).
 
     Examples
     --------
@@ -471,7 +485,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "signals": list(features.signals_),
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
-        "acceleration_limit": acceleration_limit(data),
+        "acceleration_limit": acceleration_limit(data), "units": data.units,
     }
     return TrainedModel(regressor=regressor, features=features, training=training)
 
