@@ -65,7 +65,9 @@ effects that have an invented one, bar 2 of 40; the null cases with nothing
 named (by the invented rule above), bar 90 % (11 of the 12).
 
 Run ``python benchmarks/blind_protocol.py run --set dev --out DIR`` (all
-three steps) or the steps one by one; needs ``pip install mujoco pybullet``
+steps, both stages) or the steps one by one (``generate``, ``diagnose
+--stage 1``, ``plan`` (the plans simulated), ``diagnose --stage 2``,
+``score --stage 2``); needs ``pip install mujoco pybullet``
 (the ``second-engine`` extra).
 """
 
@@ -241,6 +243,43 @@ def generate(seeds, out):
     path.write_text(json.dumps(old, indent=1))
 
 
+def read_plan(path):
+    """The plan CSV (``timestamp,target_q_0..``) as a JointTrajectory (clamped cubic spline)."""
+    from sklearn_gpcd.datasets import JointTrajectory
+
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return JointTrajectory.from_samples(data[:, 0], data[:, 1:])
+
+
+def simulate_plans(seeds, out):
+    """The generator's second step: each case's plan run on its concealed plant.
+
+    Reads ``OUT/plans/<case>.csv`` (written by the first diagnosis) and the
+    case's seed (the injection is drawn again from it, never read from the
+    truth file); writes ``OUT/cases/<case>/plan.npz``.
+    """
+    import _mujoco_plant
+    import _pybullet_plant
+
+    out = Path(out)
+    for seed in seeds:
+        name = f"case{seed}"
+        path = out / "plans" / f"{name}.csv"
+        if not path.exists():
+            print(f"{name}: no plan", flush=True)
+            continue
+        t0 = time.perf_counter()
+        case = draw_case(seed)
+        robot, k, rotor = _setup(case["engine"])
+        injection = _mujoco_plant.Injection(**case["fields"])
+        plant = _mujoco_plant if case["engine"] == "mujoco" else _pybullet_plant
+        rec = plant.simulate(robot, k, rotor, injection, random_state=seed + 200000,
+                             name="plan", reference=read_plan(path))
+        _save_recording(out / "cases" / name / "plan.npz", rec)
+        print(f"simulated the plan of {name} ({rec.duration:.0f} s, "
+              f"{time.perf_counter() - t0:.1f} s)", flush=True)
+
+
 def _nominal_robot(nominal, tmp):
     from sklearn_gpcd.robots import load_robot
 
@@ -265,14 +304,19 @@ def _named(diagnosis):
     return out
 
 
-def diagnose(out, cases=None):
-    """Diagnose every case from its recordings and nominal model alone."""
+def diagnose(out, cases=None, stage=1):
+    """Diagnose every case from its recordings and nominal model alone.
+
+    Stage 1 uses the training run and writes the plan it asks for to
+    ``OUT/plans/<case>.csv``; stage 2 adds the plan's recording.
+    """
     import tempfile
 
     from sklearn_gpcd.diagnosis import DynamicsDiagnosis
 
     out = Path(out)
-    path = out / "diagnoses.json"
+    path = out / ("diagnoses.json" if stage == 1 else "diagnoses2.json")
+    (out / "plans").mkdir(parents=True, exist_ok=True)
     results = json.loads(path.read_text()) if path.exists() else {}
     folders = sorted(p for p in (out / "cases").iterdir() if p.is_dir())
     if cases is not None:
@@ -286,8 +330,17 @@ def diagnose(out, cases=None):
         test = _load_recording(folder / "test.npz", "test")
         diag = DynamicsDiagnosis(robot, friction={"coulomb": np.array(nominal["coulomb"]),
                                                   "viscous": np.array(nominal["viscous"])})
-        diag.fit(train)
+        recordings = [train]
+        if stage == 2:
+            if not (folder / "plan.npz").exists():
+                print(f"{folder.name}: no plan recording, skipped", flush=True)
+                continue
+            recordings.append(_load_recording(folder / "plan.npz", "plan"))
+        diag.fit(recordings)
         scores = diag.evaluate(test)
+        if stage == 1:
+            plan = diag.plan()
+            plan.to_csv(out / "plans" / f"{folder.name}.csv")
         results[folder.name] = {
             "named": _named(diag),
             "rejected": [f"{r['name']}: {r['reason']}" for r in diag.rejected_effects_],
@@ -295,6 +348,7 @@ def diagnose(out, cases=None):
                 {"effect": u["effect"], "joints": u["joints"],
                  "smallest_change": u["smallest_change"]}
                 for u in getattr(diag, "unidentifiable_", [])],
+            "needs": [n["reason"] for n in diag.needs_],
             "nmse_before": scores["nmse_before"], "nmse_after": scores["nmse_after"],
             "seconds": time.perf_counter() - t0}
         print(f"diagnosed {folder.name}: "
@@ -352,11 +406,12 @@ def score_case(truth, named):
     return verdicts, invented
 
 
-def score(out):
-    """Print and return the score of the cases diagnosed in ``out``."""
+def score(out, stage=1):
+    """Print and return the score of the cases diagnosed in ``out`` (at ``stage``)."""
     out = Path(out)
     truth = json.loads((out / "truth" / "truth.json").read_text())
-    diagnoses = json.loads((out / "diagnoses.json").read_text())
+    diagnoses = json.loads((out / ("diagnoses.json" if stage == 1 else
+                                   "diagnoses2.json")).read_text())
     rows, n_ok, n_invented, n_time, n_time_ok = {}, 0, 0, 0, 0
     n_tc_missed, n_tc_said = 0, 0
     n_null, n_null_clean, n_effects, n_effects_ok = 0, 0, 0, 0
@@ -416,13 +471,16 @@ def score(out):
     print(f"effects named and sized: {n_effects_ok}/{n_effects} "
           f"({100 * n_effects_ok / max(n_effects, 1):.0f} %); null cases with nothing named: "
           f"{n_null_clean}/{n_null}")
-    (out / "score.json").write_text(json.dumps({"summary": summary, "cases": rows}, indent=1))
+    (out / ("score.json" if stage == 1 else "score2.json")).write_text(
+        json.dumps({"summary": summary, "cases": rows}, indent=1))
     return summary
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("step", choices=["generate", "diagnose", "score", "run"])
+    parser.add_argument("step", choices=["generate", "diagnose", "plan", "score", "run"])
+    parser.add_argument("--stage", type=int, default=1, choices=[1, 2],
+                        help="diagnose / score: 1 (training run) or 2 (with the plan's run)")
     parser.add_argument("--set", default="dev", choices=sorted(SEEDS))
     parser.add_argument("--out", required=True)
     parser.add_argument("--cases", default=None, help="comma-separated case names (diagnose)")
@@ -436,10 +494,20 @@ def main(argv=None):
     seeds = SEEDS[args.set]
     if args.step in ("generate", "run"):
         generate(seeds, args.out)
-    if args.step in ("diagnose", "run"):
-        diagnose(args.out, None if args.cases is None else args.cases.split(","))
-    if args.step in ("score", "run"):
-        score(args.out)
+    cases = None if args.cases is None else args.cases.split(",")
+    if args.step == "run":  # both stages
+        diagnose(args.out, cases, stage=1)
+        score(args.out, stage=1)
+        simulate_plans(seeds, args.out)
+        diagnose(args.out, cases, stage=2)
+        score(args.out, stage=2)
+        return 0
+    if args.step == "diagnose":
+        diagnose(args.out, cases, stage=args.stage)
+    if args.step == "plan":
+        simulate_plans(seeds, args.out)
+    if args.step == "score":
+        score(args.out, stage=args.stage)
     return 0
 
 

@@ -18,6 +18,7 @@ from ..io import degrees_note, units_note
 from ..metrics import nmse
 from .align import align_recordings
 from .effects import effect_library
+from .identifiability import identifiability, needs, variance_inflation
 from .locate import residual_breakdown
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
@@ -39,6 +40,8 @@ WALD_LEVEL = 1e-3
 IDENTIFIABLE_CHANGE = 0.1
 #: Standard errors a change must reach to count as shown.
 IDENTIFIABLE_SE = 3.0
+#: How far [rad] a plan may go beyond the range the recordings covered.
+PLAN_MARGIN = 0.7
 #: Velocity scales [rad/s] of the low-speed friction columns a torque-constant
 #: change competes with (softening and peak, next to Coulomb and viscous).
 _LOW_SPEED = (0.004, 0.02, 0.08)
@@ -287,6 +290,16 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         fraction), ``friction_share`` (share of the joint's reference current
         that friction columns reproduce) and the ``excitation`` that would
         show it.
+    identifiability_ : list of dict
+        Per candidate family, from the information matrix of the candidates
+        on these recordings given the named effects
+        (:func:`~sklearn_gpcd.diagnosis.identifiability.identifiability`):
+        smallest detectable size of its first parameter, condition, and the
+        candidates it is confounded with (partial correlation >= 0.9).
+    needs_ : list of dict
+        Families not named whose smallest detectable size exceeds the size
+        that matters (``effect``, ``joints``, ``reason``): what
+        :meth:`plan` asks a new recording for.
     ambiguities_ : list of dict
         Effects the recordings cannot tell apart: ``chosen``,
         ``alternative``, their effect names, ``joints`` (0-based),
@@ -494,6 +507,9 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                     "effect": "torque_constant", "joints": [int(j)],
                     "smallest_change": change, "friction_share": mimicked,
                     "excitation": EXCITATION["torque_constant"]})
+        self.identifiability_ = self._identifiability(candidates, stats, after, mask)
+        self.needs_ = needs(self.identifiability_)
+        self._poses = (np.median(signals.q, axis=0), signals.q.min(0), signals.q.max(0))
         self.breakdown_after_ = residual_breakdown(signals, after, self.sigma_v, self.sigma_rest,
                                                    units=units)
         self.n_candidates_ = len(candidates)
@@ -511,6 +527,58 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                         "fit": end - selection_done, "total": end - start},
         }
         return self
+
+    def _identifiability(self, candidates, stats, after, mask):
+        """The identifiability table of the candidates given the named effects."""
+        variance = np.array([np.var(after[mask[:, j], j]) if mask[:, j].any() else np.nan
+                             for j in range(after.shape[1])])
+        weights = np.where(np.isfinite(variance) & (variance > 0), 1.0 / variance, 0.0)
+        named = []
+        for f in self.effects_:
+            family = [c for c in candidates if not c.parts and c.family == (f.name, f.target)]
+            if family:
+                named.append(min(family, key=lambda c: sum(
+                    abs(np.log(max(abs(float(v)), 1e-9) / max(abs(float(f.settings.get(k, v))),
+                                                                1e-9)))
+                    for k, v in c.settings.items() if isinstance(v, (int, float)))))
+        return identifiability(candidates, stats.totals()[0], weights, named, self.nominal_,
+                               variance_inflation(after, mask))
+
+    def plan(self, max_seconds=180.0, velocity_limits=None, acceleration_limits=None,
+             random_state=0):
+        """The recording to make next: an excitation for what these recordings could not show.
+
+        One segment per kind of need of :attr:`needs_` (most needed first,
+        :mod:`~sklearn_gpcd.diagnosis.plan`), about the recordings' median
+        pose, within the robot's position limits (and the recorded range
+        widened by ``PLAN_MARGIN``), its velocity limits and
+        ``acceleration_limits``, at the recordings' sample period; a slow
+        all-joint confirmation segment closes it.
+
+        Parameters
+        ----------
+        max_seconds : float, default=180
+        velocity_limits : array-like, default=None
+            [rad/s] per joint; None reads the robot's.
+        acceleration_limits : float or array-like, default=None
+            [rad/s^2]; None gives ``plan.MAX_ACCELERATION``.
+        random_state : int, default=0
+
+        Returns
+        -------
+        plan : ExcitationPlan
+        """
+        from .plan import excitation_plan, robot_limits
+
+        check_is_fitted(self, "model_")
+        center, low, high = self._poses
+        limits = robot_limits(self.nominal_.robot, velocity_limits, acceleration_limits)
+        limits.lower = np.maximum(limits.lower, low - PLAN_MARGIN)
+        limits.upper = np.minimum(limits.upper, high + PLAN_MARGIN)
+        wanted = self.needs_
+        period = self._sample_period or 0.008
+        return excitation_plan(wanted, self.nominal_, center, period, limits, max_seconds,
+                               random_state)
 
     def _final_fit(self, signals, selected, mask, guarded_mask, candidates=()):
         """Joint fit; effects implausible or insignificant after it are dropped, one at a time.
