@@ -349,6 +349,8 @@ def diagnose(out, cases=None, stage=1):
                  "smallest_change": u["smallest_change"]}
                 for u in getattr(diag, "unidentifiable_", [])],
             "needs": [n["reason"] for n in diag.needs_],
+            "inclusion": {f"{k[0]}" + ("" if k[1] is None else f"[{k[1]}]"): v["inclusion"]
+                          for k, v in diag.stability_.items() if v["inclusion"] >= 0.1},
             "nmse_before": scores["nmse_before"], "nmse_after": scores["nmse_after"],
             "seconds": time.perf_counter() - t0}
         print(f"diagnosed {folder.name}: "

@@ -20,6 +20,7 @@ from .align import align_recordings
 from .effects import effect_library
 from .identifiability import identifiability, needs, variance_inflation
 from .locate import residual_breakdown
+from .stability import MIN_INCLUSION, N_RESAMPLES, stability
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
 from .selection import EXCITATION, MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, \
@@ -489,6 +490,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             if not dropped:
                 break
             banned.update({r["name"]: r["reason"] for r in dropped})
+        self._stable(signals, candidates, design, residual, (mask, guarded_mask), check,
+                     [step.candidate for step in selected])
         selection_done = _time.perf_counter()
         self.effects_ = self.model_.effects
         kept = {f.effect.name for f in self.effects_}
@@ -527,6 +530,35 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                         "fit": end - selection_done, "total": end - start},
         }
         return self
+
+    def _stable(self, signals, candidates, design, residual, masks, check, picked):
+        """Keep the effects a block bootstrap of the selection names often enough.
+
+        :func:`~sklearn_gpcd.diagnosis.stability.stability` reruns the
+        selection on ``N_RESAMPLES`` block-bootstrap resamples; an effect
+        named on all data but in fewer than ``MIN_INCLUSION`` of them is
+        dropped (recorded in ``rejected_effects_``) and the rest refitted.
+        """
+        self.stability_ = stability(
+            candidates, design, residual, masks, signals, signals.current, self.nominal_,
+            self.model_.effects, self.history_,
+            {"n_splits": self.n_splits, "min_gain": self.min_gain, "min_t": self.min_t,
+             "max_effects": self.max_effects, "min_share": self.min_share, "check": check,
+             "n_resamples": N_RESAMPLES}, picked)
+        steps, effects = self._kept_steps, self.model_.effects
+        inclusion = [self.stability_[(f.name, f.target)]["inclusion"] for f in effects]
+        if all(p >= MIN_INCLUSION for p in inclusion):
+            return
+        for f, p in zip(effects, inclusion):
+            if p < MIN_INCLUSION:
+                self.rejected_effects_.append({
+                    "name": f.name if f.target is None else f"{f.name}[joint {f.target + 1}]",
+                    "effect": f.name, "joints": [int(j) for j in f.joints],
+                    "reason": f"named in {100 * p:.0f} % of {N_RESAMPLES} block-bootstrap "
+                              f"resamples (needs {100 * MIN_INCLUSION:.0f} %)",
+                    "implausible": False})
+        kept = [s for s, p in zip(steps, inclusion) if p >= MIN_INCLUSION]
+        self.model_ = self._final_fit(signals, kept, masks[0], masks[1], candidates)
 
     def _identifiability(self, candidates, stats, after, mask):
         """The identifiability table of the candidates given the named effects."""
@@ -600,6 +632,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             implausible = {k for k, f in enumerate(model.effects)
                            if self._implausible(f, model.effects)}
             if not problems:
+                self._kept_steps = selected
                 return model
             k, reason = min(problems, key=lambda p: model.effects[p[0]].explained_variance)
             fitted = model.effects[k]

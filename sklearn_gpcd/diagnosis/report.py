@@ -132,6 +132,25 @@ def _entry(group):
     return entry
 
 
+def _stability_lines(entry):
+    """One line on the block-bootstrap evidence of a report entry."""
+    st = entry.get("stability")
+    if not st or not st["inclusion"]:
+        return []
+    parts = []
+    joints = entry["joints"] if len(st["inclusion"]) == len(entry["joints"]) else [None]
+    for j, p, size, gain in zip(joints, st["inclusion"], st["size_interval"],
+                                st["heldout_gain_interval"]):
+        where = "" if j is None or len(joints) == 1 else f"joint {j + 1}: "
+        text = f"{where}named in {100 * (p or 0):.0f} % of resamples"
+        if size:
+            text += f", size {size[0]:.3g} to {size[2]:.3g}"
+        if gain:
+            text += f", held-out gain {100 * gain[0]:.0f}-{100 * gain[2]:.0f} %"
+        parts.append(text)
+    return ["      Block bootstrap (95 % intervals): " + "; ".join(parts) + "."]
+
+
 @dataclass
 class DiagnosisReport:
     """What a :class:`DynamicsDiagnosis` found, for people and programs.
@@ -220,6 +239,13 @@ class DiagnosisReport:
         report : DiagnosisReport
         """
         effects = [_entry(g) for g in _group(diagnosis.effects_)]
+        stable = getattr(diagnosis, "stability_", {})
+        for e, group in zip(effects, _group(diagnosis.effects_)):
+            rows = [stable.get((f.name, f.target), {}) for f in
+                    sorted(group, key=lambda f: -1 if f.target is None else f.target)]
+            e["stability"] = {"inclusion": [r.get("inclusion") for r in rows],
+                              "size_interval": [r.get("size") for r in rows],
+                              "heldout_gain_interval": [r.get("gain") for r in rows]}
         effects.sort(key=lambda e: -(e["explained_variance"] or 0.0))
         if scores is None:
             before, after = diagnosis.nmse_train_before_, diagnosis.nmse_train_after_
@@ -378,7 +404,7 @@ class DiagnosisReport:
                 f"joints. Evidence: {e['confidence']} (held-out error of its joints "
                 f"{100 * (rel or 0):.0f} % lower, lower in {folds} folds, "
                 f"t = {t_min if t_min is not None else float('inf'):.1f}).")
-            lines += self._identified(e)
+            lines += self._identified(e) + _stability_lines(e)
         if self.ambiguities:
             lines += ["", "   Not separable on these recordings:"]
             pairs = {}
