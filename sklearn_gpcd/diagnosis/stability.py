@@ -25,8 +25,9 @@ import numpy as np
 
 from .selection import FoldStatistics, forward_selection
 
-#: Block length [s] of the bootstrap (several times the residual's correlation time).
-BLOCK_SECONDS = 2.0
+#: Block length [s] of the bootstrap (several times the residual's correlation time);
+#: shorter recordings get shorter blocks, ``MIN_BLOCKS`` each at least.
+BLOCK_SECONDS, MIN_BLOCKS = 2.0, 20
 #: Resamples.
 N_RESAMPLES = 20
 #: Inclusion probability an effect needs to be kept.
@@ -37,6 +38,10 @@ SHORTLIST_FAMILIES, SHORTLIST_SETTINGS = 8, 3
 
 def block_index(signals, seconds=BLOCK_SECONDS):
     """Block of every sample and the blocks of each recording.
+
+    Blocks last ``seconds``, or a recording's duration over ``MIN_BLOCKS``
+    when that is shorter (a short recording still gives enough blocks to
+    resample).
 
     Parameters
     ----------
@@ -52,11 +57,11 @@ def block_index(signals, seconds=BLOCK_SECONDS):
     --------
     >>> import numpy as np
     >>> from types import SimpleNamespace
-    >>> s = SimpleNamespace(time=np.r_[np.arange(0, 5, 1.0), np.arange(0, 3, 1.0)],
-    ...                     segment=np.r_[np.zeros(5, int), np.ones(3, int)], n_samples=8)
+    >>> s = SimpleNamespace(time=np.r_[np.arange(0, 50, 1.0), np.arange(0, 3, 0.1)],
+    ...                     segment=np.r_[np.zeros(50, int), np.ones(30, int)], n_samples=80)
     >>> blocks, per = block_index(s, 2.0)
-    >>> blocks.tolist(), [p.tolist() for p in per]
-    ([0, 0, 1, 1, 2, 3, 3, 4], [[0, 1, 2], [3, 4]])
+    >>> [p.size for p in per]  # 2 s blocks; 2.9 s / 20 blocks for the short one
+    [25, 21]
     """
     blocks = np.zeros(signals.n_samples, dtype=int)
     per_recording, offset = [], 0
@@ -66,7 +71,8 @@ def block_index(signals, seconds=BLOCK_SECONDS):
             local = (np.arange(rows.size) * 20 // max(rows.size, 1)).astype(int)
         else:
             t = signals.time[rows]
-            local = np.floor((t - t[0]) / seconds).astype(int)
+            length = min(seconds, (t[-1] - t[0]) / MIN_BLOCKS) if t[-1] > t[0] else seconds
+            local = np.floor((t - t[0]) / length).astype(int)
         blocks[rows] = local + offset
         per_recording.append(np.arange(offset, offset + local.max() + 1))
         offset += int(local.max()) + 1
