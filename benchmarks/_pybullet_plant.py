@@ -145,8 +145,8 @@ def _client(text, tmp):
 
 
 def simulate(robot, torque_constants, armature, injection, n_targets=8, random_state=0,
-             name=None):
-    """One logged run of the PyBullet plant following a D1-like reference.
+             name=None, *, reference=None):
+    """One logged run of the PyBullet plant following a D1-like reference (or ``reference``).
 
     Same arguments and outputs as ``_mujoco_plant.simulate``.
     """
@@ -154,7 +154,8 @@ def simulate(robot, torque_constants, armature, injection, n_targets=8, random_s
 
     inj = injection
     rng = np.random.default_rng(random_state)
-    ref = reference_d1(robot, n_targets=n_targets, random_state=random_state)
+    ref = (reference_d1(robot, n_targets=n_targets, random_state=random_state)
+           if reference is None else reference)
     n_steps = int(ref.duration / STEP)
     t_all = np.arange(n_steps) * STEP
     q_ref, qd_ref, qdd_ref = ref.sample(t_all)

@@ -26,11 +26,26 @@ def bp():
 
 
 def test_seed_sets_are_disjoint_and_large_enough(bp):
-    dev = set(bp.SEEDS["dev"]) | set(bp.SEEDS["dev2"])
-    score, seen = set(bp.SEEDS["score3"]), set(bp.SEEDS["score1"]) | set(bp.SEEDS["score"])
+    dev = set(bp.SEEDS["dev"]) | set(bp.SEEDS["dev2"]) | set(bp.SEEDS["dev_null"]) | \
+        set(bp.SEEDS["dev_small"])
+    score = set(bp.SEEDS["score4"])
+    seen = set(bp.SEEDS["score1"]) | set(bp.SEEDS["score"]) | set(bp.SEEDS["score3"])
     assert not dev & score and not dev & seen and not score & seen
     assert not set(bp.SEEDS["score"]) & set(bp.SEEDS["score1"])
-    assert len(score) >= 30
+    assert len(score - bp.NULL_SEEDS) >= 40 and len(score & bp.NULL_SEEDS) >= 10
+
+
+def test_null_and_small_cases(bp):
+    assert all(bp.draw_case(s)["truth"] == {} for s in bp.SEEDS["dev_null"])
+    small = [bp.draw_case(s) for s in bp.SEEDS["dev_small"]]
+    assert all(len(c["truth"]) == 1 for c in small)
+    # sizes from the lowest third of the ranges: torque-constant changes within 8-13.7 %
+    changes = [abs(v) for c in small for v in c["truth"].get("torque_constant",
+                                                             {"size": []})["size"]]
+    assert changes and all(0.08 <= v <= 0.08 + 0.17 / 3 for v in changes)
+    # the draws of the other sets are unchanged by the span argument (span=1)
+    assert bp.draw_case(9201)["truth"]["coulomb_friction"]["size"][0] == \
+        pytest.approx(3.18762228644524)
 
 
 def test_a_case_is_a_function_of_its_seed_alone(bp):
@@ -91,7 +106,11 @@ def test_generate_and_diagnose_reads_only_the_cases(bp, tmp_path):
     truth.rename(hidden)  # the diagnosis step must not need it
     results = bp.diagnose(tmp_path)
     assert list(results) == ["case100"]
+    assert (tmp_path / "plans" / "case100.csv").exists()
+    bp.simulate_plans([100], tmp_path)  # the generator's second step reads the seed only
+    second = bp.diagnose(tmp_path, stage=2)
+    assert list(second) == ["case100"]
     hidden.rename(truth)
     summary = bp.score(tmp_path)
-    assert summary["cases"] == 1
+    assert summary["cases"] == 1 and bp.score(tmp_path, stage=2)["cases"] == 1
     assert np.isfinite(results["case100"]["nmse_after"]).all()

@@ -40,6 +40,10 @@ def add_parser(sub):
                      help="write the report as JSON here")
     dia.add_argument("--plot", type=figure_file_arg, default=None,
                      help="write the figure here (PNG, PDF, ...)")
+    dia.add_argument("--plan", type=output_file_arg, default=None, metavar="CSV",
+                     help="write the recording to make next here: a smooth excitation (CSV "
+                     "timestamp,target_q_0,...; s, rad; <= 180 s) for what these recordings "
+                     "could not show; diagnose again with its recording added")
     dia.set_defaults(func=run)
 
 
@@ -89,5 +93,9 @@ def run(args):
     if args.plot:
         report.plot(args.plot)
         print(f"wrote {args.plot}")
+    if args.plan:
+        plan = diagnosis.plan()
+        plan.to_csv(args.plan)
+        print(f"\n{plan.text()}\nwrote {args.plan}")
     print(f"done in {time.perf_counter() - start:.1f} s")
     return 0

@@ -19,7 +19,9 @@ from ..io import degrees_note, units_note
 from ..metrics import nmse
 from .align import align_recordings
 from .effects import effect_library
+from .identifiability import identifiability, needs, variance_inflation
 from .locate import residual_breakdown
+from .stability import MIN_INCLUSION, N_RESAMPLES, stability
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
 from .selection import EXCITATION, MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, \
@@ -40,6 +42,8 @@ WALD_LEVEL = 1e-3
 IDENTIFIABLE_CHANGE = 0.1
 #: Standard errors a change must reach to count as shown.
 IDENTIFIABLE_SE = 3.0
+#: How far [rad] a plan may go beyond the range the recordings covered.
+PLAN_MARGIN = 0.7
 #: Velocity scales [rad/s] of the low-speed friction columns a torque-constant
 #: change competes with (softening and peak, next to Coulomb and viscous).
 _LOW_SPEED = (0.004, 0.02, 0.08)
@@ -288,6 +292,16 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         fraction), ``friction_share`` (share of the joint's reference current
         that friction columns reproduce) and the ``excitation`` that would
         show it.
+    identifiability_ : list of dict
+        Per candidate family, from the information matrix of the candidates
+        on these recordings given the named effects
+        (:func:`~sklearn_gpcd.diagnosis.identifiability.identifiability`):
+        smallest detectable size of its first parameter, condition, and the
+        candidates it is confounded with (partial correlation >= 0.9).
+    needs_ : list of dict
+        Families not named whose smallest detectable size exceeds the size
+        that matters (``effect``, ``joints``, ``reason``): what
+        :meth:`plan` asks a new recording for.
     ambiguities_ : list of dict
         Effects the recordings cannot tell apart: ``chosen``,
         ``alternative``, their effect names, ``joints`` (0-based),
@@ -477,6 +491,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             if not dropped:
                 break
             banned.update({r["name"]: r["reason"] for r in dropped})
+        self._stable(signals, candidates, design, residual, (mask, guarded_mask), check,
+                     [step.candidate for step in selected])
         selection_done = _time.perf_counter()
         self.effects_ = self.model_.effects
         kept = {f.effect.name for f in self.effects_}
@@ -495,6 +511,9 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                     "effect": "torque_constant", "joints": [int(j)],
                     "smallest_change": change, "friction_share": mimicked,
                     "excitation": EXCITATION["torque_constant"]})
+        self.identifiability_ = self._identifiability(candidates, stats, after, mask)
+        self.needs_ = needs(self.identifiability_)
+        self._poses = (np.median(signals.q, axis=0), signals.q.min(0), signals.q.max(0))
         self.breakdown_after_ = residual_breakdown(signals, after, self.sigma_v, self.sigma_rest,
                                                    units=units)
         self.n_candidates_ = len(candidates)
@@ -512,6 +531,87 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                         "fit": end - selection_done, "total": end - start},
         }
         return self
+
+    def _stable(self, signals, candidates, design, residual, masks, check, picked):
+        """Keep the effects a block bootstrap of the selection names often enough.
+
+        :func:`~sklearn_gpcd.diagnosis.stability.stability` reruns the
+        selection on ``N_RESAMPLES`` block-bootstrap resamples; an effect
+        named on all data but in fewer than ``MIN_INCLUSION`` of them is
+        dropped (recorded in ``rejected_effects_``) and the rest refitted.
+        """
+        self.stability_ = stability(
+            candidates, design, residual, masks, signals, signals.current, self.nominal_,
+            self.model_.effects, self.history_,
+            {"n_splits": self.n_splits, "min_gain": self.min_gain, "min_t": self.min_t,
+             "max_effects": self.max_effects, "min_share": self.min_share, "check": check,
+             "n_resamples": N_RESAMPLES}, picked)
+        steps, effects = self._kept_steps, self.model_.effects
+        inclusion = [self.stability_[(f.name, f.target)]["inclusion"] for f in effects]
+        if all(p >= MIN_INCLUSION for p in inclusion):
+            return
+        for f, p in zip(effects, inclusion):
+            if p < MIN_INCLUSION:
+                self.rejected_effects_.append({
+                    "name": f.name if f.target is None else f"{f.name}[joint {f.target + 1}]",
+                    "effect": f.name, "joints": [int(j) for j in f.joints],
+                    "reason": f"named in {100 * p:.0f} % of {N_RESAMPLES} block-bootstrap "
+                              f"resamples (needs {100 * MIN_INCLUSION:.0f} %)",
+                    "implausible": False})
+        kept = [s for s, p in zip(steps, inclusion) if p >= MIN_INCLUSION]
+        self.model_ = self._final_fit(signals, kept, masks[0], masks[1], candidates)
+
+    def _identifiability(self, candidates, stats, after, mask):
+        """The identifiability table of the candidates given the named effects."""
+        variance = np.array([np.var(after[mask[:, j], j]) if mask[:, j].any() else np.nan
+                             for j in range(after.shape[1])])
+        weights = np.where(np.isfinite(variance) & (variance > 0), 1.0 / variance, 0.0)
+        named = []
+        for f in self.effects_:
+            family = [c for c in candidates if not c.parts and c.family == (f.name, f.target)]
+            if family:
+                named.append(min(family, key=lambda c: sum(
+                    abs(np.log(max(abs(float(v)), 1e-9) / max(abs(float(f.settings.get(k, v))),
+                                                                1e-9)))
+                    for k, v in c.settings.items() if isinstance(v, (int, float)))))
+        return identifiability(candidates, stats.totals()[0], weights, named, self.nominal_,
+                               variance_inflation(after, mask))
+
+    def plan(self, max_seconds=180.0, velocity_limits=None, acceleration_limits=None,
+             random_state=0):
+        """The recording to make next: an excitation for what these recordings could not show.
+
+        One segment per kind of need of :attr:`needs_` (most needed first,
+        :mod:`~sklearn_gpcd.diagnosis.plan`), about the recordings' median
+        pose, within the robot's position limits (and the recorded range
+        widened by ``PLAN_MARGIN``), its velocity limits and
+        ``acceleration_limits``, at the recordings' sample period; a slow
+        all-joint confirmation segment closes it.
+
+        Parameters
+        ----------
+        max_seconds : float, default=180
+        velocity_limits : array-like, default=None
+            [rad/s] per joint; None reads the robot's.
+        acceleration_limits : float or array-like, default=None
+            [rad/s^2]; None gives ``plan.MAX_ACCELERATION``.
+        random_state : int, default=0
+
+        Returns
+        -------
+        plan : ExcitationPlan
+        """
+        from .plan import excitation_plan, robot_limits
+
+        check_is_fitted(self, "model_")
+        center, low, high = self._poses
+        limits = robot_limits(self.nominal_.robot, velocity_limits, acceleration_limits)
+        limits.lower = np.maximum(limits.lower, low - PLAN_MARGIN)
+        limits.upper = np.minimum(limits.upper, high + PLAN_MARGIN)
+        wanted = self.needs_
+        period = self._sample_period or 0.008
+        return excitation_plan(wanted, self.nominal_, center, period, limits, max_seconds,
+                               random_state)
 
     def _final_fit(self, signals, selected, mask, guarded_mask, candidates=()):
         """Joint fit; effects implausible or insignificant after it are dropped, one at a time.
@@ -533,6 +633,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             implausible = {k for k, f in enumerate(model.effects)
                            if self._implausible(f, model.effects)}
             if not problems:
+                self._kept_steps = selected
                 return model
             k, reason = min(problems, key=lambda p: model.effects[p[0]].explained_variance)
             fitted = model.effects[k]

@@ -303,6 +303,15 @@ class Effect:
         """
         return None
 
+    def size_that_matters(self, nominal, target):
+        """Smallest size of the first parameter worth finding, or None (not assessed).
+
+        The identifiability check (:mod:`~sklearn_gpcd.diagnosis.identifiability`)
+        asks for a recording where the recordings at hand could not show
+        this size.
+        """
+        return None
+
     def sentence(self, params, joints):
         """One plain-words sentence about the fitted effect (see subclasses)."""
         values = ", ".join(f"{k} = {_pm(*v)}" for k, v in params.items())
@@ -352,6 +361,10 @@ class CoulombFrictionEffect(Effect):
                     "the motion, it cannot be negative")
         return None
 
+    def size_that_matters(self, nominal, target):
+        level = nominal_friction_levels(nominal, target)[0]
+        return 0.2 * level if level > 0 else None
+
     def sentence(self, params, joints):
         value, std = params["delta_coulomb"]
         word = "more" if value > 0 else "less"
@@ -382,6 +395,10 @@ class ViscousFrictionEffect(Effect):
             return (f"the total viscous friction would be {total:.3g} Nm s/rad: viscous "
                     "friction dissipates energy, it cannot be negative")
         return None
+
+    def size_that_matters(self, nominal, target):
+        level = nominal_friction_levels(nominal, target)[1]
+        return 0.2 * level if level > 0 else None
 
     def sentence(self, params, joints):
         value, std = params["delta_viscous"]
@@ -465,6 +482,10 @@ class StribeckFrictionEffect(Effect):
         if not lo <= vs <= hi:
             return f"Stribeck velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
         return None
+
+    def size_that_matters(self, nominal, target):
+        level = nominal_friction_levels(nominal, target)[0]
+        return 0.3 * level if level > 0 else None
 
     def sentence(self, params, joints):
         value, std = params["delta_stribeck"]
@@ -601,6 +622,9 @@ class FrictionSofteningEffect(StribeckFrictionEffect):
         if not lo <= vs <= hi:
             return f"softening velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
         return None
+
+    def size_that_matters(self, nominal, target):
+        return None  # a shape of the dry friction, not a finding of its own
 
     def sentence(self, params, joints):
         value, std = params["softening"]
@@ -748,6 +772,9 @@ class PayloadEffect(Effect):
             return (f"centre of mass {np.linalg.norm(com):.3g} m from the flange (more than "
                     f"{BOUNDS['payload_com']:g} m)")
         return None
+
+    def size_that_matters(self, nominal, target):
+        return BOUNDS["payload_fraction"] * rated_payload(nominal.robot)
 
     def sentence(self, params, joints):
         m, sm = params["mass"]
@@ -923,6 +950,9 @@ class TorqueConstantEffect(Effect):
                     f"lost or gained {abs(100 * (scale - 1)):.0f} % of its torque)")
         return None
 
+    def size_that_matters(self, nominal, target):
+        return 0.1
+
     def sentence(self, params, joints):
         s, ss = params["scale"]
         k, sk = params["torque_constant"]
@@ -1021,6 +1051,9 @@ class TimeDelayEffect(Effect):
         if abs(d) >= BOUNDS["delay"]:
             return f"a delay of {d:.3g} s (at least {BOUNDS['delay']:g} s)"
         return None
+
+    def size_that_matters(self, nominal, target):
+        return 0.005
 
     def sentence(self, params, joints):
         value, std = params["delay"]

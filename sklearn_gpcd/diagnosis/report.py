@@ -133,6 +133,25 @@ def _entry(group):
     return entry
 
 
+def _stability_lines(entry):
+    """One line on the block-bootstrap evidence of a report entry."""
+    st = entry.get("stability")
+    if not st or not st["inclusion"]:
+        return []
+    parts = []
+    joints = entry["joints"] if len(st["inclusion"]) == len(entry["joints"]) else [None]
+    for j, p, size, gain in zip(joints, st["inclusion"], st["size_interval"],
+                                st["heldout_gain_interval"]):
+        where = "" if j is None or len(joints) == 1 else f"joint {j + 1}: "
+        text = f"{where}named in {100 * (p or 0):.0f} % of resamples"
+        if size:
+            text += f", size {size[0]:.3g} to {size[2]:.3g}"
+        if gain:
+            text += f", held-out gain {100 * gain[0]:.0f}-{100 * gain[2]:.0f} %"
+        parts.append(text)
+    return ["      Block bootstrap (95 % intervals): " + "; ".join(parts) + "."]
+
+
 @dataclass
 class DiagnosisReport:
     """What a :class:`DynamicsDiagnosis` found, for people and programs.
@@ -174,6 +193,13 @@ class DiagnosisReport:
     unidentifiable : list of dict
         Effects the recordings could not show at a size that matters, with
         the excitation that would (see ``DynamicsDiagnosis.unidentifiable_``).
+    identifiability : list of dict
+        Per candidate family, from the information matrix of these
+        recordings: smallest detectable size, condition and what it is
+        confounded with (see ``DynamicsDiagnosis.identifiability_``).
+    needs : list of dict
+        What a new recording should show (``DynamicsDiagnosis.needs_``;
+        ``gpcd diagnose --plan`` writes it).
 
     Examples
     --------
@@ -195,6 +221,8 @@ class DiagnosisReport:
     implausible: list = field(default_factory=list)
     ambiguities: list = field(default_factory=list)
     unidentifiable: list = field(default_factory=list)
+    identifiability: list = field(default_factory=list)
+    needs: list = field(default_factory=list)
 
     @classmethod
     def from_diagnosis(cls, diagnosis, scores=None):
@@ -212,6 +240,13 @@ class DiagnosisReport:
         report : DiagnosisReport
         """
         effects = [_entry(g) for g in _group(diagnosis.effects_)]
+        stable = getattr(diagnosis, "stability_", {})
+        for e, group in zip(effects, _group(diagnosis.effects_)):
+            rows = [stable.get((f.name, f.target), {}) for f in
+                    sorted(group, key=lambda f: -1 if f.target is None else f.target)]
+            e["stability"] = {"inclusion": [r.get("inclusion") for r in rows],
+                              "size_interval": [r.get("size") for r in rows],
+                              "heldout_gain_interval": [r.get("gain") for r in rows]}
         effects.sort(key=lambda e: -(e["explained_variance"] or 0.0))
         if scores is None:
             before, after = diagnosis.nmse_train_before_, diagnosis.nmse_train_after_
@@ -253,6 +288,8 @@ class DiagnosisReport:
             implausible=list(getattr(diagnosis, "rejected_effects_", [])),
             ambiguities=list(getattr(diagnosis, "ambiguities_", [])),
             unidentifiable=list(getattr(diagnosis, "unidentifiable_", [])),
+            identifiability=list(getattr(diagnosis, "identifiability_", [])),
+            needs=list(getattr(diagnosis, "needs_", [])),
         )
 
     def to_dict(self):
@@ -276,6 +313,8 @@ class DiagnosisReport:
         out["rejected_estimates"] = self.implausible
         out["ambiguous"] = self.ambiguities
         out["not_identifiable"] = self.unidentifiable
+        out["identifiability"] = self.identifiability
+        out["needs"] = self.needs
         if self.breakdown is not None:
             out["residual_breakdown"] = self.breakdown.to_dict()
         return out
@@ -365,6 +404,7 @@ class DiagnosisReport:
                 f"joints. Evidence: {e['confidence']} (held-out error of its joints "
                 f"{100 * (rel or 0):.0f} % lower, lower in {folds} folds, "
                 f"t = {t_min if t_min is not None else float('inf'):.1f}).")
+            lines += self._identified(e) + _stability_lines(e)
         if self.ambiguities:
             lines += ["", "   Not separable on these recordings:"]
             pairs = {}
@@ -398,6 +438,11 @@ class DiagnosisReport:
                 more = (f" (and {len(group) - 1} more like it)" if len(group) > 1 else "")
                 lines.append(f"   - {name.replace('_', ' ')} on {_joint_list(joints)}: "
                              f"{group[0]['reason']}{more}.")
+        if self.needs:
+            lines += ["", "   What these recordings cannot show at a size that matters "
+                          "(gpcd diagnose ... --plan plan.csv writes the recording to make):"]
+            for n in self.needs:
+                lines.append(f"   - {n['reason']}.")
         where = ("held-out recordings" if self.heldout else
                  "training recordings (in-sample: pass test recordings for a fair figure)")
         lines += ["", f"3. Fit before -> after, nMSE per joint while moving, on {where}:"]
@@ -407,6 +452,20 @@ class DiagnosisReport:
                 continue
             lines.append(f"   joint {j + 1}: nMSE {relative_change(a, c)}")
         return "\n".join(lines)
+
+    def _identified(self, entry):
+        """Lines on what the information matrix says of a named effect's entry."""
+        rows = [r for r in self.identifiability if r["named"] and r["effect"] == entry["name"]
+                and (r["target"] in entry["joints"] if entry["joints"] and r["target"]
+                     is not None else True)]
+        lines = []
+        for r in rows:
+            if r["confounded_with"]:
+                other = r["confounded_with"][0]
+                lines.append(f"      {r['label']}: correlated {other['correlation']:.2f} with "
+                             f"{other['label']} in these recordings; smallest detectable "
+                             f"{r['parameter']} {r['detectable']:.3g}.")
+        return lines
 
     def __str__(self):
         return self.text()

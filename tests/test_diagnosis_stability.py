@@ -1,0 +1,69 @@
+"""Block-bootstrap stability of the selection (``diagnosis/stability.py``)."""
+
+import numpy as np
+
+from sklearn_gpcd.diagnosis import NominalModel, Signals, effect_library, forward_selection
+from sklearn_gpcd.diagnosis.selection import build_candidates, fold_index, fold_statistics
+from sklearn_gpcd.diagnosis.stability import block_index, resample, shortlist, stability
+
+
+def _case(extra):
+    rng = np.random.default_rng(0)
+    nominal = NominalModel("ur10")
+    X = np.hstack([rng.uniform(-1, 1, (600, 12)), np.zeros((600, 6))])
+    s = Signals.from_states(nominal, X)
+    s.current = s.reference + 0.05 * rng.normal(size=(600, 6))
+    s.current[:, 1] += extra * np.sign(s.qd[:, 1])
+    cands, design = build_candidates(s, nominal, effect_library(
+        ["coulomb_friction", "viscous_friction"]))
+    mask = np.ones((600, 6), dtype=bool)
+    residual = s.current - s.reference
+    stats = fold_statistics(cands, design, residual, mask, fold_index(s, 5), 5, s.current)
+    return nominal, s, cands, design, residual, mask, stats
+
+
+def _stability(extra):
+    nominal, s, cands, design, residual, mask, stats = _case(extra)
+    selected, history = forward_selection(stats, cands)
+
+    class Named:  # what stability() reads of a fitted effect
+        def __init__(self, c):
+            self.name, self.target = c.effect.name, c.target
+
+    settings = {"n_splits": 5, "min_gain": 0.02, "min_t": 3.0, "min_share": 0.01,
+                "n_resamples": 10}
+    return selected, stability(cands, design, residual, (mask, mask), s, s.current, nominal,
+                               [Named(st.candidate) for st in selected], history, settings)
+
+
+def test_strong_effect_is_named_in_every_resample_with_its_size():
+    selected, table = _stability(0.3)
+    assert [st.candidate.label for st in selected] == ["coulomb_friction[joint 2]"]
+    row = table[("coulomb_friction", 1)]
+    assert row["inclusion"] == 1.0
+    low, mid, high = row["size"]  # delta_coulomb [Nm]: 0.3 A times K = 11.976 Nm/A
+    assert low < 0.3 * 11.976 < high and high - low < 0.1 * mid
+    assert 0.9 < row["gain"][0] <= row["gain"][2] < 1.0
+
+
+def test_no_effect_gives_low_inclusion_everywhere():
+    selected, table = _stability(0.0)
+    assert selected == []
+    assert all(row["inclusion"] <= 0.3 for row in table.values())
+
+
+def test_resample_keeps_the_total_number_of_blocks():
+    nominal, s, cands, design, residual, mask, stats = _case(0.0)
+    blocks, per = block_index(s)
+    assert sum(p.size for p in per) == blocks.max() + 1
+    from sklearn_gpcd.diagnosis.stability import _reduce, block_statistics
+
+    short = shortlist(cands, [], set())
+    assert short == []
+    reduced, sub, n = _reduce(cands, design, cands[:3])
+    st = block_statistics(reduced, sub, n, residual, mask, blocks, blocks.max() + 1,
+                          s.current)
+    rs = resample(st, per, 5, np.random.default_rng(1))
+    # equal blocks (30 samples each): a resample has as many rows as the data
+    assert rs.counts.sum() == st.counts.sum() and rs.gram.shape[0] == 5
+    assert rs.counts[0].sum() != st.counts.sum() / 5 or not np.allclose(rs.rss, 0)
