@@ -145,6 +145,20 @@ def n_support_arg(value):
 
 
 # ---------------------------------------------------------------- recordings
+def band_arg(value):
+    """``CUTOFF,ORDER,DEBOUNCE`` as AlarmRule settings (``--band``)."""
+    usage = ("expected CUTOFF,ORDER,DEBOUNCE like 10,1,2 (low-pass cut-off > 0 Hz, filter "
+             f"order 1 or 2, debounce >= 1 samples), got {value!r}")
+    parts = value.split(",")
+    try:
+        cutoff, order, debounce = float(parts[0]), int(parts[1]), int(parts[2])
+    except (ValueError, IndexError):
+        raise argparse.ArgumentTypeError(usage) from None
+    if len(parts) != 3 or not (0 < cutoff < math.inf and order in (1, 2) and debounce >= 1):
+        raise argparse.ArgumentTypeError(usage)
+    return {"filter_cutoff": cutoff, "filter_order": order, "min_duration": debounce}
+
+
 def read_recordings(paths, args, what="recordings", progress=True):
     """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``,
     ``--units-confirmed``, ``--allow-short`` and ``--max-joint-speed``."""

@@ -4,13 +4,13 @@ recordings, a thin layer over :func:`sklearn_gpcd.workflow.calibrate_detector`
 :func:`~sklearn_gpcd.workflow.save_detector` for ``gpcd monitor``."""
 
 import argparse
-import math
 import time
 from pathlib import Path
 
 from ._args import (
     ProgressBar,
     add_recording_options,
+    band_arg,
     existing_file,
     model_file_arg,
     non_negative_float,
@@ -21,20 +21,6 @@ from ._args import (
 
 #: The positional list that recordings left over after the options join.
 RECORDINGS = "recordings"
-
-
-def _band_arg(value):
-    """``CUTOFF,ORDER,DEBOUNCE`` as CollisionDetector overrides (``--band``)."""
-    usage = ("expected CUTOFF,ORDER,DEBOUNCE like 10,1,2 (low-pass cut-off > 0 Hz, filter "
-             f"order 1 or 2, debounce >= 1 samples), got {value!r}")
-    parts = value.split(",")
-    try:
-        cutoff, order, debounce = float(parts[0]), int(parts[1]), int(parts[2])
-    except (ValueError, IndexError):
-        raise argparse.ArgumentTypeError(usage) from None
-    if len(parts) != 3 or not (0 < cutoff < math.inf and order in (1, 2) and debounce >= 1):
-        raise argparse.ArgumentTypeError(usage)
-    return {"filter_cutoff": cutoff, "filter_order": order, "min_duration": debounce}
 
 
 def _braking_arg(value):
@@ -94,14 +80,14 @@ def add_parser(sub):
                      "0.05; default: one moving threshold per joint)")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
-    cal.add_argument("--band", type=_band_arg, action="append", default=None,
+    cal.add_argument("--band", type=band_arg, action="append", default=None,
                      metavar="CUTOFF,ORDER,DEBOUNCE",
                      help="add a band: the same detector with its own causal low-pass "
                      "(cut-off [Hz], order 1 or 2) and debounce [samples], calibrated by the "
                      "same rule on the same model; a sample is a collision when any band "
                      "alarms (repeatable; e.g. --band 10,1,2 for short taps the 2 Hz main "
                      "band smooths away). The false-alarm figure counts the union")
-    cal.add_argument("--band-candidate", type=_band_arg, action="append", default=None,
+    cal.add_argument("--band-candidate", type=band_arg, action="append", default=None,
                      metavar="CUTOFF,ORDER,DEBOUNCE", dest="band_candidates",
                      help="a candidate for one more band whose settings are chosen across "
                      "the recordings (repeatable: give two or more): of the candidates, the "
