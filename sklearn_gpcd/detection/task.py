@@ -59,6 +59,9 @@ COULOMB_WIDTHS = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
 LOCAL_SCALE = (0.05, 0.05, 0.5)
 #: Taught states the local correction averages over.
 LOCAL_NEIGHBOURS = 10
+#: Seconds of motion after a start from rest before the taught thresholds
+#: apply: the breakaway from static friction is history, not state.
+BREAKAWAY_S = 0.25
 #: Taught states kept for the novelty search (every k-th row beyond this).
 MAX_TAUGHT_STATES = 20_000
 
@@ -169,13 +172,19 @@ def task_period(q, sample_time, min_period=1.0):
 
 
 def _moving(general, n_rows):
-    """Rows the detector's first band calls moving (all rows without regimes):
-    at rest and settling the current hangs on friction's history, which no
-    function of the state predicts; the detector's regimes keep those."""
+    """Rows the detector's first band calls moving (all rows without regimes)."""
     regime = general.get("regime")
     if regime is None:
         return np.ones(n_rows, dtype=bool)
     return np.asarray(regime).reshape(n_rows) == MOVING
+
+
+def _held(moving, starts, hold):
+    """Rows moving for ``hold`` rows in a row: at rest, settling and in the
+    breakaway from rest the current hangs on friction's history, which no
+    function of the state predicts; the detector's regimes keep those."""
+    held = window_segments(moving.astype(float)[:, None], hold, starts, np.min, pad=0.0)
+    return held[:, 0] > 0
 
 
 def _cycle_units(starts, n_rows, period_rows):
@@ -311,7 +320,7 @@ class TaughtTask(BaseEstimator):
                                                          self.order)
         general = det.monitoring_signal(X, groups)
         residual = np.asarray(general.residual, dtype=float).reshape(len(X), -1)
-        moving = _moving(general, len(X))
+        moving = _held(_moving(general, len(X)), starts, self._hold())
         phi = task_features(X[:, :-n_joints], n_joints)
         z = local_states(X[:, :-n_joints], n_joints)
         units = self._cycles(X[:, block_columns("q", n_joints)], starts)
@@ -331,6 +340,10 @@ class TaughtTask(BaseEstimator):
         self._set_thresholds(m, starts, units, moving)
         self._set_states(X[moving, :-n_joints])
         return self
+
+    def _hold(self):
+        """Rows of motion before the taught thresholds apply (``BREAKAWAY_S``)."""
+        return max(1, int(round(BREAKAWAY_S / self.sample_time_)))
 
     def _cycles(self, q, starts):
         """Cycles of the taught recordings (``period_``, ``n_cycles_``, ``repeatability_``)."""
@@ -457,7 +470,7 @@ class TaughtTask(BaseEstimator):
         result : Bunch
             ``signal`` (filtered taught residual minus ``bias_``, A),
             ``novelty``, ``moving`` (the detector's regime), ``taught``
-            (``novelty <= 1`` while moving), ``taught_alarms`` and
+            (``novelty <= 1`` after ``BREAKAWAY_S`` of motion), ``taught_alarms`` and
             ``general_alarms`` (n, n_joints) and ``alarms``: the taught ones
             where taught, the general ones elsewhere.
         """
@@ -474,7 +487,7 @@ class TaughtTask(BaseEstimator):
         taught_alarms = debounced > self.thresholds_
         novelty = self.novelty(inputs)
         moving = _moving(general, len(X))
-        taught = (novelty <= 1.0) & moving
+        taught = (novelty <= 1.0) & _held(moving, starts, self._hold())
         general_alarms = np.asarray(general.alarms, dtype=bool).reshape(len(X), -1)
         alarms = np.where(taught[:, None], taught_alarms, general_alarms)
         return Bunch(signal=m, novelty=novelty, moving=moving, taught=taught,
@@ -499,12 +512,16 @@ class TaughtTask(BaseEstimator):
         check_is_fitted(self, "coef_")
         return TaskStream(self)
 
-    def deviant_cycles(self, factor=3.0):
+    def deviant_cycles(self, factor=2.0):
         """Cycles whose score is more than ``factor`` times the median score.
+
+        A cycle whose peaks are twice what the other cycles all stay within
+        held something the others did not (a touch while teaching, a start
+        from another state).
 
         Parameters
         ----------
-        factor : float, default=3.0
+        factor : float, default=2.0
 
         Returns
         -------
@@ -554,7 +571,8 @@ class TaskStream:
     ...                         sample_time=0.01).fit(X)
     >>> task = TaughtTask(det).fit(X)
     >>> stream = task.stream()
-    >>> alarm, taught = stream.step(X[0, :-1], X[0, -1:], general_alarm=np.zeros(1, bool))
+    >>> for row in X[:30]:        # taught after BREAKAWAY_S (0.25 s) of motion
+    ...     alarm, taught = stream.step(row[:-1], row[-1:], general_alarm=np.zeros(1, bool))
     >>> bool(alarm.any()), bool(taught)
     (False, True)
     """
@@ -570,6 +588,7 @@ class TaskStream:
         """Restart the filter and debounce (a new recording, or after a fault)."""
         self._z = None
         self._window = []
+        self._moving_run = 0
         self.signal = None
 
     def step(self, inputs, current, general_alarm, moving=True, predicted=None):
@@ -582,7 +601,8 @@ class TaskStream:
         general_alarm : ndarray of bool, shape (n_joints,)
             The detector's per-joint alarm at this sample.
         moving : bool, default=True
-            Whether the detector's regime is "moving"
+            Whether the detector's regime is "moving" (the taught thresholds
+            apply after ``BREAKAWAY_S`` of it)
             (:attr:`StreamingMonitor.regime <sklearn_gpcd.detection.StreamingMonitor.regime>`).
         predicted : ndarray of shape (n_joints,), default=None
             The detector's predicted currents (computed here when None).
@@ -611,6 +631,7 @@ class TaskStream:
             self._window.pop(0)
         debounced = (np.min(self._window, axis=0) if len(self._window) == task.min_duration
                      else np.zeros_like(u))
-        taught = bool(moving) and bool(task.novelty(inputs)[0] <= 1.0)
+        self._moving_run = self._moving_run + 1 if moving else 0
+        taught = self._moving_run >= task._hold() and bool(task.novelty(inputs)[0] <= 1.0)
         alarm = debounced > task.thresholds_ if taught else np.asarray(general_alarm, bool)
         return alarm, taught
