@@ -103,4 +103,4 @@ def test_monitor_with_the_taught_detector_catches_the_push(work, capsys):
     assert result["recordings"][0]["taught_s"] > 0
     # a detector that was not taught says so
     main(["monitor", str(work["detector"]), str(work["push"]), "-q", "--json", str(report)])
-    assert "not taught any task" in capsys.readouterr().out
+    assert "not taught any task" in capsys.readouterr().err

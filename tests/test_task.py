@@ -94,6 +94,10 @@ def test_a_push_is_caught_and_the_rest_of_the_task_is_quiet(taught):
     inside = (t >= push.start) & (t <= push.stop + 0.3)
     assert res.alarms[inside].any()
     assert not res.alarms[~inside].any()
+    # one event for the push: open at its first alarm, held until the signal stays low
+    from sklearn_gpcd.features import contiguous_segments
+    events = contiguous_segments(res.event)
+    assert len(events) == 1 and inside[events[0][0]]
     # taught where the arm moves (rest, settling and breakaway stay with the detector)
     assert not (res.taught & ~res.moving).any()
     assert res.taught.mean() > 0.5
@@ -125,6 +129,7 @@ def test_streaming_equals_batch(taught):
         assert is_taught == batch.taught[i]
         np.testing.assert_allclose(stream.signal, batch.signal[i], rtol=1e-9, atol=1e-12)
         np.testing.assert_array_equal(alarm, batch.alarms[i])
+        assert stream.event == batch.event[i]
 
 
 def test_a_cycle_unlike_the_others_is_named(taught):

@@ -261,6 +261,17 @@ def add_recording_options(parser, robot_help):
         "see sklearn_gpcd.io.columns)")
 
 
+def add_file_options(parser, written, read):
+    """``-o`` (the ``written`` file), ``--trust-pickle`` (to load the ``read`` file
+    as a pickle) and ``-q``: what the verbs that read one file and write another share."""
+    parser.add_argument("-o", "--output", type=model_file_arg, required=True,
+                        help=f"{written} to write (.skops, or .joblib / .pkl)")
+    parser.add_argument("--trust-pickle", action="store_true",
+                        help=f"load a .joblib / .pkl {read} (a pickle runs any code it "
+                        "carries: only for a file from a source you trust)")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+
+
 def existing_file(value):
     if not Path(value).is_file():
         raise argparse.ArgumentTypeError(f"{value}: no such file")

@@ -9,10 +9,10 @@ from pathlib import Path
 
 from ._args import (
     ProgressBar,
+    add_file_options,
     add_recording_options,
     band_arg,
     existing_file,
-    model_file_arg,
     non_negative_float,
     positive_float,
     read_recordings,
@@ -105,12 +105,7 @@ def add_parser(sub):
                      "out in turn like a recording of its own (for one long collision-free "
                      "log; pieces of one log are less independent than separate runs, so "
                      "the margin and the false-alarm figure are less safe)")
-    cal.add_argument("-o", "--output", type=model_file_arg, required=True,
-                     help="detector file to write (.skops, or .joblib / .pkl)")
-    cal.add_argument("--trust-pickle", action="store_true",
-                     help="load a .joblib / .pkl model file (a pickle runs any code it "
-                     "carries: only for a file from a source you trust)")
-    cal.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    add_file_options(cal, "detector file", "model file")
     cal.set_defaults(func=run)
 
 

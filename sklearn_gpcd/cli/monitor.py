@@ -13,6 +13,7 @@ band alarms, and the report names the bands.
 """
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -109,8 +110,9 @@ def run(args):
     if args.plot is not None:
         Path(args.plot).mkdir(parents=True, exist_ok=True)
     if "teach" not in calibration:
-        print(f"note: {args.detector} is not taught any task: the calibrated thresholds apply "
-              "everywhere (gpcd teach DETECTOR TASK_LOG... -o TAUGHT learns one)", flush=True)
+        print(f"gpcd monitor: note: {args.detector} is not taught any task: the calibrated "
+              "thresholds apply everywhere (gpcd teach DETECTOR TASK_LOG... -o TAUGHT learns "
+              "one)", file=sys.stderr, flush=True)
     live = args.rtde is not None or args.replay is not None
     session = MonitorSession(detector, features, hook=args.hook,
                              keep_series=args.plot is not None, echo=live,

@@ -5,10 +5,10 @@ collision-free cycles, a thin layer over :func:`sklearn_gpcd.workflow.teach_task
 import time
 
 from ._args import (
+    add_file_options,
     add_recording_options,
     band_arg,
     existing_file,
-    model_file_arg,
     positive_float,
     read_recordings,
 )
@@ -41,12 +41,7 @@ def add_parser(sub):
     teach.add_argument("--novelty-radius", type=positive_float, default=1.0, metavar="R",
                        help="a state farther than R from every taught one, in units of "
                        "0.1 rad and 0.5 rad/s, is untaught (default 1)")
-    teach.add_argument("-o", "--output", type=model_file_arg, required=True,
-                       help="taught detector file to write (.skops, or .joblib / .pkl)")
-    teach.add_argument("--trust-pickle", action="store_true",
-                       help="load a .joblib / .pkl detector file (a pickle runs any code it "
-                       "carries: only for a file from a source you trust)")
-    teach.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    add_file_options(teach, "taught detector file", "detector file")
     teach.set_defaults(func=run)
 
 

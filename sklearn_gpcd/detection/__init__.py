@@ -36,9 +36,10 @@ from .detector import (
 from .model_selection import CollisionThresholdCV
 from .rules import THRESHOLD_RULES, AlarmRule, Regimes
 from .streaming import BandState, MonitorStatus, StreamingMonitor
-from .task import TaskStream, TaughtTask, task_features, task_period
+from .task import EventHold, TaskStream, TaughtTask, task_features, task_period
 
 __all__ = [
+    "EventHold",
     "TaskStream",
     "TaughtTask",
     "task_features",

@@ -388,6 +388,10 @@ class StreamingMonitor(VersionedStateMixin):
         self.fault_reason = None
         self.reset()
 
+    #: A monitor saved before tasks could be taught runs untaught.
+    task = None
+    _task_stream = None
+    taught = False
     #: Attributes rebuilt on load rather than stored: views into ``_row`` (a
     #: pickle would turn them into copies; see :meth:`_bind`), the compiled
     #: predictor and the first band's arrays.
@@ -432,6 +436,12 @@ class StreamingMonitor(VersionedStateMixin):
     @property
     def regime(self):
         return self.bands[0].regime
+
+    @property
+    def event(self):
+        """Whether a contact event is open (:class:`EventHold`; with a taught
+        task, else whether some joint alarms)."""
+        return bool(self.alarms.any()) if self._task_stream is None else self._task_stream.event
 
     @property
     def task_signal(self):
@@ -736,7 +746,9 @@ class StreamingMonitor(VersionedStateMixin):
             and ``residual``; ``bands``, one Bunch per rule with its
             ``signal``, ``ratio``, ``alarms``, ``regime`` and ``level``, the
             first band's ``signal``, ``ratio`` and ``regime`` also at the top
-            level. Sensor faults leave NaN float rows and no alarm.
+            level; ``taught`` (bool, rows the taught task decided) and
+            ``event`` (rows of an open contact event). Sensor
+            faults leave NaN float rows and no alarm.
         """
         X = np.asarray(X, dtype=float)
         n = X.shape[0]
@@ -762,11 +774,13 @@ class StreamingMonitor(VersionedStateMixin):
                     bands=[Bunch(signal=np.empty(shape), ratio=np.empty(shape),
                                  alarms=np.zeros(shape, dtype=bool),
                                  regime=np.zeros(n, dtype=np.intp), level=band.level)
-                           for band in self.bands])
+                           for band in self.bands],
+                    taught=np.zeros(n, dtype=bool), event=np.zeros(n, dtype=bool))
         for t, status in enumerate(statuses):
             out.status[t] = status.value
             out.alarms[t], out.score[t] = self.alarms, self.score
             out.predicted[t], out.residual[t] = self.predicted, self.residual
+            out.taught[t], out.event[t] = self.taught, self.event
             for record, band in zip(out.bands, self.bands):
                 record.signal[t], record.ratio[t] = band.signal, band.ratio
                 record.alarms[t], record.regime[t] = band.alarms, band.regime

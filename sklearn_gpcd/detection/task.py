@@ -49,7 +49,8 @@ from ..layout import block_columns
 from ._regimes import MOVING
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 
-__all__ = ["TaughtTask", "TaskStream", "task_features", "task_period"]
+__all__ = ["EventHold", "TaughtTask", "TaskStream", "local_states", "task_features",
+           "task_period"]
 
 #: Widths [rad/s] of the smooth Coulomb columns of the task features: a
 #: basis over the velocity scales of friction near a reversal (chosen by the
@@ -62,6 +63,10 @@ LOCAL_NEIGHBOURS = 10
 #: Seconds of motion after a start from rest before the taught thresholds
 #: apply: the breakaway from static friction is history, not state.
 BREAKAWAY_S = 0.25
+#: Release level of an event (ratio of the signal to its threshold).
+RELEASE = 0.5
+#: Seconds below the release level that end an event.
+EVENT_HOLD_S = 0.2
 #: Taught states kept for the novelty search (every k-th row beyond this).
 MAX_TAUGHT_STATES = 20_000
 
@@ -343,7 +348,10 @@ class TaughtTask(BaseEstimator):
 
     def _hold(self):
         """Rows of motion before the taught thresholds apply (``BREAKAWAY_S``)."""
-        return max(1, int(round(BREAKAWAY_S / self.sample_time_)))
+        return self._hold_rows(BREAKAWAY_S)
+
+    def _hold_rows(self, seconds):
+        return max(1, int(round(seconds / self.sample_time_)))
 
     def _cycles(self, q, starts):
         """Cycles of the taught recordings (``period_``, ``n_cycles_``, ``repeatability_``)."""
@@ -472,7 +480,10 @@ class TaughtTask(BaseEstimator):
             ``novelty``, ``moving`` (the detector's regime), ``taught``
             (``novelty <= 1`` after ``BREAKAWAY_S`` of motion), ``taught_alarms`` and
             ``general_alarms`` (n, n_joints) and ``alarms``: the taught ones
-            where taught, the general ones elsewhere.
+            where taught, the general ones elsewhere; ``ratio``, the largest
+            debounced ``|m_l| / threshold_l`` where taught (2 or 0 by the
+            detector's alarms elsewhere), and ``event`` (bool): the rows of
+            contact events (:class:`EventHold`).
         """
         check_is_fitted(self, "coef_")
         X = np.asarray(X, dtype=float)
@@ -490,8 +501,14 @@ class TaughtTask(BaseEstimator):
         taught = (novelty <= 1.0) & _held(moving, starts, self._hold())
         general_alarms = np.asarray(general.alarms, dtype=bool).reshape(len(X), -1)
         alarms = np.where(taught[:, None], taught_alarms, general_alarms)
+        ratio = np.where(taught, (debounced / self.thresholds_).max(axis=1),
+                         2.0 * alarms.any(axis=1))
+        events = EventHold(self._hold_rows(EVENT_HOLD_S))
+        event = np.array([events.step(r, start) for r, start in zip(
+            ratio, np.isin(np.arange(len(X)), starts))], dtype=bool)
         return Bunch(signal=m, novelty=novelty, moving=moving, taught=taught,
-                     taught_alarms=taught_alarms, general_alarms=general_alarms, alarms=alarms)
+                     taught_alarms=taught_alarms, general_alarms=general_alarms, alarms=alarms,
+                     ratio=ratio, event=event)
 
     def predict(self, X, groups=None):
         """+1 normal, -1 collision, per row.
@@ -550,6 +567,51 @@ class TaughtTask(BaseEstimator):
                 "false_alarms_per_hour_bound": 3600.0 / self.period_ / (self.n_cycles_ + 1)}
 
 
+class EventHold:
+    """One event per contact: open at an alarm, closed after a hold below release.
+
+    An event opens where the ratio (signal over threshold) reaches 1 and
+    stays open while it is above ``RELEASE`` or has been below it for fewer
+    than ``hold`` samples: a contact whose signal dips under the threshold
+    for a moment is one event, and the next contact, which starts from
+    below the release level, is another.
+
+    Parameters
+    ----------
+    hold : int
+        Samples below release that end an event.
+
+    Examples
+    --------
+    >>> hold = EventHold(3)
+    >>> ratios = [0.2, 1.3, 0.8, 1.1, 0.4, 0.3, 0.2, 0.1, 1.2, 0.1]
+    >>> [int(hold.step(r)) for r in ratios]
+    [0, 1, 1, 1, 1, 1, 0, 0, 1, 1]
+    """
+
+    def __init__(self, hold):
+        self.hold = int(hold)
+        self.open = False
+        self._below = 0
+
+    def step(self, ratio, restart=False):
+        """One sample's ``ratio``; ``restart`` closes any open event first.
+
+        Returns
+        -------
+        open : bool
+        """
+        if restart:
+            self.open, self._below = False, 0
+        if ratio > 1.0:
+            self.open, self._below = True, 0
+        elif self.open:
+            self._below = self._below + 1 if ratio <= RELEASE else 0
+            if self._below >= self.hold:
+                self.open, self._below = False, 0
+        return self.open
+
+
 class TaskStream:
     """Tick-by-tick :meth:`TaughtTask.monitoring_signal` (the taught half).
 
@@ -582,14 +644,42 @@ class TaskStream:
         b, a = task.filter_coefficients_
         self._b, self._a = b, a
         self._zi0 = lfilter_zi(b, a)
+        n = task.n_joints_
+        self._q, self._qd, self._qdd = (np.asarray(block_columns(b, n))
+                                        for b in ("q", "qd", "qdd"))
+        self._widths = np.asarray(COULOMB_WIDTHS)
+        self._local_scale = np.repeat(LOCAL_SCALE, n)
+        self._k = min(LOCAL_NEIGHBOURS, task._ref.tree.n)
+        self._hold = task._hold()
         self.reset()
+
+    def _reference(self, x):
+        """:meth:`TaughtTask.reference` and the novelty of one row, without the
+        per-call checks (the same arithmetic)."""
+        task = self.task
+        q, qd, qdd = x[self._q], x[self._qd], x[self._qdd]
+        phi = np.concatenate([q, np.sin(q), np.cos(q), qd,
+                              np.tanh(qd[None, :] / self._widths[:, None]).ravel(), qdd])
+        smooth = ((phi - task.feature_mean_) / task.feature_scale_) @ task.coef_ \
+            + task.intercept_
+        d, i = task._ref.tree.query(np.concatenate([q, qd, qdd]) / self._local_scale,
+                                    k=self._k)
+        w = np.exp(-0.5 * np.atleast_1d(d) ** 2)
+        total = w.sum()
+        local = w @ task.local_residual_[np.atleast_1d(i)] / max(total, 1e-300)
+        novelty, _ = task._tree.query(np.concatenate([q / 0.1, qd / 0.5]))
+        return smooth + local * (1.0 - np.exp(-total)), novelty / task.novelty_radius
 
     def reset(self):
         """Restart the filter and debounce (a new recording, or after a fault)."""
         self._z = None
         self._window = []
         self._moving_run = 0
+        self._first = True
+        self._events = EventHold(self.task._hold_rows(EVENT_HOLD_S))
         self.signal = None
+        self.ratio = 0.0
+        self.event = False
 
     def step(self, inputs, current, general_alarm, moving=True, predicted=None):
         """One sample.
@@ -613,11 +703,11 @@ class TaskStream:
         taught : bool
         """
         task = self.task
-        inputs = np.asarray(inputs, dtype=float)[None, :]
+        inputs = np.asarray(inputs, dtype=float)
         if predicted is None:
-            predicted = task.detector.regressor_.predict(inputs)
-        u = np.asarray(current, dtype=float) - np.reshape(predicted, -1) \
-            - task.reference(inputs)[0]
+            predicted = task.detector.regressor_.predict(inputs[None, :])
+        reference, novelty = self._reference(inputs)
+        u = np.asarray(current, dtype=float) - np.reshape(predicted, -1) - reference
         b, a = self._b, self._a
         if self._z is None:
             self._z = self._zi0[:, None] * u[None, :]
@@ -632,6 +722,10 @@ class TaskStream:
         debounced = (np.min(self._window, axis=0) if len(self._window) == task.min_duration
                      else np.zeros_like(u))
         self._moving_run = self._moving_run + 1 if moving else 0
-        taught = self._moving_run >= task._hold() and bool(task.novelty(inputs)[0] <= 1.0)
+        taught = self._moving_run >= self._hold and bool(novelty <= 1.0)
         alarm = debounced > task.thresholds_ if taught else np.asarray(general_alarm, bool)
+        self.ratio = (float((debounced / task.thresholds_).max()) if taught
+                      else 2.0 * bool(alarm.any()))
+        self.event = self._events.step(self.ratio, self._first)
+        self._first = False
         return alarm, taught

@@ -315,7 +315,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             self._count_taught(rel)
         if mon.alarms.any():
             self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
-        elif self.open is not None:
+        elif self.open is not None and not mon.event:  # a taught event holds (EventHold)
             self._close()
         if self.keep_series:
             s = self.series
