@@ -1,8 +1,8 @@
 """The ``gpcd`` command.
 
 Subcommands: ``reproduce``, ``simulate`` and ``robots`` (the built-in
-simulator), ``train``, ``diagnose``, ``calibrate`` and ``monitor`` (a user's
-own recordings); ``gpcd COMMAND --help`` and the CLI page of the
+simulator), ``train``, ``diagnose``, ``calibrate``, ``teach`` and ``monitor`` (a
+user's own recordings); ``gpcd COMMAND --help`` and the CLI page of the
 documentation describe each.
 
 Options naming a robot (``--robot``) take a built-in name or a URDF path;
@@ -18,7 +18,7 @@ interrupted``). Warnings print one line each, ``gpcd COMMAND: warning: MESSAGE``
 and the command goes on. Progress bars (with an ETA) go to stderr.
 
 One module per verb (:mod:`~sklearn_gpcd.cli.train`, ``calibrate``,
-``monitor``, ``diagnose``, ``reproduce`` with ``simulate`` and ``robots``),
+``teach``, ``monitor``, ``diagnose``, ``reproduce`` with ``simulate`` and ``robots``),
 each a thin layer over the library, and :mod:`~sklearn_gpcd.cli._args` for
 what they share.
 """
@@ -27,7 +27,7 @@ import argparse
 import sys
 import warnings
 
-from . import calibrate, diagnose, monitor, reproduce, train
+from . import calibrate, diagnose, monitor, reproduce, teach, train
 
 __all__ = ["main", "build_parser", "parse_args"]
 
@@ -58,6 +58,7 @@ def build_parser():
     train.add_parser(sub)
     diagnose.add_parser(sub)
     calibrate.add_parser(sub)
+    teach.add_parser(sub)
     monitor.add_parser(sub)
     return parser
 

@@ -146,6 +146,20 @@ def n_support_arg(value):
 
 
 # ---------------------------------------------------------------- recordings
+def band_arg(value):
+    """``CUTOFF,ORDER,DEBOUNCE`` as AlarmRule settings (``--band``)."""
+    usage = ("expected CUTOFF,ORDER,DEBOUNCE like 10,1,2 (low-pass cut-off > 0 Hz, filter "
+             f"order 1 or 2, debounce >= 1 samples), got {value!r}")
+    parts = value.split(",")
+    try:
+        cutoff, order, debounce = float(parts[0]), int(parts[1]), int(parts[2])
+    except (ValueError, IndexError):
+        raise argparse.ArgumentTypeError(usage) from None
+    if len(parts) != 3 or not (0 < cutoff < math.inf and order in (1, 2) and debounce >= 1):
+        raise argparse.ArgumentTypeError(usage)
+    return {"filter_cutoff": cutoff, "filter_order": order, "min_duration": debounce}
+
+
 def read_recordings(paths, args, what="recordings", progress=True):
     """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``,
     ``--units-confirmed``, ``--allow-short`` and ``--max-joint-speed``."""
@@ -246,6 +260,17 @@ def add_recording_options(parser, robot_help):
         "\"current\": [13, 14, 15, 16, 17, 18]}' or, with a header, '{\"time\": \"t\", "
         "\"q\": \"q\", \"qd\": \"qd\", \"current\": \"i\"}' (prefixes of q_0 .. q_5; "
         "see sklearn_gpcd.io.columns)")
+
+
+def add_file_options(parser, written, read):
+    """``-o`` (the ``written`` file), ``--trust-pickle`` (to load the ``read`` file
+    as a pickle) and ``-q``: what the verbs that read one file and write another share."""
+    parser.add_argument("-o", "--output", type=model_file_arg, required=True,
+                        help=f"{written} to write (.skops, or .joblib / .pkl)")
+    parser.add_argument("--trust-pickle", action="store_true",
+                        help=f"load a .joblib / .pkl {read} (a pickle runs any code it "
+                        "carries: only for a file from a source you trust)")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
 
 
 def existing_file(value):

@@ -4,7 +4,6 @@ recordings, a thin layer over :func:`sklearn_gpcd.workflow.calibrate_detector`
 :func:`~sklearn_gpcd.workflow.save_detector` for ``gpcd monitor``."""
 
 import argparse
-import math
 import time
 from pathlib import Path
 
@@ -20,10 +19,11 @@ from ..workflow import (
 )
 from ._args import (
     ProgressBar,
+    add_file_options,
     add_recording_options,
+    band_arg,
     existing_file,
     file_size,
-    model_file_arg,
     non_negative_float,
     positive_float,
     read_recordings,
@@ -32,20 +32,6 @@ from ._args import (
 
 #: The positional list that recordings left over after the options join.
 RECORDINGS = "recordings"
-
-
-def _band_arg(value):
-    """``CUTOFF,ORDER,DEBOUNCE`` as CollisionDetector overrides (``--band``)."""
-    usage = ("expected CUTOFF,ORDER,DEBOUNCE like 10,1,2 (low-pass cut-off > 0 Hz, filter "
-             f"order 1 or 2, debounce >= 1 samples), got {value!r}")
-    parts = value.split(",")
-    try:
-        cutoff, order, debounce = float(parts[0]), int(parts[1]), int(parts[2])
-    except (ValueError, IndexError):
-        raise argparse.ArgumentTypeError(usage) from None
-    if len(parts) != 3 or not (0 < cutoff < math.inf and order in (1, 2) and debounce >= 1):
-        raise argparse.ArgumentTypeError(usage)
-    return {"filter_cutoff": cutoff, "filter_order": order, "min_duration": debounce}
 
 
 def _braking_arg(value):
@@ -115,14 +101,14 @@ def add_parser(sub):
                      "0.05; default: one moving threshold per joint)")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
-    cal.add_argument("--band", type=_band_arg, action="append", default=None,
+    cal.add_argument("--band", type=band_arg, action="append", default=None,
                      metavar="CUTOFF,ORDER,DEBOUNCE",
                      help="add a band: the same detector with its own causal low-pass "
                      "(cut-off [Hz], order 1 or 2) and debounce [samples], calibrated by the "
                      "same rule on the same model; a sample is a collision when any band "
                      "alarms (repeatable; e.g. --band 10,1,2 for short taps the 2 Hz main "
                      "band smooths away). The false-alarm figure counts the union")
-    cal.add_argument("--band-candidate", type=_band_arg, action="append", default=None,
+    cal.add_argument("--band-candidate", type=band_arg, action="append", default=None,
                      metavar="CUTOFF,ORDER,DEBOUNCE", dest="band_candidates",
                      help="a candidate for one more band whose settings are chosen across "
                      "the recordings (repeatable: give two or more): of the candidates, the "
@@ -140,12 +126,7 @@ def add_parser(sub):
                      "out in turn like a recording of its own (for one long collision-free "
                      "log; pieces of one log are less independent than separate runs, so "
                      "the margin and the false-alarm figure are less safe)")
-    cal.add_argument("-o", "--output", type=model_file_arg, required=True,
-                     help="detector file to write (.skops, or .joblib / .pkl)")
-    cal.add_argument("--trust-pickle", action="store_true",
-                     help="load a .joblib / .pkl model file (a pickle runs any code it "
-                     "carries: only for a file from a source you trust)")
-    cal.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    add_file_options(cal, "detector file", "model file")
     cal.set_defaults(func=run)
 
 

@@ -110,6 +110,10 @@ def run(args):
                                                     trust_pickle=args.trust_pickle)
     if args.plot is not None:
         Path(args.plot).mkdir(parents=True, exist_ok=True)
+    if "teach" not in calibration:
+        print(f"gpcd monitor: note: {args.detector} is not taught any task: the calibrated "
+              "thresholds apply everywhere (gpcd teach DETECTOR TASK_LOG... -o TAUGHT learns "
+              "one)", file=sys.stderr, flush=True)
     live = args.rtde is not None or args.replay is not None
     session = MonitorSession(detector, features, hook=args.hook,
                              keep_series=args.plot is not None, echo=live,

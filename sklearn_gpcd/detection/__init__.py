@@ -11,6 +11,8 @@
   nested false alarms);
 * :class:`CollisionThresholdCV` -- ``GridSearchCV`` over labelled recordings
   with the detection scorer of :mod:`sklearn_gpcd.metrics`;
+* :class:`TaughtTask` -- a task taught from a few collision-free cycles: a
+  reference of the residual in the task's states, one conformal level;
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
 """
 
@@ -34,8 +36,14 @@ from .detector import (
 from .model_selection import CollisionThresholdCV
 from .rules import THRESHOLD_RULES, AlarmRule, Regimes
 from .streaming import BandState, MonitorStatus, StreamingMonitor
+from .task import EventHold, TaskStream, TaughtTask, task_features, task_period
 
 __all__ = [
+    "EventHold",
+    "TaskStream",
+    "TaughtTask",
+    "task_features",
+    "task_period",
     "AlarmRule",
     "BandState",
     "CollisionDetector",

@@ -12,8 +12,9 @@ from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..features.inputs import as_recordings
 from ..gp import compile_predictor
-from ._regimes import AlarmState
+from ._regimes import MOVING, AlarmState
 from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning, reads_currents
+from .task import TaughtTask
 
 
 class MonitorStatus(str, Enum):
@@ -267,10 +268,16 @@ class StreamingMonitor(VersionedStateMixin):
     robot logs; :meth:`replay_recording` equals ``detector.predict`` on
     ``stack_currents(features.transform(rec), rec.current)``.
 
+    **A taught task.** Given a fitted :class:`TaughtTask` as ``detector``,
+    each tick also runs its :class:`TaskStream` on the same prediction: where
+    the arm moves through taught states ``alarms`` are the task's, elsewhere
+    the bands' (``taught`` says which), as in
+    :meth:`TaughtTask.monitoring_signal`.
+
     Parameters
     ----------
-    detector : CollisionDetector
-        A fitted detector.
+    detector : CollisionDetector or TaughtTask
+        A fitted detector, or a task taught on one.
     features : CausalFeatures, default=None
         Fitted causal features, for :meth:`update_raw`.
 
@@ -287,7 +294,10 @@ class StreamingMonitor(VersionedStateMixin):
     signal, ratio, regime
         Those of the first band.
     alarms : ndarray of bool, shape (n_joints,)
-        Joints that fired (in some band).
+        Joints that fired (in some band, or the taught task's where taught).
+    task : TaughtTask or None
+    taught : bool
+        The last tick was decided by the taught task.
     score : float
         The batch ``score_samples`` value (``-max(ratio)`` with one band).
     n_ticks, n_faults : int
@@ -329,6 +339,10 @@ class StreamingMonitor(VersionedStateMixin):
     """
 
     def __init__(self, detector, features=None):
+        self.task = detector if isinstance(detector, TaughtTask) else None
+        if self.task is not None:
+            check_is_fitted(self.task, "coef_")
+            detector = self.task.detector
         check_is_fitted(detector)
         self.detector = detector
         self.features = features
@@ -362,8 +376,10 @@ class StreamingMonitor(VersionedStateMixin):
                 )
             self._dt_sum, self._dt_count = 0.0, 0
         self.predicted = np.full(n, np.nan)
-        self.alarms = (self.bands[0].alarms if len(self.bands) == 1
+        self.alarms = (self.bands[0].alarms if len(self.bands) == 1 and self.task is None
                        else np.zeros(n, dtype=bool))
+        self._task_stream = self.task.stream() if self.task is not None else None
+        self.taught = False
         self._bind()
         self.score = np.nan
         self.status = None
@@ -373,6 +389,10 @@ class StreamingMonitor(VersionedStateMixin):
         self.fault_reason = None
         self.reset()
 
+    #: A monitor saved before tasks could be taught runs untaught.
+    task = None
+    _task_stream = None
+    taught = False
     #: Attributes rebuilt on load rather than stored: views into ``_row`` (a
     #: pickle would turn them into copies; see :meth:`_bind`), the compiled
     #: predictor and the first band's arrays.
@@ -388,7 +408,7 @@ class StreamingMonitor(VersionedStateMixin):
             state.pop(name, None)
         if not self._use_std:
             state.pop("residual")  # the same array as _u
-        if len(self.bands) == 1:
+        if len(self.bands) == 1 and self.task is None:
             state.pop("alarms")  # the first band's
         state["status"] = None if self.status is None else self.status.value
         return state
@@ -400,7 +420,7 @@ class StreamingMonitor(VersionedStateMixin):
             self.status = MonitorStatus(self.status)
         if not self._use_std:
             self.residual = self._u
-        if len(self.bands) == 1:
+        if len(self.bands) == 1 and self.task is None:
             self.alarms = self.bands[0].alarms
         self._bind()
         self._wrap = _frame_maker(self.detector)
@@ -418,6 +438,17 @@ class StreamingMonitor(VersionedStateMixin):
     def regime(self):
         return self.bands[0].regime
 
+    @property
+    def event(self):
+        """Whether a contact event is open (:class:`EventHold`; with a taught
+        task, else whether some joint alarms)."""
+        return bool(self.alarms.any()) if self._task_stream is None else self._task_stream.event
+
+    @property
+    def task_signal(self):
+        """The taught task's filtered residual of the last tick [A] (None untaught)."""
+        return None if self._task_stream is None else self._task_stream.signal
+
     def reset(self):
         """Forget the filter and debounce history and the last time stamp.
 
@@ -427,6 +458,8 @@ class StreamingMonitor(VersionedStateMixin):
         self.last_time = None
         for band in self.bands:
             band.reset()
+        if self._task_stream is not None:
+            self._task_stream.reset()
         if self._online is not None:
             self._online.reset()
 
@@ -490,11 +523,23 @@ class StreamingMonitor(VersionedStateMixin):
             self.score = min([band.level - band._commit(self._motion) for band in self.bands])
             np.logical_or.reduce([band.alarms for band in self.bands], out=self.alarms)
             alarmed = any(band.alarmed for band in self.bands)
+        if self._task_stream is not None:
+            alarmed = self._taught_step()
         self.last_time = stamp
         self.n_consecutive_faults = 0
         self.fault_reason = None
         self.status = MonitorStatus.COLLISION if alarmed else MonitorStatus.OK
         return self.status
+
+    def _taught_step(self):
+        """The taught decision of this tick (:class:`TaskStream`): the task's
+        thresholds where the arm moves through taught states, the bands' elsewhere."""
+        general = self.bands[0].alarms if len(self.bands) == 1 else self.alarms
+        alarm, self.taught = self._task_stream.step(
+            self._inputs, self._current, general, moving=self.regime == MOVING,
+            predicted=self.predicted)
+        self.alarms[:] = alarm
+        return bool(alarm.any())
 
     def update_raw(self, time, q, qd, current, target_q=None, target_qd=None,
                    target_current=None):
@@ -700,7 +745,9 @@ class StreamingMonitor(VersionedStateMixin):
             and ``residual``; ``bands``, one Bunch per rule with its
             ``signal``, ``ratio``, ``alarms``, ``regime`` and ``level``, the
             first band's ``signal``, ``ratio`` and ``regime`` also at the top
-            level. Sensor faults leave NaN float rows and no alarm.
+            level; ``taught`` (bool, rows the taught task decided) and
+            ``event`` (rows of an open contact event). Sensor
+            faults leave NaN float rows and no alarm.
         """
         X = np.asarray(X, dtype=float)
         n = X.shape[0]
@@ -726,11 +773,13 @@ class StreamingMonitor(VersionedStateMixin):
                     bands=[Bunch(signal=np.empty(shape), ratio=np.empty(shape),
                                  alarms=np.zeros(shape, dtype=bool),
                                  regime=np.zeros(n, dtype=np.intp), level=band.level)
-                           for band in self.bands])
+                           for band in self.bands],
+                    taught=np.zeros(n, dtype=bool), event=np.zeros(n, dtype=bool))
         for t, status in enumerate(statuses):
             out.status[t] = status.value
             out.alarms[t], out.score[t] = self.alarms, self.score
             out.predicted[t], out.residual[t] = self.predicted, self.residual
+            out.taught[t], out.event[t] = self.taught, self.event
             for record, band in zip(out.bands, self.bands):
                 record.signal[t], record.ratio[t] = band.signal, band.ratio
                 record.alarms[t], record.regime[t] = band.alarms, band.regime

@@ -57,6 +57,13 @@ class _SessionReport:
         n_faults = sum(r["n_sensor_faults"] for r in self.recordings)
         out = [f"{len(self.events)} alarm event(s) in {len(self.recordings)} recording(s), "
                f"{n_samples} samples ({n_faults} sensor faults)"]
+        if self.task is not None:
+            taught = sum(r.get("taught_s", 0.0) for r in self.recordings)
+            untaught = sum(r.get("untaught_motion_s", 0.0) for r in self.recordings)
+            moving = taught + untaught
+            out.append(f"  taught task: {taught:.1f} s in taught motion, {untaught:.1f} s of "
+                       f"untaught motion ({100 * untaught / moving if moving else 0:.0f} % of the "
+                       "motion: the calibrated thresholds there)")
         if self.multiband:
             for b, label in enumerate(self.band_labels, start=1):
                 n_events = sum(b in e["bands"] for e in self.events)
@@ -70,6 +77,8 @@ class _SessionReport:
                    ("joints", "<12", lambda e: ",".join(map(str, e["joints"]))),
                    (f"peak |m| [{self.units}]", ">12", lambda e: f"{e['peak_A']:.3f}"),
                    ("delay [s]", ">9", lambda e: f"{e['delay_s']:.3f}")]
+        if self.task is not None:
+            columns.append(("taught", "<6", lambda e: "yes" if e.get("taught") else "no"))
         if self.multiband:
             columns.insert(4, ("bands", "<6", lambda e: ",".join(map(str, e["bands"]))))
         out.append("  ".join(f"{name:{spec}}" for name, spec, _ in columns))

@@ -10,9 +10,13 @@ import warnings
 import numpy as np
 
 from ..workflow.calibration import band_label, band_settings
-from .faults import MONITORING, _FaultStates, stall_bound
+from .faults import MAX_FAULT_RECORDS, MONITORING, _FaultStates, stall_bound
 from .report import _LogHistogram, _SessionReport
 from .rtde import _RTDERunning
+
+
+#: Untaught motion [s] after which a stretch is announced and counted.
+UNTAUGHT_NOTICE_S = 0.25
 
 
 class HookWarning(UserWarning):
@@ -197,6 +201,9 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         from ..detection import StreamingMonitor
 
         self.monitor = StreamingMonitor(detector, features=features)
+        #: the taught task (gpcd teach), or None
+        self.task = self.monitor.task
+        detector = self.monitor.detector
         #: one BandState per alarm rule
         self.bands = self.monitor.bands
         self.multiband = len(self.bands) > 1
@@ -247,6 +254,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self._last_received = None
         self._run = 0  # rejected samples in a row
         self._lost = 0  # samples lost in the current blind period
+        self._taught_n = self._untaught_n = self._untaught_run = 0
+        self._untaught_stretches = []  # [start_s, end_s] of untaught motion
 
     def tick(self, t, fields, received=None):
         """One raw sample (``fields``: q, qd, current and the controller signals).
@@ -303,9 +312,11 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                 self.cross_start = rel
         elif self.open is None:
             self.cross_start = None
+        if self.task is not None:
+            self._count_taught(rel)
         if mon.alarms.any():
             self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
-        elif self.open is not None:
+        elif self.open is not None and not mon.event:  # a taught event holds (EventHold)
             self._close()
         if self.keep_series:
             s = self.series
@@ -315,6 +326,27 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             s["regime"].append([band.regime for band in self.bands])
             s["alarms"].append(mon.alarms.copy())
         return status
+
+    def _count_taught(self, rel):
+        """Taught and untaught-motion time; one ``UNTAUGHT`` line (echo) per
+        stretch of untaught motion longer than ``UNTAUGHT_NOTICE_S``."""
+        mon = self.monitor
+        if mon.taught:
+            self._taught_n += 1
+            self._untaught_run = 0
+            return
+        if mon.regime != 0:  # at rest or settling: the regimes' business, not untaught
+            self._untaught_run = 0
+            return
+        self._untaught_n += 1
+        self._untaught_run += 1
+        if self._untaught_run == 1:
+            self._untaught_stretches.append([rel, rel])
+        self._untaught_stretches[-1][1] = rel
+        if self.echo and self._untaught_run * self.sample_time >= UNTAUGHT_NOTICE_S > (
+                self._untaught_run - 1) * self.sample_time:
+            print(f"UNTAUGHT {self.name} t={self._untaught_stretches[-1][0]:.3f} s: motion "
+                  "outside the taught task; the calibrated thresholds apply", flush=True)
 
     def _count_fault(self, status):
         self.n_faults += 1
@@ -331,8 +363,12 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
     def _alarm(self, rel, firing):
         """A tick where the bands ``firing`` (indices) alarm: open or extend the event."""
         alarms = self.monitor.alarms
-        peak = max(float(np.abs(self.bands[b].signal[self.bands[b].alarms]).max())
-                   for b in firing)
+        taught = self.task is not None and self.monitor.taught
+        if taught:
+            peak = float(np.abs(self.monitor.task_signal[alarms]).max())
+        else:
+            peak = max(float(np.abs(self.bands[b].signal[self.bands[b].alarms]).max())
+                       for b in firing)
         if self.open is None:
             self.open = {"recording": self.name, "start_s": rel, "end_s": rel,
                          "joints": set(), "peak_A": peak,
@@ -340,6 +376,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                                            else self.cross_start)}
             if self.multiband:
                 self.open["bands"] = set()
+            if self.task is not None:
+                self.open["taught"] = taught
             self._onset(self.open, alarms, firing)
         self.open["end_s"] = rel
         self.open["joints"].update(int(j) + 1 for j in np.flatnonzero(alarms))
@@ -401,6 +439,12 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         summary = self.recordings[-1]
         summary.update(n_samples=self.n_samples, n_sensor_faults=self.n_faults,
                        n_events=sum(e["recording"] == self.name for e in self.events))
+        if self.task is not None:
+            stretches = [s for s in self._untaught_stretches
+                         if s[1] - s[0] + self.sample_time >= UNTAUGHT_NOTICE_S]
+            summary.update(taught_s=self._taught_n * self.sample_time,
+                           untaught_motion_s=self._untaught_n * self.sample_time,
+                           untaught_stretches=stretches[:MAX_FAULT_RECORDS])
         return summary
 
     # ------------------------------------------------------------ sources

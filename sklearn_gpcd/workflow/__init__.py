@@ -10,7 +10,9 @@ and ``gpcd calibrate``.
 * :func:`calibrate_detector` chooses the detection thresholds of such a model
   across collision-free recordings (:mod:`~sklearn_gpcd.workflow.calibration`);
   :func:`save_detector` / :func:`load_detector` write and read the detector
-  file ``gpcd monitor`` runs.
+  file ``gpcd monitor`` runs;
+* :func:`teach_task` teaches such a detector one task from a few
+  collision-free cycles (``gpcd teach``, :mod:`~sklearn_gpcd.workflow.teaching`).
 """
 
 from .calibration import (
@@ -51,6 +53,7 @@ from .model_choice import (
     compare_models,
     input_signals,
 )
+from .teaching import teach_report, teach_task, untaught_detector
 from .training import (
     INPUTS,
     MAX_TRAIN_ROWS,
@@ -84,6 +87,6 @@ __all__ = [
     "check_calibration_options", "check_target_current", "choose_model", "compare_models",
     "input_signals", "load_detector",
     "load_model", "recording_keys", "resolve_select", "save_detector", "save_model",
-    "split_recordings", "train_model", "training_report",
-    "training_rows", "training_set",
+    "split_recordings", "teach_report", "teach_task", "train_model", "training_report",
+    "training_rows", "training_set", "untaught_detector",
 ]

@@ -27,7 +27,8 @@ from ..persistence import MalformedFileError, load
 
 #: Fields that must be positive wherever they occur in a loaded file.
 POSITIVE_FIELDS = ("thresholds_", "scale_", "margin_", "sample_time_", "filter_cutoff",
-                   "y_std", "length_scale", "constant_value", "torque_constants")
+                   "y_std", "length_scale", "constant_value", "torque_constants", "level_",
+                   "feature_scale_", "cutoff", "period_")
 #: Fields that may be ``+inf`` (``rest_reference``: the arm is never at rest).
 INFINITE_FIELDS = ("rest_reference",)
 #: Deepest nesting of objects walked in a loaded file.
@@ -46,9 +47,13 @@ def check_detector_bundle(bundle, path, fix):
     """Refuse a detector bundle (``kind``, ``detector``, ``features``, ``calibration``)
     that a monitor must not run with; see the module docstring."""
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..detection import CollisionDetector
+    from ..detection import CollisionDetector, TaughtTask
     from ..features import CausalFeatures
 
+    task = bundle.get("detector") if isinstance(bundle.get("detector"), TaughtTask) else None
+    if task is not None:  # gpcd teach: the task's numbers, then its calibrated detector
+        _check_task(task, path, fix)
+        bundle = {**bundle, "detector": task.detector}
     _need(isinstance(bundle.get("detector"), CollisionDetector)
           and hasattr(bundle["detector"], "rules_"), path, fix,
           "field detector holds no fitted CollisionDetector")
@@ -71,6 +76,24 @@ def check_detector_bundle(bundle, path, fix):
             (f"detector.rules_[{k}]", rule) for k, rule in enumerate(detector.rules_)]:
         _check_rule_shapes(part, where, n_joints, path, fix)
     _check_predicts(detector.regressor_, "detector.regressor_", path, fix)
+
+
+def _check_task(task, path, fix):
+    """A taught task (``gpcd teach``): fitted, its arrays the shapes its joints need."""
+    _need(hasattr(task, "coef_") and hasattr(task, "taught_states_"), path, fix,
+          "field detector holds a TaughtTask that was never taught")
+    _check_values({"detector": task}, path, fix)
+    n_joints = getattr(task.detector, "n_joints", None)
+    _need(task.n_joints_ == n_joints, path, fix,
+          f"field detector.n_joints_ is {task.n_joints_!r} but its detector has "
+          f"{n_joints!r} joints")
+    for name in ("thresholds_", "bias_", "intercept_"):
+        shape = np.shape(getattr(task, name))
+        _need(shape == (n_joints,), path, fix,
+              f"field detector.{name} has shape {shape}, not ({n_joints},) (joints)")
+    _need(task.coef_.shape[1:] == (n_joints,)
+          and task.local_residual_.shape[1:] == (n_joints,), path, fix,
+          "field detector.coef_ or local_residual_ has no column per joint")
 
 
 def check_model_bundle(bundle, path, fix):

@@ -1,0 +1,147 @@
+"""Teach a calibrated detector one task: the function behind ``gpcd teach``.
+
+Train once per robot (``gpcd train``), calibrate once per robot
+(``gpcd calibrate``), teach once per task (``gpcd teach``), monitor. The
+taught detector file is a detector file like the one ``gpcd calibrate``
+writes, whose detector is a :class:`~sklearn_gpcd.detection.TaughtTask`
+wrapping the calibrated :class:`~sklearn_gpcd.detection.CollisionDetector`
+(the calibration summary gains a ``"teach"`` entry).
+"""
+
+import warnings
+
+import numpy as np
+
+from ..detection import TaughtTask, stack_currents
+from .calibration import CalibratedDetector
+
+__all__ = ["teach_task", "teach_report", "untaught_detector"]
+
+
+def untaught_detector(detector):
+    """The calibrated detector under a taught one (itself when untaught).
+
+    Parameters
+    ----------
+    detector : CollisionDetector or TaughtTask
+
+    Returns
+    -------
+    detector : CollisionDetector
+
+    Examples
+    --------
+    >>> untaught_detector("a detector")
+    'a detector'
+    """
+    return detector.detector if isinstance(detector, TaughtTask) else detector
+
+
+def teach_task(calibrated, recordings, *, keys=None, **params):
+    """Teach ``calibrated`` the task of ``recordings`` (collision-free cycles).
+
+    Parameters
+    ----------
+    calibrated : CalibratedDetector
+        What :func:`~sklearn_gpcd.workflow.calibrate_detector` (or
+        :func:`~sklearn_gpcd.workflow.load_detector`) returned; a taught
+        detector is taught anew from its calibrated detector.
+    recordings : list of Recording
+        At least two cycles of one task, in one or more recordings.
+    keys : list of str, default=None
+        Their names in the summary.
+    **params
+        :class:`~sklearn_gpcd.detection.TaughtTask` parameters (``cutoff``,
+        ``order``, ``min_duration``, ``novelty_radius``, ...).
+
+    Returns
+    -------
+    taught : CalibratedDetector
+        ``detector`` is the fitted :class:`~sklearn_gpcd.detection.TaughtTask`;
+        ``calibration["teach"]`` its summary (:meth:`TaughtTask.summary
+        <sklearn_gpcd.detection.TaughtTask.summary>`), with the recordings
+        and their seconds.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.frozen import FrozenEstimator
+    >>> from sklearn.linear_model import Ridge
+    >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector
+    >>> from sklearn_gpcd.features import CausalFeatures
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(0, 16, 0.01)
+    >>> q = np.sin(2 * np.pi * t / 4)[:, None]
+    >>> rec = Recording(time=t, q=q, qd=np.gradient(q[:, 0], t)[:, None],
+    ...                 current=0.2 * np.tanh(np.gradient(q[:, 0], t))[:, None])
+    >>> features = CausalFeatures(signals=()).fit([rec])
+    >>> X = features.transform(rec)
+    >>> det = CollisionDetector(FrozenEstimator(Ridge().fit(X, rec.current)),
+    ...                         rules=AlarmRule(contamination=0.01), sample_time=0.01)
+    >>> det = det.fit(stack_currents(X, rec.current))
+    >>> taught = teach_task(CalibratedDetector(det, features, {}), [rec])
+    >>> taught.calibration["teach"]["n_cycles"]
+    4
+    """
+    detector = untaught_detector(calibrated.detector)
+    features = calibrated.features
+    keys = list(keys) if keys is not None else [r.name for r in recordings]
+    blocks, groups = [], []
+    for k, rec in enumerate(recordings):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # missing controller signals: zeros, as calibrated
+            X = features.transform(rec)
+        blocks.append(stack_currents(X, rec.current))
+        groups.append(np.full(len(X), k))
+    task = TaughtTask(detector, **params).fit(np.vstack(blocks), groups=np.concatenate(groups))
+    summary = {**task.summary(), "recordings": keys,
+               "seconds": [float(r.time[-1] - r.time[0]) for r in recordings]}
+    return CalibratedDetector(task, features, {**calibrated.calibration, "teach": summary})
+
+
+def teach_report(summary):
+    """The lines ``gpcd teach`` prints for ``calibration["teach"]``.
+
+    Parameters
+    ----------
+    summary : dict
+        :meth:`TaughtTask.summary <sklearn_gpcd.detection.TaughtTask.summary>`
+        with ``recordings`` and ``seconds``.
+
+    Returns
+    -------
+    text : str
+
+    Examples
+    --------
+    >>> print(teach_report({"recordings": ["a.csv"], "seconds": [18.0], "period_s": 6.8,
+    ...     "n_cycles": 3, "repeatability": 0.96, "explained": [0.9, 0.8],
+    ...     "level": 2.1, "thresholds_A": [0.5, 0.4], "deviant_cycles": [],
+    ...     "filter": {"cutoff_hz": 10.0, "order": 1, "min_duration": 2},
+    ...     "false_alarm_bound_per_cycle": 0.25, "false_alarms_per_hour_bound": 132.0}))
+    taught on 1 recording(s), 18.0 s: 3 cycles of 6.80 s (repeatability 0.96)
+      the task reference removes 80-90 % of the residual's variance (cross-fitted)
+      band 10 Hz, order 1, debounce 2 samples; level 2.10
+      thresholds [A]     0.500     0.400
+      a new collision-free cycle alarms with probability <= 0.25 (1/(cycles+1)):
+      at most 132 false alarms per hour of the task; teach more cycles to lower it
+    """
+    explained = np.asarray(summary["explained"]) * 100
+    band = summary["filter"]
+    out = [f"taught on {len(summary['recordings'])} recording(s), "
+           f"{sum(summary['seconds']):.1f} s: {summary['n_cycles']} cycles of "
+           f"{summary['period_s']:.2f} s (repeatability {summary['repeatability']:.2f})",
+           f"  the task reference removes {explained.min():.0f}-{explained.max():.0f} % of "
+           "the residual's variance (cross-fitted)",
+           f"  band {band['cutoff_hz']:g} Hz, order {band['order']}, debounce "
+           f"{band['min_duration']} samples; level {summary['level']:.2f}",
+           "  thresholds [A]" + "".join(f"{v:>10.3f}" for v in summary["thresholds_A"]),
+           f"  a new collision-free cycle alarms with probability <= "
+           f"{summary['false_alarm_bound_per_cycle']:.2g} (1/(cycles+1)):",
+           f"  at most {summary['false_alarms_per_hour_bound']:.0f} false alarms per hour of "
+           "the task; teach more cycles to lower it"]
+    for cycle in summary["deviant_cycles"]:
+        out.append(f"  warning: cycle {cycle['index'] + 1} ({cycle['start_s']:.1f}-"
+                   f"{cycle['end_s']:.1f} s) is unlike the others (score "
+                   f"{cycle['score']:.1f}) and sets the level alone: teach without it")
+    return "\n".join(out)
