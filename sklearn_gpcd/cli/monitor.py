@@ -16,9 +16,10 @@ import json
 import time
 from pathlib import Path
 
-from ..workflow.calibration import load_detector, recording_keys
+from ..workflow.calibration import check_signals, load_detector, recording_keys
 from ._args import (
     column_map_arg,
+    confirmed_kinds,
     existing_file,
     non_negative_float,
     output_dir_arg,
@@ -104,8 +105,8 @@ def run(args):
     if args.plot is not None and args.rtde is not None:
         raise ValueError("--plot is for recordings and --replay, not --rtde")
     start = time.perf_counter()
-    detector, features, calibration = load_detector(args.detector,
-                                                    trust_pickle=args.trust_pickle)
+    calibrated = load_detector(args.detector, trust_pickle=args.trust_pickle)
+    detector, features, calibration = calibrated
     if args.plot is not None:
         Path(args.plot).mkdir(parents=True, exist_ok=True)
     live = args.rtde is not None or args.replay is not None
@@ -126,6 +127,8 @@ def run(args):
             recordings = read_recordings(paths, args, "recordings",
                                           progress=not (args.quiet or live))
             keys = recording_keys(recordings)
+            for rec in recordings:  # every file before any event: one refusal, no half run
+                check_signals(rec, calibrated, accept=confirmed_kinds(args))
             for key, rec in zip(keys, recordings):
                 session.run_recording(rec, key, duration=args.duration,
                                       speed=args.speed if args.replay is not None else None)

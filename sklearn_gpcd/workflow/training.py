@@ -126,6 +126,10 @@ class TrainingSet:
     sizes : tuple of int
         Rows of ``X`` from each recording, in order (for splits by
         recording, e.g. :func:`~sklearn_gpcd.workflow.compare_models`).
+    signal_ranges : dict or None
+        Per-joint ranges of q, qd and current of the recordings
+        (:func:`~sklearn_gpcd.io.signal_ranges`): what the model knows, for
+        the plausibility checks of ``gpcd calibrate`` and ``gpcd monitor``.
 
     Examples
     --------
@@ -148,6 +152,7 @@ class TrainingSet:
     step: int
     has_target_current: bool = True
     sizes: tuple = ()
+    signal_ranges: dict = None
 
 
 def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
@@ -190,6 +195,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     ((100, 12), (100, 2), 'causal')
     """
     from ..features import CausalFeatures, make_inputs
+    from ..io import signal_ranges
 
     if inputs not in INPUTS:
         raise ValueError(f"inputs must be one of {INPUTS}, got {inputs!r}")
@@ -203,11 +209,12 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     step = training_rows(n_rows, max_rows).step
     bar = _bar(progress, f"computing GP inputs ({inputs})", len(recordings))
     unused = _unused_columns(features.signals_, features.n_joints_)
-    X, y, sizes, offset = [], [], [], 0
+    X, y, sizes, offset, ranges = [], [], [], 0, None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         while recordings:  # thin each block to the global every-step-th row, free as we go
             rec = recordings.pop(0)
+            ranges = signal_ranges([rec], ranges)
             if inputs == "causal":
                 Xr, yr = features.transform(rec), rec.current
             else:
@@ -223,7 +230,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     _warn_once_per_kind(caught, len(names))
     return TrainingSet(X=np.vstack(X), y=np.vstack(y), features=features, inputs=inputs,
                        names=names, n_rows=n_rows, step=step, has_target_current=has_ic,
-                       sizes=tuple(sizes))
+                       sizes=tuple(sizes), signal_ranges=ranges)
 
 
 def _unused_columns(signals, n_joints):
@@ -459,6 +466,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
         "acceleration_limit": acceleration_limit(data),
+        "signal_ranges": data.signal_ranges,
     }
     return TrainedModel(regressor=regressor, features=features, training=training)
 
