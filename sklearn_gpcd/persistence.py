@@ -19,17 +19,20 @@ into other versions (see :class:`sklearn_gpcd._persistence.VersionedStateMixin`)
 """
 
 import importlib
+import json
+import math
 import pkgutil
+import zipfile
 from functools import lru_cache
 from pathlib import Path
-from zipfile import BadZipFile
 
 import joblib
 
 from ._persistence import GPCDVersionWarning
+from .io.npz import npy_header
 
-__all__ = ["GPCDVersionWarning", "UntrustedPickleError", "UntrustedTypesError", "load",
-           "save", "trusted_types"]
+__all__ = ["GPCDVersionWarning", "MalformedFileError", "UntrustedPickleError",
+           "UntrustedTypesError", "load", "save", "trusted_types"]
 
 #: Extensions saved and loaded with joblib (pickle).
 PICKLE_EXTENSIONS = (".joblib", ".pkl")
@@ -47,6 +50,55 @@ TRUSTED_NAMES = tuple(
         "CompoundKernel", "ConstantKernel", "DotProduct", "ExpSineSquared",
         "Exponentiation", "Matern", "PairwiseKernel", "Product", "RBF",
         "RationalQuadratic", "Sum", "WhiteKernel"))
+
+#: Largest file :func:`load` opens [bytes] (checked before reading it).
+MAX_FILE_BYTES = 1 << 30
+#: Largest unpacked size of a skops archive [bytes]: the sum of its members'
+#: sizes (the budget is ``min(MAX_UNPACKED_BYTES, max(64 MiB, MAX_UNPACK_RATIO x
+#: the file's size))``, checked on the archive's directory before anything is
+#: decompressed; zipfile never unpacks a member beyond its declared size).
+MAX_UNPACKED_BYTES = 1 << 30
+#: Largest ratio of unpacked to packed size of a skops archive beyond 64 MiB.
+MAX_UNPACK_RATIO = 50
+#: skops loaders a trusted class of the package may be rebuilt with: from its
+#: saved state (``cls.__new__`` then ``__setstate__``), or the class itself.
+#: Never a call of the class with arguments from the file (``ReduceNode`` /
+#: ``ConstructorFromReduceNode``).
+STATE_LOADERS = ("ObjectNode", "TypeNode")
+
+
+class MalformedFileError(ValueError):
+    """A model or detector file that cannot be loaded as it is: damaged,
+    truncated, too large, or holding values a detector must not run with.
+
+    One line: the file, what is wrong (the member or the field) and, when
+    the caller knows it, the command that writes the file again.
+
+    Parameters
+    ----------
+    path : str
+        The file.
+    reason : str
+        What is wrong, in words.
+    fix : str, default=None
+        How to get a good file (e.g. the command that rebuilds it).
+
+    Attributes
+    ----------
+    path, reason, fix : str
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.persistence import MalformedFileError
+    >>> print(MalformedFileError("detector.skops", "field thresholds_ holds NaN",
+    ...                          fix="rebuild it with gpcd calibrate"))
+    detector.skops: field thresholds_ holds NaN; rebuild it with gpcd calibrate
+    """
+
+    def __init__(self, path, reason, fix=None):
+        self.path, self.reason, self.fix = str(path), " ".join(str(reason).split()), fix
+        sep = " " if self.reason.startswith("is ") else ": "  # "FILE is not ..."
+        super().__init__(f"{self.path}{sep}{self.reason}" + (f"; {fix}" if fix else ""))
 
 
 class UntrustedPickleError(ValueError):
@@ -215,6 +267,12 @@ def load(path, trusted=None, *, trust_pickle=False):
         If a ``.joblib`` / ``.pkl`` file is given without ``trust_pickle=True``.
     UntrustedTypesError
         If a skops file holds types that are not trusted.
+    MalformedFileError
+        If the file is larger than ``MAX_FILE_BYTES``, is no archive skops
+        wrote (damaged, truncated, a schema that is not skops', an array
+        missing or whose header does not match its data, more than the
+        unpacking budget), would build a trusted class by calling it with
+        arguments from the file, or cannot be rebuilt.
     ImportError
         If a ``.skops`` file is given and skops is not installed.
 
@@ -247,22 +305,120 @@ def load(path, trusted=None, *, trust_pickle=False):
     True
     """
     path = Path(path)
-    if _format(path) == "joblib":
-        if not trust_pickle:
-            raise UntrustedPickleError(path)
-        return joblib.load(path)
+    kind = _format(path)
+    if kind == "joblib" and not trust_pickle:
+        raise UntrustedPickleError(path)
+    _check_size(path)
+    if kind == "joblib":
+        return _rebuild(path, joblib.load, path)
     sio = _skops()
     extra = [_type_name(t) for t in (trusted or [])]
-    try:
-        untrusted = sio.get_untrusted_types(file=path)
-    except BadZipFile as exc:
-        raise ValueError(f"{path} is not a skops file (not a zip archive): {exc}") from exc
+    _check_archive(path)
+    untrusted = _rebuild(path, sio.get_untrusted_types, file=path)
     allowed = trusted_types()
     implied = [name for name in untrusted if name in allowed]
     refused = sorted(set(untrusted) - set(implied) - set(extra))
     if refused:
         raise UntrustedTypesError(path, refused)
-    return sio.load(path, trusted=sorted(set(implied) | set(extra)))
+    return _rebuild(path, sio.load, path, trusted=sorted(set(implied) | set(extra)))
+
+
+def _rebuild(path, function, *args, **kwargs):
+    """``function(*args, **kwargs)``; any failure of a checked file is a
+    :class:`MalformedFileError` (one line), never a traceback."""
+    try:
+        return function(*args, **kwargs)
+    except (MalformedFileError, UntrustedTypesError, MemoryError):
+        raise
+    except Exception as exc:  # noqa: BLE001 -- whatever the file makes the loader raise
+        raise MalformedFileError(path, f"cannot be rebuilt from the file "
+                                 f"({type(exc).__name__}: {_first_line(exc)})") from None
+
+
+def _first_line(exc):
+    text = " ".join(str(exc).split()) or "no message"
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+def _check_size(path):
+    """The file exists and is at most ``MAX_FILE_BYTES`` (before anything is read)."""
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise MalformedFileError(path, f"{size / 2**20:.0f} MiB, more than the "
+                                 f"{MAX_FILE_BYTES / 2**20:.0f} MiB a model or detector "
+                                 "file may have")
+
+
+def _check_archive(path):
+    """A skops archive as skops writes it, checked on its directory and headers
+    before skops reads it: the unpacking budget, ``schema.json`` a skops
+    schema (a JSON object), every array it names present with a header that
+    matches its size, and no trusted class built by a call."""
+    try:
+        archive = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise MalformedFileError(path, "is not a skops file (not the zip archive skops "
+                                 "writes: the file was damaged or overwritten; "
+                                 f"{_first_line(exc)})") from None
+    with archive:
+        members = {info.filename: info for info in archive.infolist()}
+        unpacked = sum(info.file_size for info in members.values())
+        budget = min(MAX_UNPACKED_BYTES, max(64 << 20, MAX_UNPACK_RATIO * path.stat().st_size))
+        if unpacked > budget:
+            raise MalformedFileError(path, f"unpacks to {unpacked / 2**20:.0f} MiB, more than "
+                                     f"the {budget / 2**20:.0f} MiB budget for a file of "
+                                     f"{path.stat().st_size / 2**20:.1f} MiB (a zip bomb?)")
+        if "schema.json" not in members:
+            raise MalformedFileError(path, "no schema.json in the archive (not a skops file)")
+        schema = _rebuild(path, lambda: json.loads(archive.read("schema.json")))
+        if not (isinstance(schema, dict) and "__loader__" in schema):
+            raise MalformedFileError(path, "schema.json is not a skops schema (a JSON "
+                                     f"{type(schema).__name__}, not an object with __loader__)")
+        for name in _schema_files(path, schema):
+            if name not in members:
+                raise MalformedFileError(path, f"array {name} named in schema.json is missing "
+                                         "from the archive")
+            _check_npy(path, archive, members[name])
+
+
+def _schema_files(path, schema):
+    """Names of the archive members the schema's nodes read; refuses a trusted
+    class of the package built any other way than from its saved state."""
+    allowed, files, stack = trusted_types(), [], [(schema, "root")]
+    while stack:
+        node, where = stack.pop()
+        if isinstance(node, list):
+            stack.extend((value, where) for value in node)
+            continue
+        if not isinstance(node, dict):
+            continue
+        name = f"{node.get('__module__')}.{node.get('__class__')}"
+        if name in allowed and node.get("__loader__") not in STATE_LOADERS:
+            raise MalformedFileError(path, f"{name} would be built by calling it with "
+                                     f"arguments from the file ({node.get('__loader__')}); "
+                                     "only its saved state is accepted")
+        if isinstance(node.get("file"), str):
+            files.append(node["file"])
+        stack.extend((value, where) for value in node.values()
+                     if isinstance(value, (dict, list)))
+    return files
+
+
+def _check_npy(path, archive, info):
+    """The ``.npy`` member's header: a plain dtype and a shape whose size is the member's."""
+    try:
+        with archive.open(info) as stream:
+            shape, dtype, header = npy_header(stream)
+    except Exception as exc:  # noqa: BLE001 -- a damaged header, in any way
+        raise MalformedFileError(path, f"array {info.filename}: no valid .npy header "
+                                 f"({_first_line(exc)})") from None
+    if dtype.hasobject:
+        raise MalformedFileError(path, f"array {info.filename} holds Python objects")
+    claimed = math.prod(shape) * dtype.itemsize
+    if claimed != info.file_size - header:
+        raise MalformedFileError(path, f"array {info.filename}: its header claims {shape} "
+                                 f"{dtype} ({claimed:,} bytes) but it holds "
+                                 f"{info.file_size - header:,} bytes")
 
 
 def _format(path):

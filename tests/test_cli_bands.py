@@ -143,7 +143,7 @@ def _replayed_onsets(work):
 
 
 def test_monitor_replay_of_a_multi_band_file(work, capsys, monkeypatch):
-    import sklearn_gpcd.monitoring as monitoring
+    import sklearn_gpcd.monitoring.session as monitoring
 
     class Ended:  # a hook process that ended well
         def poll(self):

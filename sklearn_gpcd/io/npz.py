@@ -116,6 +116,40 @@ def read_npz(
 MAX_DEFLATE_RATIO = 1100
 
 
+def npy_header(stream):
+    """Shape, dtype and length of the header of the ``.npy`` data ``stream`` starts with.
+
+    Reads the header only: nothing of the size it claims is allocated.
+
+    Parameters
+    ----------
+    stream : file-like
+        Positioned at the start of ``.npy`` data (e.g. a zip member).
+
+    Returns
+    -------
+    shape : tuple of int
+    dtype : numpy.dtype
+    header_bytes : int
+        Where the array's data starts.
+
+    Examples
+    --------
+    >>> import io
+    >>> import numpy as np
+    >>> data = io.BytesIO()
+    >>> np.save(data, np.zeros((2, 3)))
+    >>> _ = data.seek(0)
+    >>> npy_header(data)
+    ((2, 3), dtype('float64'), 128)
+    """
+    version = np.lib.format.read_magic(stream)
+    read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+            else np.lib.format.read_array_header_2_0)
+    shape, _, dtype = read(stream)
+    return shape, dtype, stream.tell()
+
+
 def _check_sizes(source, path):
     """Refuse arrays whose header claims more data than the archive holds.
 
@@ -134,11 +168,7 @@ def _check_sizes(source, path):
                 raise ValueError(f"{source}: key {key!r} claims {info.file_size} bytes, more "
                                  f"than a file of {size} bytes can hold")
             with archive.open(info) as member:
-                version = np.lib.format.read_magic(member)
-                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                        else np.lib.format.read_array_header_2_0)
-                shape, _, dtype = read(member)
-                header = member.tell()
+                shape, dtype, header = npy_header(member)
             claimed = int(np.prod(shape, dtype=object)) * dtype.itemsize
             if claimed > info.file_size - header:
                 rows = f"{shape[0]} rows, " if shape else ""

@@ -6,6 +6,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+#: Longest pinocchio model text a saved robot may hold [characters] (a UR's
+#: is about 15,000; a 7-link arm with meshes' inertias well below 1 MB).
+MAX_MODEL_TEXT = 4 << 20
 
 def _per_joint(values, n_joints, name, positive=False):
     """Validate an optional per-joint vector."""
@@ -194,8 +197,15 @@ class Robot:
         state = dict(state)
         model = state.get("model")
         if isinstance(model, str):
+            if len(model) > MAX_MODEL_TEXT:
+                raise ValueError(f"Robot state: the pinocchio model text has {len(model):,} "
+                                 f"characters, more than the {MAX_MODEL_TEXT:,} a robot's has")
             state["model"] = pin.Model()
-            state["model"].loadFromString(model)
+            try:
+                state["model"].loadFromString(model)
+            except RuntimeError as exc:  # pinocchio's archive reader: truncated or edited
+                raise ValueError(f"Robot state: the pinocchio model text does not load "
+                                 f"({exc})") from None
         elif not isinstance(model, pin.Model):
             raise TypeError(
                 "Robot state needs 'model' as a pinocchio.Model or the str of "

@@ -842,8 +842,10 @@ def save_detector(calibrated, path):
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "detector.joblib"
     >>> save_detector(CalibratedDetector(None, None, {"margin": 1.5}), path).name
     'detector.joblib'
-    >>> load_detector(path, trust_pickle=True).calibration  # our own pickle
-    {'margin': 1.5}
+    >>> load_detector(path, trust_pickle=True)  # our own pickle, but no detector in it
+    Traceback (most recent call last):
+    ...
+    sklearn_gpcd.persistence.MalformedFileError: ...: field detector holds no fitted ...
     """
     from ..persistence import save
 
@@ -874,6 +876,11 @@ def load_detector(path, trust_pickle=False):
     ------
     ValueError
         If the file is not a detector file (e.g. a model from ``gpcd train``).
+    MalformedFileError
+        If the file is damaged, or holds values a monitor must not run with
+        (a threshold, scale or margin that is not finite and positive, an
+        unstable filter, shapes that disagree with the joint count): one line
+        naming the field and the command that rebuilds the file.
 
     Examples
     --------
@@ -886,12 +893,14 @@ def load_detector(path, trust_pickle=False):
     ...
     ValueError: ...not_a_detector.joblib: not a detector file written by gpcd calibrate...
     """
-    from ..persistence import load
+    from ._file_checks import check_detector_bundle, load_checked
 
-    bundle = load(path, trust_pickle=trust_pickle)
+    fix = f"rebuild it with gpcd calibrate MODEL RECORDINGS -o {path}"
+    bundle = load_checked(path, trust_pickle, fix)
     if not (isinstance(bundle, dict) and bundle.get("kind") == DETECTOR_KIND):
         raise ValueError(f"{path}: not a detector file written by gpcd calibrate (a model "
                          "from gpcd train goes through gpcd calibrate first)")
+    check_detector_bundle(bundle, path, fix)
     return CalibratedDetector(bundle["detector"], bundle["features"],
                               bundle.get("calibration", {}))
 

@@ -564,6 +564,10 @@ def load_model(path, trust_pickle=False):
     ValueError
         If the file is not a model file (e.g. a detector file from ``gpcd
         calibrate``, or a bare regressor).
+    MalformedFileError
+        If the file is damaged, or holds values that are not finite or
+        parameters out of range, or a regressor that does not predict: one
+        line naming the field and the command that rebuilds the file.
 
     Examples
     --------
@@ -576,13 +580,15 @@ def load_model(path, trust_pickle=False):
     >>> load_model(path, trust_pickle=True).training  # our own pickle
     {'inputs': 'causal'}
     """
-    from ..persistence import load
+    from ._file_checks import check_model_bundle, load_checked
 
-    bundle = load(path, trust_pickle=trust_pickle)
+    fix = f"rebuild it with gpcd train RECORDINGS -o {path}"
+    bundle = load_checked(path, trust_pickle, fix)
     kind = bundle.get("kind") if isinstance(bundle, dict) else type(bundle).__name__
     if kind != MODEL_KIND:
         raise ValueError(f"{path}: not a model file written by gpcd train (it holds "
                          f"{kind!r}); train one with gpcd train")
+    check_model_bundle(bundle, path, fix)
     return TrainedModel(bundle["regressor"], bundle["features"],
                         dict(bundle.get("training") or {}))
 

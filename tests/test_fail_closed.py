@@ -1,0 +1,310 @@
+"""Fail closed (issue #47): a detector or model file never switches protection off in silence.
+
+Every file here is crafted in the test from a small detector of the package's
+own simulator (two 500 Hz UR10e runs, a linear regressor on the causal inputs,
+:mod:`_live`): values edited to NaN, inf or negatives, an unstable filter,
+wrong shapes, a schema that is not skops', a missing array, an array header
+claiming 134 GiB, overwritten bytes, a zip bomb, a truncated or huge pinocchio
+model text, trusted classes built by a call with the file's arguments. Each
+must end in ONE :class:`~sklearn_gpcd.persistence.MalformedFileError` naming
+the field (or the member) and the command that rebuilds the file, and
+``gpcd monitor`` in exit status 2 with one ``error:`` line, nothing monitored.
+"""
+
+import io
+import json
+import zipfile
+
+import numpy as np
+import pytest
+from _live import free_runs, linear_bundle
+from test_model_files import _Call, craft_skops
+
+from sklearn.linear_model import LinearRegression
+
+from sklearn_gpcd.cli import main
+from sklearn_gpcd.io import write_rtde_csv
+from sklearn_gpcd.persistence import MalformedFileError, UntrustedTypesError, load, save
+from sklearn_gpcd.workflow import (
+    DETECTOR_KIND,
+    MODEL_KIND,
+    CalibratedDetector,
+    load_detector,
+    load_model,
+    save_detector,
+)
+
+skops_io = pytest.importorskip("skops.io")
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    """A valid detector file, a model file and a recording to monitor."""
+    folder = tmp_path_factory.mktemp("fail_closed")
+    runs = free_runs(n=2, n_targets=1)
+    detector, features = linear_bundle(runs)
+    path = save_detector(CalibratedDetector(detector, features, {"margin": 1.5}),
+                         folder / "detector.skops")
+    regressor = LinearRegression().fit(np.eye(3), np.eye(3)[:, :2])
+    model = save({"kind": MODEL_KIND, "regressor": regressor, "features": None,
+                  "training": {}}, folder / "model.skops")
+    recording = write_rtde_csv(runs[0], folder / "run.csv", robot_comment=True)
+    return {"folder": folder, "detector": path, "model": model, "recording": recording,
+            "objects": (detector, features)}
+
+
+# ------------------------------------------------------------------ crafting files
+def entries_of(path):
+    with zipfile.ZipFile(path) as archive:
+        return {n: archive.read(n) for n in archive.namelist()}
+
+
+def write_entries(path, entries, compression=zipfile.ZIP_STORED):
+    with zipfile.ZipFile(path, "w", compression) as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    return path
+
+
+def array_nodes(schema, attribute):
+    """The schema nodes of every object attribute ``attribute``."""
+    found, stack = [], [schema]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            content = node.get("content")
+            if (node.get("__loader__") == "ObjectNode" and isinstance(content, dict)
+                    and attribute in content.get("content", {})):
+                found.append(content["content"][attribute])
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+    assert found, attribute
+    return found
+
+
+def edit_arrays(source, target, attribute, change):
+    """Copy of ``source`` with every array ``attribute`` (or its items) replaced by
+    ``change(array)``."""
+    entries = entries_of(source)
+    schema = json.loads(entries["schema.json"])
+    for node in array_nodes(schema, attribute):
+        for leaf in node.get("content", [node]) if "file" not in node else [node]:
+            if "file" not in leaf:
+                continue
+            array = np.load(io.BytesIO(entries[leaf["file"]]))
+            out = io.BytesIO()
+            np.save(out, change(array))
+            entries[leaf["file"]] = out.getvalue()
+    return write_entries(target, entries)
+
+
+def assert_refused(path, good, capsys, *words, loader=load_detector):
+    """One MalformedFileError naming ``words``; ``gpcd monitor`` exits 2 with one line."""
+    with pytest.raises(MalformedFileError) as caught:
+        loader(path)
+    message = str(caught.value)
+    assert "\n" not in message and str(path) in message
+    for word in words:
+        assert word in message, message
+    assert "rebuild it with gpcd" in message
+    if loader is load_detector:
+        assert main(["monitor", str(path), str(good["recording"])]) == 2
+        captured = capsys.readouterr()
+        err = captured.err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("gpcd monitor: error: "), err
+        assert words[0] in err[0]
+        assert "alarm event" not in captured.out  # nothing was monitored
+    return message
+
+
+def test_the_good_files_load(good):
+    detector, features, calibration = load_detector(good["detector"])
+    assert calibration == {"margin": 1.5} and features.n_joints_ == detector.n_joints == 6
+    assert load_model(good["model"]).regressor.n_features_in_ == 3
+
+
+# ------------------------------------------------------------------ values
+@pytest.mark.parametrize("attribute", ["thresholds_", "scale_", "margin_"])
+@pytest.mark.parametrize("value, words", [(np.nan, "nan"), (np.inf, "inf"),
+                                          (-np.inf, "-inf"), (-1.0, "must be positive"),
+                                          (0.0, "must be positive")])
+def test_a_threshold_scale_or_margin_that_is_not_finite_and_positive_is_refused(
+        good, tmp_path, capsys, attribute, value, words):
+    path = edit_arrays(good["detector"], tmp_path / "edited.skops", attribute,
+                       lambda a: np.full_like(a, value))
+    assert_refused(path, good, capsys, attribute, words)
+
+
+def test_one_nan_threshold_of_one_joint_is_refused(good, tmp_path, capsys):
+    def one(a):
+        a = a.copy()
+        a.reshape(-1)[2] = np.nan
+        return a
+
+    path = edit_arrays(good["detector"], tmp_path / "one.skops", "thresholds_", one)
+    assert_refused(path, good, capsys, "thresholds_", "nan")
+
+
+@pytest.mark.parametrize("a, words", [([np.nan, np.nan], "finite coefficients"),
+                                      ([1.0, -1.5], "unstable filter"),
+                                      ([1.0, -1.0], "unstable filter"),
+                                      ([0.0, 0.5], "a[0] != 0")])
+def test_an_unusable_filter_is_refused(good, tmp_path, capsys, a, words):
+    entries = entries_of(good["detector"])
+    schema = json.loads(entries["schema.json"])
+    for node in array_nodes(schema, "filter_coefficients_"):
+        out = io.BytesIO()
+        np.save(out, np.array(a))
+        entries[node["content"][1]["file"]] = out.getvalue()
+    path = write_entries(tmp_path / "filter.skops", entries)
+    assert_refused(path, good, capsys, "filter_coefficients_", words)
+
+
+def test_thresholds_for_another_joint_count_are_refused(good, tmp_path, capsys):
+    path = edit_arrays(good["detector"], tmp_path / "shape.skops", "thresholds_",
+                       lambda a: a[..., :3])
+    assert_refused(path, good, capsys, "thresholds_", "has shape (3,)")
+
+
+def test_a_model_with_a_nan_coefficient_is_refused(good, tmp_path, capsys):
+    path = edit_arrays(good["model"], tmp_path / "model.skops", "coef_",
+                       lambda a: a * np.nan)
+    assert_refused(path, good, capsys, "coef_", "nan", loader=load_model)
+
+
+def test_a_parameter_out_of_its_range_is_refused(good, tmp_path, capsys):
+    entries = entries_of(good["detector"])
+    schema = json.loads(entries["schema.json"])
+    for node in array_nodes(schema, "min_duration"):
+        node["content"] = "-3"
+    entries["schema.json"] = json.dumps(schema).encode()
+    path = write_entries(tmp_path / "param.skops", entries)
+    assert_refused(path, good, capsys, "min_duration")
+
+
+# ------------------------------------------------------------------ the archive
+def test_overwritten_bytes_name_the_file_and_the_command(good, tmp_path, capsys):
+    data = bytearray(good["detector"].read_bytes())
+    data[-512:] = b"\0" * 512  # the zip directory
+    path = tmp_path / "overwritten.skops"
+    path.write_bytes(bytes(data))
+    message = assert_refused(path, good, capsys, "damaged or overwritten")
+    assert "gpcd calibrate" in message
+
+
+@pytest.mark.parametrize("case, words", [
+    ("no schema", "no schema.json"),
+    ("schema a list", "a JSON list"),
+    ("schema not JSON", "cannot be rebuilt"),
+    ("schema without protocol", "cannot be rebuilt"),
+    ("missing array", "is missing"),
+    ("header 134 GiB", "its header claims"),
+    ("truncated array", "its header claims"),
+    ("array of objects", "holds Python objects"),
+])
+def test_a_malformed_archive_is_one_line(good, tmp_path, capsys, case, words):
+    entries = entries_of(good["detector"])
+    arrays = sorted(n for n in entries if n.endswith(".npy"))
+    if case == "no schema":
+        del entries["schema.json"]
+    elif case == "schema a list":
+        entries["schema.json"] = b"[1, 2, 3]"
+    elif case == "schema not JSON":
+        entries["schema.json"] = entries["schema.json"][:1000]
+    elif case == "schema without protocol":
+        schema = json.loads(entries["schema.json"])
+        del schema["protocol"]
+        entries["schema.json"] = json.dumps(schema).encode()
+    elif case == "missing array":
+        del entries[arrays[0]]
+    elif case == "header 134 GiB":
+        header = np.lib.format.header_data_from_array_1_0(np.zeros(1))
+        header["shape"] = (18_000_000_000,)  # 134 GiB of float64
+        out = io.BytesIO()
+        np.lib.format.write_array_header_1_0(out, header)
+        entries[arrays[0]] = out.getvalue() + bytes(64)
+    elif case == "truncated array":
+        entries[arrays[0]] = entries[arrays[0]][:-8]
+    elif case == "array of objects":
+        out = io.BytesIO()
+        np.save(out, np.array([None, 1], dtype=object), allow_pickle=True)
+        entries[arrays[0]] = out.getvalue()
+    path = write_entries(tmp_path / "malformed.skops", entries)
+    assert_refused(path, good, capsys, words)
+
+
+def test_a_zip_bomb_is_refused_from_its_directory(good, tmp_path, capsys):
+    """4 GiB of zeros packed into 4 MiB: refused before a byte is unpacked."""
+    path = tmp_path / "bomb.skops"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("schema.json", entries_of(good["detector"])["schema.json"])
+        with archive.open("zeros.npy", "w", force_zip64=True) as member:
+            block = bytes(1 << 24)
+            for _ in range(256):
+                member.write(block)
+    assert path.stat().st_size < 5 << 20
+    assert_refused(path, good, capsys, "unpacks to 4", "zip bomb")
+
+
+def test_an_oversized_file_is_refused_before_it_is_read(good, tmp_path, capsys, monkeypatch):
+    import sklearn_gpcd.persistence as persistence
+
+    monkeypatch.setattr(persistence, "MAX_FILE_BYTES", 1000)
+    assert_refused(good["detector"], good, capsys, "a model or detector file may have")
+
+
+# ------------------------------------------------------------------ trusted classes
+def craft_call(path, good, target, args):
+    """A detector file whose calibration is the call ``target(*args)`` (skops' reduce
+    node: the class called with arguments from the file)."""
+    return craft_skops(path, {"kind": DETECTOR_KIND, "detector": good["objects"][0],
+                              "features": good["objects"][1], "calibration": _Call(*args)},
+                       target)
+
+
+@pytest.mark.parametrize("target, args", [
+    ("sklearn_gpcd.diagnosis.nominal.NominalModel", ["/any/path.urdf"]),
+    ("sklearn_gpcd.diagnosis.report.DiagnosisReport", []),
+    ("sklearn_gpcd.robots.robot.Robot", ["ur10"]),
+])
+def test_a_trusted_class_is_never_called_with_the_files_arguments(
+        good, tmp_path, capsys, monkeypatch, target, args):
+    import importlib
+
+    module, name = target.rsplit(".", 1)
+    cls = getattr(importlib.import_module(module), name)
+    calls = []
+    monkeypatch.setattr(cls, "__init__", lambda self, *a, **k: calls.append(a))
+    path = craft_call(tmp_path / "call.skops", good, target, args)
+    assert_refused(path, good, capsys, name, "only its saved state")
+    assert calls == []
+
+
+def test_a_truncated_or_huge_pinocchio_model_text_is_one_line(good, tmp_path, capsys):
+    from sklearn_gpcd.robots import load_robot
+    from sklearn_gpcd.robots.robot import MAX_MODEL_TEXT
+
+    robot = load_robot("ur10")
+    path = save({"kind": MODEL_KIND, "regressor": LinearRegression().fit(np.eye(2), [0, 1]),
+                 "features": None, "training": {}, "robot": robot}, tmp_path / "robot.skops")
+    assert load_model(path).regressor.n_features_in_ == 2
+    entries = entries_of(path)
+    text = json.loads(entries["schema.json"])
+    model_node = array_nodes(text, "model")[0]
+    original = json.loads(model_node["content"])
+    for label, changed, words in [
+            ("truncated", original[: len(original) // 2], "does not load"),
+            ("huge", original + " 0" * (MAX_MODEL_TEXT // 2), "more than the")]:
+        model_node["content"] = json.dumps(changed)
+        entries["schema.json"] = json.dumps(text).encode()
+        crafted = write_entries(tmp_path / f"{label}.skops", entries, zipfile.ZIP_DEFLATED)
+        message = assert_refused(crafted, good, capsys, "pinocchio model text", words,
+                                 loader=load_model)
+        assert "gpcd train" in message
+
+
+def test_untrusted_types_are_still_refused_first(good, tmp_path):
+    path = craft_call(tmp_path / "cli.skops", good, "sklearn_gpcd.cli.main", [["robots"]])
+    with pytest.raises(UntrustedTypesError):
+        load(path)
