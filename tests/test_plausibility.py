@@ -179,3 +179,29 @@ def test_property_mutated_recordings_never_pass_in_silence(work, field, factor, 
     a = detector.predict(stack_currents(features.transform(rec), rec.current))
     b = detector.predict(stack_currents(features.transform(mutated), mutated.current))
     assert np.array_equal(a, b) or any(word in " ".join(f.columns) for f in findings)
+
+
+def test_a_live_stream_names_a_swapped_column_per_window(work, capsys, monkeypatch):
+    """Live (received times given): no check before the work, a SIGNALS line per
+    implausible column at the end of a window, all in the report."""
+    from sklearn_gpcd.monitoring import MonitorSession, recording_samples, signals
+    from sklearn_gpcd.workflow import signal_check
+
+    monkeypatch.setattr(signals, "WINDOW_SECONDS", 2.0)
+    calibrated = load_detector(work["detector"])
+    detector, features, _ = calibrated
+    rec = work["push"]
+    for mutated, expect in ((rec, []), (rec.replace(q=rec.qd, qd=rec.q), ["q[0]", "qd[0]"])):
+        session = MonitorSession(detector, features, echo=True,
+                                 signal_check=signal_check(calibrated))
+        session.start("live")
+        for t, fields in recording_samples(mutated):
+            session.tick(t, fields, received=t)
+        found = session.report()["signal_findings"]
+        lines = [line for line in capsys.readouterr().out.splitlines()
+                 if line.startswith("SIGNALS")]
+        if not expect:
+            assert found == [] and lines == []
+        else:
+            assert found and found[0]["columns"] == expect and found[0]["severity"] == "error"
+            assert len(lines) == len({(f["kind"], tuple(f["columns"])) for f in found})

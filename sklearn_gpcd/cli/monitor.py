@@ -16,7 +16,7 @@ import json
 import time
 from pathlib import Path
 
-from ..workflow.calibration import check_signals, load_detector, recording_keys
+from ..workflow.calibration import check_signals, load_detector, recording_keys, signal_check
 from ._args import (
     column_map_arg,
     confirmed_kinds,
@@ -112,7 +112,9 @@ def run(args):
     live = args.rtde is not None or args.replay is not None
     session = MonitorSession(detector, features, hook=args.hook,
                              keep_series=args.plot is not None, echo=live,
-                             stall_timeout=args.stall_timeout)
+                             stall_timeout=args.stall_timeout,
+                             signal_check=(signal_check(calibrated) if args.rtde is not None
+                                           else None))  # files: checked before the run
     plots = []
     try:
         if args.rtde is not None:

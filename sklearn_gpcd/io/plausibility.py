@@ -41,7 +41,10 @@ the model and detector files; ``gpcd calibrate``, ``gpcd monitor`` and
   :data:`PREDICTION_SHARE` of the samples), the ratio
   :math:`i_j / \\hat\\imath_j` lies below 3 and above ``-1/3`` on most
   samples (a collision moves it on a few); a majority below ``-1/3`` is a
-  sign flip, a majority above 3 a scale (x57.3, x1000): errors. Ratios
+  sign flip, a majority above 3 a scale (x57.3, x1000): errors, counted
+  only where ``|i - i_hat|`` exceeds the detector's loosest threshold
+  (where the column changes the answer; the calibration logs of a model
+  that errs stay within their thresholds). Ratios
   near 0 are not judged (the UR10e model errs that way at some poses of
   the jointwise runs); a current scaled down leaves the training range
   (a warning); This holds at rest,
@@ -329,6 +332,11 @@ class SignalCheck:
         The drives' largest |current| (in the recording's units).
     sample_time : float or None, default=None
         The detector's sample time [s].
+    thresholds : array-like of shape (n_joints,) or None, default=None
+        The detector's loosest alarm threshold per joint (in the current's
+        units): a ratio ``i / i_hat`` counts against the signal only where
+        ``|i - i_hat|`` exceeds it, where it would change the answer (a
+        model that errs where its thresholds allow is not a wrong column).
     labels : dict or None, default=None
         Column labels per field (``{"q": ["'q_0'", ...]}``) for the
         sentences; default ``q[0]``, ``current[2]``, ...
@@ -347,9 +355,10 @@ class SignalCheck:
     """
 
     def __init__(self, n_joints, *, ranges=None, position_limits=None, current_limits=None,
-                 sample_time=None, labels=None):
+                 sample_time=None, thresholds=None, labels=None):
         self.n_joints = n_joints
         self.ranges = ranges
+        self.thresholds = thresholds
         self.position_limits = position_limits
         self.current_limits = current_limits
         self.sample_time = sample_time
@@ -475,6 +484,9 @@ class SignalCheck:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             ratio = np.where(usable, current / np.where(usable, predicted, 1.0), np.nan)
             size = np.log(np.abs(ratio))
+            if self.thresholds is not None:  # within the thresholds: the answer stands
+                within = np.abs(current - predicted) <= np.asarray(self.thresholds, dtype=float)
+                ratio = np.where(within, 1.0, ratio)
         self._ratio["n"] += usable.sum(0)
         self._ratio["agree"] += (ratio < RATIO_BAND).sum(0) - (ratio <= -1 / RATIO_BAND).sum(0)
         self._ratio["opposite"] += (ratio <= -1 / RATIO_BAND).sum(0)

@@ -919,8 +919,8 @@ def signal_check(calibrated, robot=None):
 
     The ranges of the training and calibration recordings (``calibration
     ["signal_ranges"]``), the robot's joint limits and drive limits (the
-    robot named by the calibration or the model, or ``robot``) and the
-    detector's sample time.
+    robot named by the calibration or the model, or ``robot``), the
+    detector's sample time and its loosest threshold per joint.
 
     Parameters
     ----------
@@ -963,8 +963,12 @@ def signal_check(calibrated, robot=None):
             kt = getattr(robot, "torque_constants", None)
             if kt is not None and (ranges or {}).get("units", "A") == "A":
                 current = DRIVE_SLACK * np.asarray(robot.effort_limits) / np.asarray(kt)
+    thresholds = [np.max(np.atleast_2d(rule.thresholds_), axis=0)
+                  for rule in getattr(detector, "rules_", ())
+                  if getattr(detector, "normalize", None) is None]  # else in std units
     return SignalCheck(features.n_joints_, ranges=ranges, position_limits=limits,
-                       current_limits=current, sample_time=float(detector.sample_time_))
+                       current_limits=current, sample_time=float(detector.sample_time_),
+                       thresholds=np.max(thresholds, axis=0) if thresholds else None)
 
 
 def check_signals(recording, calibrated, *, accept=(), name=None):
@@ -1021,6 +1025,10 @@ def check_signals(recording, calibrated, *, accept=(), name=None):
     from ..io import RecordingWarning
 
     detector, features, _ = calibrated
+    source = name or recording.metadata.get("source") or recording.name
+    if recording.n_joints != features.n_joints_:
+        raise ValueError(f"{source}: {recording.n_joints} joints but the detector has "
+                         f"{features.n_joints_}")
     check = signal_check(calibrated, robot=recording.metadata.get("robot"))
     step = -(-recording.n_samples // CHECK_PREDICTED_ROWS)
     inputs = features.transform(recording)[::step]
@@ -1032,7 +1040,6 @@ def check_signals(recording, calibrated, *, accept=(), name=None):
         check.update(recording.time[rows], recording.q[rows], recording.qd[rows],
                      recording.current[rows], predicted[rows])
     findings = check.findings()
-    source = name or recording.metadata.get("source") or recording.name
     for finding in findings:
         if finding.kind in accept:
             continue
