@@ -205,3 +205,18 @@ def test_a_live_stream_names_a_swapped_column_per_window(work, capsys, monkeypat
         else:
             assert found and found[0]["columns"] == expect and found[0]["severity"] == "error"
             assert len(lines) == len({(f["kind"], tuple(f["columns"])) for f in found})
+
+
+def test_a_file_that_would_not_fit_is_refused_before_reading(tmp_path, monkeypatch):
+    """Issue #47 point 4: the estimate (about 10x the file size) against the memory
+    available, before a byte is parsed: one line naming the file and what to do."""
+    from sklearn_gpcd.io import _text
+
+    rec = make_d1("ur10e", n_targets=1, random_state=0)
+    path = write_rtde_csv(rec, tmp_path / "long.csv")
+    size = path.stat().st_size
+    monkeypatch.setattr(_text, "available_memory", lambda: 5 * size)
+    with pytest.raises(ValueError, match="long.csv: .* of memory to read, more than"):
+        load_recording(path)
+    monkeypatch.setattr(_text, "available_memory", lambda: 20 * size)
+    assert load_recording(path).n_samples == rec.n_samples
