@@ -198,8 +198,8 @@ def outcome(result, base, columns):
              or "column" in line]
     if status == "crash":
         return "crash"
-    if status != 0:
-        return "refused" if len(lines) == 1 and named else "unclear refusal"
+    if status != 0:  # one new line (the file's layout note is the original's too)
+        return "refused" if len(new) == 1 and named else "unclear refusal"
     if same_events(events, base_events):
         return "warned" if new else "unchanged"
     return "warned" if named else "silent"
