@@ -71,7 +71,11 @@ def test_enough_data_from_several_recordings_does_not_warn(trained):
         qd = rec.qd.copy()
         for k in range(6):
             qd[600 * k + 400:600 * (k + 1)] = 0.0
-        recordings.append(Recording(time=rec.time, q=rec.q, qd=qd, current=rec.current,
+        # the positions follow the stops (the signal checks compare q with qd)
+        dt = np.diff(rec.time)[:, None]
+        q = rec.q[0] + np.vstack([np.zeros((1, qd.shape[1])),
+                                  np.cumsum(0.5 * (qd[1:] + qd[:-1]) * dt, axis=0)])
+        recordings.append(Recording(time=rec.time, q=q, qd=qd, current=rec.current,
                                     target_current=rec.target_current))
     calibrated, messages = _calibrate(trained, recordings)
     summary = calibrated.calibration

@@ -226,7 +226,7 @@ def _first_joints(rec, n):
 def _bump(rec):
     """A hard push on joint 2 early in the run (the hook has the rest to end)."""
     current = rec.current.copy()
-    current[rec.n_samples // 4:rec.n_samples // 4 + 100, 1] += 200.0
+    current[rec.n_samples // 4:rec.n_samples // 4 + 100, 1] += 20.0  # within the drive
     return rec.replace(current=current)
 
 

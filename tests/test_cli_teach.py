@@ -103,7 +103,7 @@ def test_monitor_with_the_taught_detector_catches_the_push(work, capsys):
     assert result["recordings"][0]["taught_s"] > 0
     # a detector that was not taught says so
     main(["monitor", str(work["detector"]), str(work["push"]), "-q", "--json", str(report)])
-    assert "not taught any task" in capsys.readouterr().err
+    assert "not taught any task" in capsys.readouterr().out
 
 
 def test_a_taught_file_edited_to_nan_is_refused_in_one_line(work, capsys):

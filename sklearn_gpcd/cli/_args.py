@@ -163,8 +163,8 @@ def band_arg(value):
 def read_recordings(paths, args, what="recordings", progress=True):
     """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``,
     ``--units-confirmed``, ``--allow-short`` and ``--max-joint-speed``."""
-    kwargs = {"accept": ["degrees", "units"] * bool(getattr(args, "units_confirmed", False))
-              + ["short"] * bool(getattr(args, "allow_short", False))}
+    kwargs = {"accept": confirmed_kinds(args) + ["short"] * bool(getattr(args, "allow_short",
+                                                                          False))}
     if getattr(args, "time_scale", None) is not None:
         kwargs["time_scale"] = args.time_scale
     if getattr(args, "max_joint_speed", None) is not None:
@@ -184,6 +184,16 @@ def read_recordings(paths, args, what="recordings", progress=True):
             raise
         raise ValueError(f"{exc} -- on the command line: --column-map with a JSON object, "
                          "a JSON file or a preset name") from None
+
+
+#: What ``--units-confirmed`` lets through: the readers' unit checks and the
+#: signal checks against the model (:func:`sklearn_gpcd.workflow.check_signals`).
+CONFIRMED_KINDS = ("degrees", "units", "current", "limits", "time", "range")
+
+
+def confirmed_kinds(args):
+    """The kinds of implausible signal ``--units-confirmed`` accepts (none without it)."""
+    return list(CONFIRMED_KINDS) * bool(getattr(args, "units_confirmed", False))
 
 
 def select_joints(args):
@@ -238,8 +248,10 @@ def add_check_options(parser):
     parser.add_argument("--time-scale", type=positive_float, default=None, metavar="S",
                         help="multiply the time column by S to get seconds (1e-3 for ms)")
     parser.add_argument("--units-confirmed", action="store_true",
-                        help="go on when positions look like degrees or q, qd and time units "
-                        "disagree (time in ms, deg/s; refused by default)")
+                        help="go on when positions look like degrees, q, qd and time units "
+                        "disagree (time in ms, deg/s, q and qd swapped), or the currents or "
+                        "positions disagree with what the model knows (scaled, sign-flipped, "
+                        "beyond the joint limits); refused by default")
     parser.add_argument("--allow-short", action="store_true",
                         help="go on with recordings shorter than 1 s (refused by default)")
     parser.add_argument("--max-joint-speed", type=positive_float, default=None, metavar="RAD_S",

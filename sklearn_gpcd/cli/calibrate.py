@@ -26,6 +26,7 @@ from ._args import (
     file_size,
     non_negative_float,
     positive_float,
+    confirmed_kinds,
     read_recordings,
     robot_for,
 )
@@ -167,7 +168,7 @@ def run(args):
     calibrated = calibrate_detector(
         trained, recordings, keys=recording_keys(recordings), split=args.split, robot=robot,
         progress=lambda label, total: ProgressBar(label, total, enabled=not args.quiet),
-        **options)
+        accept=confirmed_kinds(args), **options)
     save_detector(calibrated, args.output)
     print(calibration_report(calibrated.calibration))
     print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}, "

@@ -20,9 +20,11 @@ from pathlib import Path
 from .._atomic import atomic_write
 from ..monitoring.stops import StopSignal, hold_stop_signals, stop_signals
 from ..monitoring import MonitorSession
-from ..workflow.calibration import check_recordings, load_detector, recording_keys
+from ..workflow.calibration import (check_recordings, check_signals, load_detector,
+                                    recording_keys, signal_check)
 from ._args import (
     column_map_arg,
+    confirmed_kinds,
     existing_file,
     non_negative_float,
     output_dir_arg,
@@ -106,22 +108,20 @@ def run(args):
     if args.plot is not None and args.rtde is not None:
         raise ValueError("--plot is for recordings and --replay, not --rtde")
     start = time.perf_counter()
-    detector, features, calibration = load_detector(args.detector,
-                                                    trust_pickle=args.trust_pickle)
+    calibrated = load_detector(args.detector, trust_pickle=args.trust_pickle)
+    detector, features, calibration = calibrated
     if args.plot is not None:
         Path(args.plot).mkdir(parents=True, exist_ok=True)
-    if "teach" not in calibration:
-        print(f"gpcd monitor: note: {args.detector} is not taught any task: the calibrated "
-              "thresholds apply everywhere (gpcd teach DETECTOR TASK_LOG... -o TAUGHT learns "
-              "one)", file=sys.stderr, flush=True)
     live = args.rtde is not None or args.replay is not None
     session = MonitorSession(detector, features, hook=args.hook,
                              keep_series=args.plot is not None, echo=live,
-                             stall_timeout=args.stall_timeout)
+                             stall_timeout=args.stall_timeout,
+                             signal_check=(signal_check(calibrated) if args.rtde is not None
+                                           else None))  # files: checked before the run
     plots = []
     with stop_signals():  # SIGTERM and SIGHUP end the run like Ctrl-C
         try:
-            _monitor(args, session, plots, live, calibration)
+            _monitor(args, session, plots, live, calibrated)
         except BaseException as exc:  # the report on every exit path, then as before
             hold_stop_signals()
             stopped = isinstance(exc, StopSignal)
@@ -136,6 +136,9 @@ def run(args):
                   file=sys.stderr)
             return exc.exit_status
     print(session.summary_text(live))
+    if "teach" not in calibration:
+        print(f"  {args.detector} is not taught any task: the calibrated thresholds applied "
+              "everywhere (gpcd teach DETECTOR TASK_LOG... -o TAUGHT learns one)")
     if args.json is not None:
         _write_report(args, session, calibration, plots)
         print(f"wrote {args.json}")
@@ -146,7 +149,7 @@ def run(args):
     return session.exit_status
 
 
-def _monitor(args, session, plots, live, calibration):
+def _monitor(args, session, plots, live, calibrated):
     """The run: a live RTDE stream, or recordings (offline or one paced replay)."""
     if args.rtde is not None:
         client = session.connect_rtde(args.rtde, args.port, args.frequency)
@@ -160,7 +163,9 @@ def _monitor(args, session, plots, live, calibration):
     recordings = read_recordings(paths, args, "recordings",
                                  progress=not (args.quiet or live))
     check_recordings(recordings, f"the detector {args.detector}",
-                     units=calibration.get("units"))
+                     units=calibrated.calibration.get("units"))
+    for rec in recordings:  # every file before any event: one refusal, no half run
+        check_signals(rec, calibrated, accept=confirmed_kinds(args))
     keys = recording_keys(recordings)
     for key, rec in zip(keys, recordings):
         session.run_recording(rec, key, duration=args.duration,

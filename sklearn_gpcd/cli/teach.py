@@ -4,6 +4,7 @@ collision-free cycles, a thin layer over :func:`sklearn_gpcd.workflow.teach_task
 
 import time
 
+from ..workflow import load_detector, recording_keys, save_detector, teach_report, teach_task
 from ._args import (
     add_file_options,
     add_recording_options,
@@ -48,8 +49,6 @@ def add_parser(sub):
 
 def run(args):
     """``gpcd teach``: the task reference and its thresholds, saved with the detector."""
-    from ..workflow import load_detector, recording_keys, save_detector, teach_report, teach_task
-
     start = time.perf_counter()
     calibrated = load_detector(args.detector, trust_pickle=args.trust_pickle)
     recordings = read_recordings(args.recordings, args, "task recordings")

@@ -601,7 +601,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         -------
         plan : ExcitationPlan
         """
-        from .plan import excitation_plan, robot_limits
+        from .plan import excitation_plan, robot_limits  # deferred: the plan's own, opt-in
 
         check_is_fitted(self, "model_")
         center, low, high = self._poses

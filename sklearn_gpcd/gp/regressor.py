@@ -607,7 +607,7 @@ def _check_mean(mean):
 
 
 def _set_sigma_v(obj, sigma_v):
-    """Set every parameter named ``sigma_v`` (at any depth) of ``obj``.
+    r"""Set every parameter named ``sigma_v`` (at any depth) of ``obj``.
 
     "Every" is safe because the name has one meaning in the package: the
     quasi-static threshold of Eq. 15 (the kernels' gates, a mean's

@@ -18,7 +18,9 @@
                             :class:`MalformedPackage`, :class:`StreamPaused`
 :func:`degrees_note`        unit sanity checks of a recording's signals,
 :func:`units_note`          as sentences for warnings;
-:func:`recording_problems`  all of them (and too short) for a loaded one
+:func:`recording_problems`  all of them (and too short) for a loaded one;
+:class:`SignalCheck`        signals against what a model knows, chunk by chunk
+                            (:func:`signal_ranges`, :class:`Finding`)
 ==========================  ==================================================
 
 All readers keep the logged (irregular) sampling, drop malformed rows,
@@ -30,7 +32,14 @@ file, column and row for input that cannot be repaired. The user guide page
 "Reading UR RTDE, CSV and ROS bag logs" lists every error and warning.
 """
 
-from ._checks import degrees_note, recording_problems, units_note
+from .plausibility import (
+    Finding,
+    SignalCheck,
+    degrees_note,
+    recording_problems,
+    signal_ranges,
+    units_note,
+)
 from ._rtde_live import (
     LoopbackRTDEServer,
     MalformedPackage,
@@ -59,6 +68,8 @@ __all__ = [
     "Recording",
     "RecordingWarning",
     "StreamPaused",
+    "Finding",
+    "SignalCheck",
     "degrees_note",
     "detect_format",
     "load_recording",
@@ -69,6 +80,7 @@ __all__ = [
     "read_rtde_csv",
     "read_value_files",
     "recording_problems",
+    "signal_ranges",
     "units_note",
     "write_rtde_csv",
 ]

@@ -46,7 +46,7 @@ from bisect import bisect_left
 
 import numpy as np
 
-from ._checks import (
+from .plausibility import (
     degrees_note,
     gaps_note,
     looks_like_degrees,

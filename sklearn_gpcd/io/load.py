@@ -6,7 +6,7 @@ import warnings
 from glob import glob, has_magic
 from pathlib import Path
 
-from ._checks import recording_problems
+from .plausibility import recording_problems
 from ._text import decode_text, is_number, sniff_delimiter, split_fields
 from ._validation import RecordingWarning
 from .columns import UR10E_MAMEDOV

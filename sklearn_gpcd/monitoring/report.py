@@ -260,13 +260,14 @@ class _SessionReport:
         -------
         report : dict
             ``recordings``, ``events``, ``live`` (:meth:`live_statistics`),
-            ``faults``, ``n_blind``, ``hook_failures``, ``state`` and ``end``
-            (``reason``, ``abnormal``, ``exit_status``).
+            ``faults``, ``n_blind``, ``hook_failures``, ``signal_findings``
+            (implausible signals of a live stream, per window), ``state``
+            and ``end`` (``reason``, ``abnormal``, ``exit_status``).
         """
         self._reap()
         return {"recordings": self.recordings, "events": self.events,
                 "live": self.live_statistics(), "faults": self.faults,
                 "n_blind": self.n_blind, "hook_failures": self.hook_failures,
-                "state": self.state,
+                "signal_findings": self.signal_findings, "state": self.state,
                 "end": {"reason": self.end_reason, "abnormal": bool(self.abnormal_end),
                         "exit_status": self.exit_status}}

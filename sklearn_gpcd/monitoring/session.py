@@ -13,6 +13,10 @@ from ..workflow.calibration import band_label, band_settings
 from .faults import MAX_FAULT_RECORDS, MONITORING, _FaultStates, stall_bound
 from .report import _LogHistogram, _SessionReport
 from .rtde import _RTDERunning
+from .signals import LiveSignalCheck
+
+#: Live signal findings kept for the report (the first ones; a line per kind and column).
+MAX_SIGNAL_FINDINGS = 100
 
 
 #: Untaught motion [s] after which a stretch is announced and counted.
@@ -141,6 +145,12 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
     stall_timeout : float, default=None
         Stall bound [s]; None: :func:`stall_bound` of the detector's sample
         time.
+    signal_check : SignalCheck, default=None
+        Live streams: judge the signals every 10 s of stream time
+        (:class:`~sklearn_gpcd.monitoring.signals.LiveSignalCheck`), a
+        ``SIGNALS`` line per implausible column, all in the report's
+        ``signal_findings``. Files are checked before the run instead
+        (:func:`sklearn_gpcd.workflow.check_signals`).
 
     Attributes
     ----------
@@ -196,7 +206,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
     """
 
     def __init__(self, detector, features, *, hook=None, keep_series=False, echo=False,
-                 band_labels=None, stall_timeout=None):
+                 band_labels=None, stall_timeout=None, signal_check=None):
         # deferred: gpcd starts without scikit-learn (test_architecture.py)
         from ..detection import StreamingMonitor
 
@@ -229,6 +239,9 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self._stat_stamp = None
         self.state = MONITORING
         self.name = None
+        self.live_signals = (None if signal_check is None
+                             else LiveSignalCheck(signal_check, self.sample_time))
+        self.signal_findings = []
 
     def _warmup(self, rule):
         """Debounce window plus one low-pass time constant (and the settle time) [s]."""
@@ -253,6 +266,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self._last_ok = None  # received of the last valid tick (live)
         self._last_received = None
         self._run = 0  # rejected samples in a row
+        if self.live_signals is not None:
+            self.live_signals.reset()
         self._lost = 0  # samples lost in the current blind period
         self._taught_n = self._untaught_n = self._untaught_run = 0
         self._untaught_stretches = []  # [start_s, end_s] of untaught motion
@@ -306,6 +321,10 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             self._last_ok = received
             self._valid_tick(rel, t)
             self._valid_stamp = t
+        if live and self.live_signals is not None:
+            for finding in self.live_signals.add(t, fields["q"], fields["qd"],
+                                                 fields["current"], mon.predicted):
+                self._signal_finding(rel, finding)
         if any((np.abs(band.signal) > thresholds[band.regime]).any()
                for band, thresholds in zip(self.bands, self.thresholds)):
             if self.cross_start is None:
@@ -347,6 +366,18 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                 self._untaught_run - 1) * self.sample_time:
             print(f"UNTAUGHT {self.name} t={self._untaught_stretches[-1][0]:.3f} s: motion "
                   "outside the taught task; the calibrated thresholds apply", flush=True)
+
+    def _signal_finding(self, rel, finding):
+        """A live window's implausible signal: one line per kind and column, all in the
+        report (at most :data:`MAX_SIGNAL_FINDINGS`)."""
+        said = any(f["kind"] == finding.kind and f["columns"] == finding.columns
+                   for f in self.signal_findings)
+        if len(self.signal_findings) < MAX_SIGNAL_FINDINGS:
+            self.signal_findings.append({"recording": self.name, "t_s": round(rel, 3),
+                                         **finding._asdict()})
+        if self.echo and not said:
+            print(f"SIGNALS {self.name} t={rel:.3f} s: {finding.severity}: "
+                  f"{finding.sentence}", flush=True)
 
     def _count_fault(self, status):
         self.n_faults += 1

@@ -30,10 +30,12 @@ from .calibration import (
     calibration_coverage,
     calibration_report,
     check_calibration_options,
+    check_signals,
     load_detector,
     recording_keys,
     resolve_select,
     save_detector,
+    signal_check,
     split_recordings,
 )
 from .model_choice import (
@@ -84,9 +86,9 @@ __all__ = [
     "ModelComparison", "TargetCurrentCheck", "TrainedModel", "TrainingSet",
     "acceleration_limit", "band_label", "band_settings", "calibrate_detector",
     "calibration_coverage", "calibration_report", "candidate_models",
-    "check_calibration_options", "check_target_current", "choose_model", "compare_models",
-    "input_signals", "load_detector",
+    "check_calibration_options", "check_signals", "check_target_current", "choose_model",
+    "compare_models", "input_signals", "load_detector",
     "load_model", "recording_keys", "resolve_select", "save_detector", "save_model",
-    "split_recordings", "teach_report", "teach_task", "train_model", "training_report",
-    "training_rows", "training_set", "untaught_detector",
+    "signal_check", "split_recordings", "teach_report", "teach_task", "train_model",
+    "training_report", "training_rows", "training_set", "untaught_detector",
 ]

@@ -31,12 +31,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..io import RecordingWarning, SignalCheck, signal_ranges
+
 __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "MIN_CALIBRATION_SECONDS", "MIN_REGIME_SECONDS",
            "MOTION_ENVELOPE_SPEED",
            "SELECT_GRID", "CalibratedDetector", "CalibrationWarning",
            "band_label", "band_settings", "calibrate_detector", "calibration_coverage",
-           "calibration_report", "check_calibration_options", "resolve_select",
-           "load_detector", "recording_keys", "save_detector", "split_recordings"]
+           "calibration_report", "check_calibration_options", "check_signals", "resolve_select",
+           "load_detector", "recording_keys", "save_detector", "signal_check",
+           "split_recordings"]
 
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
 DETECTOR_KIND = "gpcd-detector"
@@ -252,7 +255,7 @@ def band_label(settings):
 def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_reference=None,
                        settle_time=None, select="auto", bands=(), band_candidates=(),
                        braking=None, motion_envelope=None, split=None,
-                       robot=None, progress=None):
+                       robot=None, progress=None, accept=()):
     """Thresholds for a trained model, chosen across collision-free recordings.
 
     The detector applies :data:`DETECTOR_RULE` to the model's causal inputs
@@ -307,6 +310,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
         thresholds in Nm.
     progress : callable or None, default=None
         ``progress(label, total)`` returning an object with ``update()``.
+    accept : collection of str, default=()
+        Kinds of implausible signal to let through in the recordings
+        (:func:`check_signals`: the ranges of the training and calibration
+        data, the robot's limits, the model's prediction; stored in the
+        summary's ``signal_ranges`` for ``gpcd monitor``).
 
     Returns
     -------
@@ -413,9 +421,13 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
         for entry in summary.get("bands", []):
             entry.pop("thresholds_Nm", None)
     summary["coverage"] = coverage
+    summary["signal_ranges"] = signal_ranges(recordings, trained.training.get("signal_ranges"))
     _warn_coverage(summary)
     _warn_quality(summary)
-    return CalibratedDetector(result.detector, features, summary)
+    calibrated = CalibratedDetector(result.detector, features, summary)
+    for key, rec in zip(keys, recordings):  # signals the thresholds were set on
+        check_signals(rec, calibrated, accept=accept, name=key)
+    return calibrated
 
 
 def _fill_regimes_without_data(detector, coverage):
@@ -1006,3 +1018,147 @@ def load_detector(path, trust_pickle=False):
     check_detector_bundle(bundle, path, fix)
     return CalibratedDetector(bundle["detector"], bundle["features"],
                               bundle.get("calibration", {}))
+
+
+#: Slack on the drives' current limits (``effort_limits / torque_constants``).
+DRIVE_SLACK = 1.5
+#: Rows per chunk when :func:`check_signals` reads a recording.
+CHECK_CHUNK_ROWS = 50_000
+#: At most this many rows of a recording are predicted for :func:`check_signals`
+#: (every k-th row: the ratio test counts shares, a GP prediction costs).
+CHECK_PREDICTED_ROWS = 2_000
+
+
+def signal_check(calibrated, robot=None):
+    """A :class:`~sklearn_gpcd.io.SignalCheck` with what a detector file knows.
+
+    The ranges of the training and calibration recordings (``calibration
+    ["signal_ranges"]``), the robot's joint limits and drive limits (the
+    robot named by the calibration or the model, or ``robot``), the
+    detector's sample time and its loosest threshold per joint.
+
+    Parameters
+    ----------
+    calibrated : CalibratedDetector
+        What :func:`calibrate_detector` or :func:`load_detector` returned.
+    robot : Robot, str or None, default=None
+        The robot when the detector file names none (e.g. a recording's
+        ``metadata["robot"]``).
+
+    Returns
+    -------
+    check : SignalCheck
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> calibrated = CalibratedDetector(SimpleNamespace(sample_time_=0.002),
+    ...                                 SimpleNamespace(n_joints_=6), {"robot": "ur10e"})
+    >>> check = signal_check(calibrated)
+    >>> round(float(check.position_limits[1][0]), 4), check.sample_time
+    (6.2832, 0.002)
+    >>> check.current_limits.round(1).tolist()   # 1.5 effort limit / torque constant [A]
+    [41.3, 41.3, 22.9, 7.8, 7.8, 7.8]
+    """
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
+    from ..robots import load_robot
+
+    detector, features, calibration = calibrated
+    detector = getattr(detector, "detector", detector)  # a taught task's calibrated detector
+    training = calibration.get("training") or {}
+    ranges = calibration.get("signal_ranges") or training.get("signal_ranges")
+    name = calibration.get("robot") or training.get("robot") or robot
+    limits = current = None
+    if name is not None:
+        try:
+            robot = load_robot(name) if isinstance(name, str) else name
+        except (ValueError, OSError):
+            robot = None
+        if robot is not None and robot.n_joints == features.n_joints_:
+            limits = [robot.lower, robot.upper]
+            kt = getattr(robot, "torque_constants", None)
+            if kt is not None and (ranges or {}).get("units", "A") == "A":
+                current = DRIVE_SLACK * np.asarray(robot.effort_limits) / np.asarray(kt)
+    thresholds = [np.max(np.atleast_2d(rule.thresholds_), axis=0)
+                  for rule in getattr(detector, "rules_", ())
+                  if getattr(detector, "normalize", None) is None]  # else in std units
+    return SignalCheck(features.n_joints_, ranges=ranges, position_limits=limits,
+                       current_limits=current, sample_time=float(detector.sample_time_),
+                       thresholds=np.max(thresholds, axis=0) if thresholds else None)
+
+
+def check_signals(recording, calibrated, *, accept=(), name=None):
+    """Refuse or warn about a recording whose signals a detector cannot trust.
+
+    The checks of :class:`~sklearn_gpcd.io.SignalCheck` with what the
+    detector knows (:func:`signal_check`), the model's prediction of the
+    currents on at most :data:`CHECK_PREDICTED_ROWS` rows. Used by ``gpcd calibrate`` (on the
+    calibration recordings) and ``gpcd monitor`` (before monitoring).
+
+    Parameters
+    ----------
+    recording : Recording
+    calibrated : CalibratedDetector
+    accept : collection of str, default=()
+        Kinds of finding to let through (``"units"``, ``"current"``,
+        ``"limits"``, ``"time"``; ``gpcd --units-confirmed`` accepts all).
+    name : str, default=None
+        The file named in messages (default: the recording's source).
+
+    Returns
+    -------
+    findings : list of Finding
+        All of them; the warnings were issued as
+        :class:`~sklearn_gpcd.io.RecordingWarning`.
+
+    Raises
+    ------
+    ValueError
+        On the first error not accepted, naming the file and the column.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> from sklearn_gpcd.workflow import calibrate_detector, train_model
+    >>> t = np.arange(600) * 0.01
+    >>> recs = [Recording(time=t, q=np.c_[np.sin(t + p)], qd=np.c_[np.cos(t + p)],
+    ...                   current=np.c_[2 + np.sin(t + p)], target_current=np.c_[2 + np.sin(t + p)])
+    ...         for p in (0.0, 1.0, 2.0)]
+    >>> calibrated = calibrate_detector(train_model(recs[:1], model="sp_c", n_support=30),
+    ...                                 recs[1:], select=False)
+    >>> check_signals(recs[2], calibrated)
+    []
+    >>> flipped = Recording(time=t, q=recs[2].q, qd=recs[2].qd, current=-recs[2].current,
+    ...                     target_current=recs[2].target_current)
+    >>> check_signals(flipped, calibrated, name="today.csv")
+    Traceback (most recent call last):
+    ...
+    ValueError: today.csv: current[0] has the opposite sign of the model's prediction...
+    """
+    detector, features, _ = calibrated
+    detector = getattr(detector, "detector", detector)  # a taught task's calibrated detector
+    source = name or recording.metadata.get("source") or recording.name
+    if recording.n_joints != features.n_joints_:
+        raise ValueError(f"{source}: {recording.n_joints} joints but the detector has "
+                         f"{features.n_joints_}")
+    check = signal_check(calibrated, robot=recording.metadata.get("robot"))
+    step = -(-recording.n_samples // CHECK_PREDICTED_ROWS)
+    inputs = features.transform(recording)[::step]
+    predicted = np.full((recording.n_samples, recording.n_joints), np.nan)
+    predicted[::step] = np.reshape(detector.regressor_.predict(inputs),
+                                   (-1, recording.n_joints))
+    for start in range(0, recording.n_samples, CHECK_CHUNK_ROWS):
+        rows = slice(start, start + CHECK_CHUNK_ROWS)
+        check.update(recording.time[rows], recording.q[rows], recording.qd[rows],
+                     recording.current[rows], predicted[rows])
+    findings = check.findings()
+    for finding in findings:
+        if finding.kind in accept:
+            continue
+        if finding.severity == "error":
+            raise ValueError(f"{source}: {finding.sentence} Fix the column map (--column-map) "
+                             "or the file, or accept it as it is: --units-confirmed "
+                             f"(accept=[{finding.kind!r}] in Python)")
+        warnings.warn(f"{source}: {finding.sentence}", RecordingWarning, stacklevel=2)
+    return findings

@@ -12,7 +12,6 @@ import warnings
 
 import numpy as np
 
-from ..detection import TaughtTask, stack_currents
 from .calibration import CalibratedDetector
 
 __all__ = ["teach_task", "teach_report", "untaught_detector"]
@@ -34,6 +33,9 @@ def untaught_detector(detector):
     >>> untaught_detector("a detector")
     'a detector'
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from ..detection import TaughtTask
+
     return detector.detector if isinstance(detector, TaughtTask) else detector
 
 
@@ -67,7 +69,7 @@ def teach_task(calibrated, recordings, *, keys=None, **params):
     >>> import numpy as np
     >>> from sklearn.frozen import FrozenEstimator
     >>> from sklearn.linear_model import Ridge
-    >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector
+    >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
     >>> from sklearn_gpcd.features import CausalFeatures
     >>> from sklearn_gpcd.io import Recording
     >>> t = np.arange(0, 16, 0.01)
@@ -83,6 +85,9 @@ def teach_task(calibrated, recordings, *, keys=None, **params):
     >>> taught.calibration["teach"]["n_cycles"]
     4
     """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from ..detection import TaughtTask, stack_currents
+
     detector = untaught_detector(calibrated.detector)
     features = calibrated.features
     keys = list(keys) if keys is not None else [r.name for r in recordings]

@@ -140,6 +140,10 @@ class TrainingSet:
     units : {"A", "Nm"}
         What ``y`` holds: motor currents [A] or joint torques [Nm]
         (``Recording.units``, from the column map's ``"units"``).
+    signal_ranges : dict or None
+        Per-joint ranges of q, qd and current of the recordings
+        (:func:`~sklearn_gpcd.io.signal_ranges`): what the model knows, for
+        the plausibility checks of ``gpcd calibrate`` and ``gpcd monitor``.
 
     Examples
     --------
@@ -164,6 +168,7 @@ class TrainingSet:
     sizes: tuple = ()
     sample_time: float = None
     units: str = "A"
+    signal_ranges: dict = None
 
 
 def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
@@ -207,6 +212,7 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     """
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..features import CausalFeatures, make_inputs
+    from ..io import signal_ranges
 
     if inputs not in INPUTS:
         raise ValueError(f"inputs must be one of {INPUTS}, got {inputs!r}")
@@ -226,13 +232,14 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     step = training_rows(n_rows, max_rows).step
     bar = _bar(progress, f"computing GP inputs ({inputs})", len(recordings))
     unused = _unused_columns(features.signals_, features.n_joints_)
-    X, y, sizes, offset = [], [], [], 0
+    X, y, sizes, offset, ranges = [], [], [], 0, None
     steps = np.concatenate([np.diff(np.asarray(rec.time, float)) for rec in recordings])
     sample_time = float(np.median(steps)) * step if steps.size else None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         while recordings:  # thin each block to the global every-step-th row, free as we go
             rec = recordings.pop(0)
+            ranges = signal_ranges([rec], ranges)
             if inputs == "causal":
                 Xr, yr = features.transform(rec), rec.current
             else:
@@ -248,7 +255,8 @@ def training_set(recordings, inputs="causal", *, max_rows=MAX_TRAIN_ROWS,
     _warn_once_per_kind(caught, len(names))
     return TrainingSet(X=np.vstack(X), y=np.vstack(y), features=features, inputs=inputs,
                        names=names, n_rows=n_rows, step=step, has_target_current=has_ic,
-                       sizes=tuple(sizes), sample_time=sample_time, units=units.pop())
+                       sizes=tuple(sizes), sample_time=sample_time, units=units.pop(),
+                       signal_ranges=ranges)
 
 
 def _unused_columns(signals, n_joints):
@@ -486,6 +494,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         "robot": None if robot is None else robot.name, "recordings": list(data.names),
         "n_rows": int(data.n_rows), "n_rows_used": int(len(data.y)), "step": int(data.step),
         "acceleration_limit": acceleration_limit(data), "units": data.units,
+        "signal_ranges": data.signal_ranges,
     }
     return TrainedModel(regressor=regressor, features=features, training=training)
 
