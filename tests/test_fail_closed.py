@@ -471,3 +471,122 @@ def test_a_stop_signal_writes_the_report(good, tmp_path, name, source):
     if source != "live":  # a live stop may come before the first sample
         assert report["recordings"][0]["n_samples"] > 0
 
+
+# ------------------------------------------------------------------ fuzzing
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+#: Values an edited array may get (the ones that switch a detector off among them).
+ODD_VALUES = [np.nan, np.inf, -np.inf, -1.0, 0.0, -0.0, 1e-300, 1e300, 5e-324]
+
+MUTATION = st.one_of(
+    st.tuples(st.just("flip"), st.lists(st.tuples(st.floats(0, 1, exclude_max=True),
+                                                    st.integers(1, 255)), min_size=1,
+                                         max_size=8)),
+    st.tuples(st.just("drop"), st.floats(0, 1, exclude_max=True)),
+    st.tuples(st.just("array"), st.floats(0, 1, exclude_max=True),
+              st.sampled_from(["fill", "one", "truncate", "empty", "int8", "transpose",
+                               "scale"]),
+              st.sampled_from(ODD_VALUES)),
+    st.tuples(st.just("cut"), st.floats(0, 1, exclude_max=True)),
+)
+
+
+def mutate(source, target, mutation):
+    """A copy of ``source`` with ``mutation`` applied (see :data:`MUTATION`)."""
+    data = source.read_bytes()
+    if mutation[0] == "flip":
+        data = bytearray(data)
+        for where, xor in mutation[1]:
+            data[int(where * len(data))] ^= xor
+        target.write_bytes(bytes(data))
+        return target
+    if mutation[0] == "cut":
+        target.write_bytes(data[:int(mutation[1] * len(data))])
+        return target
+    entries = entries_of(source)
+    names = sorted(entries)
+    if mutation[0] == "drop":
+        del entries[names[int(mutation[1] * len(names))]]
+        return write_entries(target, entries)
+    _, where, how, value = mutation
+    arrays = [n for n in names if n.endswith(".npy")]
+    name = arrays[int(where * len(arrays))]
+    array = np.load(io.BytesIO(entries[name]))
+    if array.dtype.kind == "f":
+        with np.errstate(all="ignore"):
+            array = _changed(array, how, value)
+    else:
+        array = array.reshape(-1)[:-1]
+    out = io.BytesIO()
+    np.save(out, array)
+    entries[name] = out.getvalue()
+    return write_entries(target, entries)
+
+
+def _changed(array, how, value):
+    """``array`` filled with, or one item set to, or scaled by ``value``; or reshaped."""
+    return {"fill": lambda a: np.full_like(a, value),
+            "one": lambda a: np.where(np.arange(a.size).reshape(a.shape) == 0, value, a),
+            "truncate": lambda a: a.reshape(-1)[:-1],
+            "empty": lambda a: a.reshape(-1)[:0],
+            "int8": lambda a: a.astype(np.int8),
+            "transpose": lambda a: a.T.copy() if a.ndim == 2 else a[None],
+            "scale": lambda a: a * value}[how](array)
+
+
+def assert_valid_detector(bundle):
+    """What a loaded detector must be, checked here without the package's checks."""
+    detector, features = bundle.detector, bundle.features
+    assert features.n_joints_ == detector.n_joints == 6
+    for part in [detector, *detector.rules_]:
+        for name in ("thresholds_", "scale_", "margin_"):
+            values = np.asarray(getattr(part, name), dtype=float)
+            assert values.shape[-1] == 6 and np.isfinite(values).all() and (values > 0).all()
+        b, a = part.filter_coefficients_
+        assert np.ndim(b) == np.ndim(a) == 1 and len(b) == len(a)
+        assert np.isfinite(b).all() and np.isfinite(a).all() and a[0] != 0
+        assert np.abs(np.roots(a)).max(initial=0.0) < 1
+        assert np.isfinite(part.sample_time_) and part.sample_time_ > 0
+
+
+def check_mutant(good, mutation, kind="detector"):
+    """Load a mutant of the good ``kind`` file: a valid object or ONE clean error line."""
+    loader, command = ((load_detector, "gpcd calibrate") if kind == "detector"
+                       else (load_model, "gpcd train"))
+    path = mutate(good[kind], good["folder"] / f"mutant_{kind}.skops", mutation)
+    try:
+        loaded = loader(path)
+    except MalformedFileError as exc:
+        assert "\n" not in str(exc) and str(path) in str(exc) and command in str(exc)
+        return "refused"
+    except ValueError as exc:  # the kind of file, or a type the allow-list refuses
+        assert type(exc) in (ValueError, UntrustedTypesError), repr(exc)
+        assert "\n" not in str(exc) and str(path) in str(exc)
+        return "refused"
+    if kind == "detector":
+        assert_valid_detector(loaded)
+    else:
+        assert np.isfinite(loaded.regressor.coef_).all()
+        assert np.isfinite(loaded.regressor.predict(np.eye(3))).all()
+    return "loaded"
+
+
+FUZZ = dict(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                  HealthCheck.too_slow])
+
+
+@pytest.mark.parametrize("kind", ["detector", "model"])
+@settings(max_examples=25, **FUZZ)
+@given(mutation=MUTATION)
+def test_a_mutated_file_loads_valid_or_is_refused_in_one_line(good, kind, mutation):
+    """Small budget in the default run (25 files of each kind); see the slow variant."""
+    check_mutant(good, mutation, kind)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["detector", "model"])
+@settings(max_examples=1000, **FUZZ)
+@given(mutation=MUTATION)
+def test_a_thousand_mutated_files(good, kind, mutation):
+    check_mutant(good, mutation, kind)

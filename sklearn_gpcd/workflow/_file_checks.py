@@ -166,10 +166,14 @@ def _check_number(value, where, field, path, fix):
 def _check_filter(coefficients, where, path, fix):
     """A low-pass filter ``(b, a)``: ``a[0] != 0`` and every pole inside the unit circle."""
     try:
-        b, a = (np.asarray(c, dtype=float).reshape(-1) for c in coefficients)
+        b, a = (np.asarray(c, dtype=float) for c in coefficients)
     except (TypeError, ValueError):
         raise MalformedFileError(path, f"field {where} is not a filter (b, a)",
                                  fix=fix) from None
+    if b.ndim != 1 or a.ndim != 1 or b.shape != a.shape:
+        raise MalformedFileError(path, f"field {where} is not a filter (b, a) of two "
+                                 f"vectors of one length (shapes {b.shape}, {a.shape})",
+                                 fix=fix)
     finite = np.isfinite(b).all() and np.isfinite(a).all()
     if not (finite and a.size and a[0] != 0 and b.size):
         raise MalformedFileError(path, f"field {where} holds no filter (b, a) with "
