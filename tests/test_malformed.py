@@ -486,7 +486,7 @@ CASES = {
         r"stray_bytes\.csv", r"dropped 2 of 1324 rows", r"line 502: column 'actual_q_1'",
         r"line 802: column '\w+': '.*\ufffd' is not a number"], dropped=[502, 802]),
     "time-in-milliseconds": Case(_milliseconds, warn=[
-        r"millis\.csv", r"gain g \(1 expected\) of 'actual_q_0' 0\.001",
+        r"millis\.csv", r"'actual_q_0' and qd\[0\] disagree: position steps are 0\.001 times",
         r"time_scale=1e-3"], dropped=[], units=True),
     "directory": Case(_directory, error=[r"a_folder\.csv", r"folder"]),
     "no-such-file": Case(_missing_file, error=[r"does_not_exist\.csv", r"no such file"]),

@@ -440,13 +440,17 @@ class SignalCheck:
         elapsed = self._block[2] + np.cumsum(np.where(steady, dt, 0.0))
         block = np.floor(elapsed / BLOCK_SECONDS).astype(int)
         n_closed = int(block[-1])
-        sums_q = np.zeros((n_closed + 1, self.n_joints))
+        # only the blocks that hold samples (and the carried open one, 0) are summed:
+        # memory bounded by the chunk, however long the stamps say it lasted
+        occupied = np.unique(np.r_[0, block])
+        sums_q = np.zeros((len(occupied), self.n_joints))
         sums_v = np.zeros_like(sums_q)
-        np.add.at(sums_q, block, dq)
-        np.add.at(sums_v, block, v)
+        rows = np.searchsorted(occupied, block)
+        np.add.at(sums_q, rows, dq)
+        np.add.at(sums_v, rows, v)
         sums_q[0] += self._block[0]
         sums_v[0] += self._block[1]
-        closed_q, closed_v = sums_q[:n_closed], sums_v[:n_closed]
+        closed_q, closed_v = sums_q[:-1], sums_v[:-1]
         self._travel["q"] += np.abs(closed_q).sum(0)
         self._travel["qd"] += np.abs(closed_v).sum(0)
         self._travel["gap"] += np.abs(closed_q - closed_v).sum(0)
