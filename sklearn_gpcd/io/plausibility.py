@@ -329,7 +329,7 @@ class SignalCheck:
     position_limits : array-like of shape (2, n_joints) or None, default=None
         The robot's ``[lower, upper]`` joint limits [rad].
     current_limits : array-like of shape (n_joints,) or None, default=None
-        The drives' largest |current| (in the recording's units).
+        The drives' largest ``|current|`` (in the recording's units).
     sample_time : float or None, default=None
         The detector's sample time [s].
     thresholds : array-like of shape (n_joints,) or None, default=None
