@@ -92,8 +92,7 @@ def causal_outputs(calibrated, rec):
         X = stack_currents(_quiet(features.transform, rec), rec.current)
         if isinstance(det, TaughtTask):
             res = det.monitoring_signal(X)
-            general = det.detector.monitoring_signal(X)
-            return Bunch(alarms=res.alarms, residual=general.residual,
+            return Bunch(alarms=res.alarms, residual=res.residual,
                          regime=np.where(res.moving, 0, 1), taught=res.taught, event=res.event)
         res = det.monitoring_signal(X)
         return Bunch(alarms=res.alarms, residual=res.residual, regime=res.regime,

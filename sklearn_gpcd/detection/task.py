@@ -476,7 +476,8 @@ class TaughtTask(BaseEstimator):
         Returns
         -------
         result : Bunch
-            ``signal`` (filtered taught residual minus ``bias_``, A),
+            ``residual`` (the detector's ``i - i_hat``, A), ``signal`` (its
+            filtered taught part minus ``bias_``, A),
             ``novelty``, ``moving`` (the detector's regime), ``taught``
             (``novelty <= 1`` after ``BREAKAWAY_S`` of motion), ``taught_alarms`` and
             ``general_alarms`` (n, n_joints) and ``alarms``: the taught ones
@@ -506,9 +507,9 @@ class TaughtTask(BaseEstimator):
         events = EventHold(self._hold_rows(EVENT_HOLD_S))
         event = np.array([events.step(r, start) for r, start in zip(
             ratio, np.isin(np.arange(len(X)), starts))], dtype=bool)
-        return Bunch(signal=m, novelty=novelty, moving=moving, taught=taught,
-                     taught_alarms=taught_alarms, general_alarms=general_alarms, alarms=alarms,
-                     ratio=ratio, event=event)
+        return Bunch(residual=residual, signal=m, novelty=novelty, moving=moving,
+                     taught=taught, taught_alarms=taught_alarms, general_alarms=general_alarms,
+                     alarms=alarms, ratio=ratio, event=event)
 
     def predict(self, X, groups=None):
         """+1 normal, -1 collision, per row.

@@ -37,6 +37,7 @@ from .calibration import (
     save_detector,
     signal_check,
     split_recordings,
+    untaught_detector,
 )
 from .model_choice import (
     CHOICE_RULE,
@@ -55,7 +56,7 @@ from .model_choice import (
     compare_models,
     input_signals,
 )
-from .teaching import teach_report, teach_task, untaught_detector
+from .teaching import teach_report, teach_task
 from .training import (
     INPUTS,
     MAX_TRAIN_ROWS,

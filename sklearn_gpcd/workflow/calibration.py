@@ -39,7 +39,7 @@ __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "MIN_CALIBRATION_SECONDS", "MIN_REG
            "band_label", "band_settings", "calibrate_detector", "calibration_coverage",
            "calibration_report", "check_calibration_options", "check_signals", "resolve_select",
            "load_detector", "recording_keys", "save_detector", "signal_check",
-           "split_recordings"]
+           "split_recordings", "untaught_detector"]
 
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
 DETECTOR_KIND = "gpcd-detector"
@@ -127,6 +127,28 @@ class CalibratedDetector(NamedTuple):
     detector: object
     features: object
     calibration: dict
+
+
+def untaught_detector(detector):
+    """The calibrated detector under a taught one (itself when untaught).
+
+    Parameters
+    ----------
+    detector : CollisionDetector or TaughtTask
+
+    Returns
+    -------
+    detector : CollisionDetector
+
+    Examples
+    --------
+    >>> untaught_detector("a detector")
+    'a detector'
+    """
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from ..detection import TaughtTask
+
+    return detector.detector if isinstance(detector, TaughtTask) else detector
 
 
 def recording_keys(recordings):
@@ -1064,7 +1086,7 @@ def signal_check(calibrated, robot=None):
     from ..robots import load_robot
 
     detector, features, calibration = calibrated
-    detector = getattr(detector, "detector", detector)  # a taught task's calibrated detector
+    detector = untaught_detector(detector)
     training = calibration.get("training") or {}
     ranges = calibration.get("signal_ranges") or training.get("signal_ranges")
     name = calibration.get("robot") or training.get("robot") or robot
@@ -1137,7 +1159,7 @@ def check_signals(recording, calibrated, *, accept=(), name=None):
     ValueError: today.csv: current[0] has the opposite sign of the model's prediction...
     """
     detector, features, _ = calibrated
-    detector = getattr(detector, "detector", detector)  # a taught task's calibrated detector
+    detector = untaught_detector(detector)
     source = name or recording.metadata.get("source") or recording.name
     if recording.n_joints != features.n_joints_:
         raise ValueError(f"{source}: {recording.n_joints} joints but the detector has "

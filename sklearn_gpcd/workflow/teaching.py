@@ -12,31 +12,9 @@ import warnings
 
 import numpy as np
 
-from .calibration import CalibratedDetector
+from .calibration import CalibratedDetector, untaught_detector
 
-__all__ = ["teach_task", "teach_report", "untaught_detector"]
-
-
-def untaught_detector(detector):
-    """The calibrated detector under a taught one (itself when untaught).
-
-    Parameters
-    ----------
-    detector : CollisionDetector or TaughtTask
-
-    Returns
-    -------
-    detector : CollisionDetector
-
-    Examples
-    --------
-    >>> untaught_detector("a detector")
-    'a detector'
-    """
-    # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..detection import TaughtTask
-
-    return detector.detector if isinstance(detector, TaughtTask) else detector
+__all__ = ["teach_task", "teach_report"]
 
 
 def teach_task(calibrated, recordings, *, keys=None, **params):
