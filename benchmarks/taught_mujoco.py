@@ -143,6 +143,109 @@ def train(work, setup):
     return out
 
 
+# -- monitors and scores ----------------------------------------------------------
+def monitors(work, logs, recs):
+    """``{name: (trained model, calibrated, taught, taught with one cycle of each pose)}``
+    for the model of ``gpcd train``, ``i - i_des`` and the momentum observer."""
+    import little_data_mujoco as L
+    from real_ur10e import trained_model
+
+    from sklearn_gpcd.dynamics import MomentumObserver
+    from sklearn_gpcd.workflow import calibrate_detector, load_model, teach_task
+
+    train_recs = [load(p) for p in json.loads((work / "train.json").read_text())["paths"]]
+    model = load_model(work / "model.skops")
+    peer = load_model(L.peer_model([str(p) for p in sorted((work / "train").glob("*.csv"))],
+                                   work / "peer.joblib"), trust_pickle=True)
+    X = [model.features.transform(r) for r in train_recs]
+    groups = np.concatenate([np.full(len(x), k) for k, x in enumerate(X)])
+    period = float(np.median(np.concatenate([np.diff(r.time) for r in train_recs])))
+    observer = MomentumObserver(L.ROBOT, identify="all", sample_time=period).fit(
+        np.vstack(X), np.vstack([r.current for r in train_recs]), groups=groups)
+    task = recs["task.csv"]
+    cycles = [recs[Path(e["path"]).name] for e in logs["cycles"]]
+    out, timings = {}, {}
+    for name, trained in (("model", model), ("i - i_des", peer),
+                          ("observer", trained_model(observer, model.features))):
+        tic = time.perf_counter()
+        calibrated = _quiet(calibrate_detector, trained, [task], keys=["task.csv"], split=SPLIT)
+        timings[f"calibrate {name}"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        taught = _quiet(teach_task, calibrated, [task], keys=["task.csv"])
+        timings[f"teach {name}"] = time.perf_counter() - tic
+        every = _quiet(teach_task, calibrated, [task, *cycles],
+                       keys=["task.csv", *(Path(e["path"]).name for e in logs["cycles"])])
+        out[name] = (calibrated, taught, every)
+    return out, timings
+
+
+def load(path):
+    from sklearn_gpcd.io import load_recording
+
+    return load_recording(path)
+
+
+def replay(calibrated, rec):
+    """Causal outputs (``taught_task.causal_outputs``: ``gpcd monitor``'s path)."""
+    from taught_task import causal_outputs
+
+    return _quiet(causal_outputs, calibrated, rec)
+
+
+def onsets_of(out, t):
+    """Event onsets [s]: an event holds while the signal has not been released."""
+    from sklearn_gpcd.metrics import alarm_onsets
+
+    return np.asarray(alarm_onsets(out.event | out.alarms.any(axis=1), t), dtype=float)
+
+
+def score_set(calibrated, recs, entries):
+    """Onsets per hour, untaught share of motion, pushes caught, per set of logs."""
+    onsets, seconds, moving, untaught, pushes, push_fa = 0, 0.0, 0, 0, [], 0
+    for entry in entries:
+        rec = recs[Path(entry["path"]).name]
+        out = replay(calibrated, rec)
+        t = rec.time - rec.time[0]
+        ons = onsets_of(out, t)
+        move = np.asarray(out.regime) == 0
+        moving += int(move.sum())
+        untaught += int((move & ~np.asarray(out.taught, dtype=bool)).sum())
+        seconds += float(t[-1])
+        if not entry.get("pushes"):
+            onsets += len(ons)
+            continue
+        windows = [(p["start"], p["stop"] + CATCH_AFTER) for p in entry["pushes"]]
+        for (lo, hi), p in zip(windows, entry["pushes"]):
+            inside = ons[(ons >= lo) & (ons <= hi)]
+            pushes.append({"log": Path(entry["path"]).name, "start": p["start"],
+                           "link": p.get("link"), "caught": bool(inside.size),
+                           "events": int(inside.size),
+                           "delay_s": float(inside[0] - lo) if inside.size else None})
+        push_fa += int(sum(not any(lo <= o <= hi for lo, hi in windows) for o in ons))
+    hours = seconds / 3600
+    res = {"minutes": 60 * hours, "untaught_motion_share": untaught / max(moving, 1)}
+    if pushes:
+        delays = [p["delay_s"] for p in pushes if p["caught"]]
+        res.update(caught=sum(p["caught"] for p in pushes), n_pushes=len(pushes),
+                   one_event=sum(p["events"] == 1 for p in pushes),
+                   median_delay_s=float(np.median(delays)) if delays else None,
+                   false_alarms=push_fa, false_alarms_per_hour=push_fa / hours, pushes=pushes)
+    else:
+        res.update(onsets=onsets, per_hour=onsets / hours)
+    return res
+
+
+def row_text(name, r):
+    def rate(x):
+        return f"{x['onsets']:>3} ({x['per_hour']:6.1f}/h, untaught {100 * x['untaught_motion_share']:4.1f} %)"
+
+    p = r["push"]
+    delay = "-" if p["median_delay_s"] is None else f"{p['median_delay_s']:.3f}"
+    return (f"{name:<28} {rate(r['same'])}  {rate(r['free'])}  {p['caught']:>2}/{p['n_pushes']}"
+            f" one event {p['one_event']:>2}, delay {delay} s, {p['false_alarms']} FA"
+            f" ({p['false_alarms_per_hour']:.1f}/h), untaught {100 * p['untaught_motion_share']:4.1f} %")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workdir", default=None, help="logs and model (default: tmp)")
@@ -173,7 +276,36 @@ def main(argv=None):
         print(f"trained in {out['seconds']:.0f} s", flush=True)
     if args.prepare_only:
         return 0
-    raise SystemExit("scoring: not written yet")
+    recs = {Path(e["path"]).name: load(e["path"])
+            for e in [logs["task"], *logs["same"], *logs["free"], *logs["push"], *logs["cycles"]]}
+    built, timings = monitors(work, logs, recs)
+    results = {}
+    header = (f"{'monitor':<28} {'same task: onsets':<36}  {'other poses: onsets':<36}  pushes")
+    lines = [header]
+    print(header, flush=True)
+    for name, (calibrated, taught, every) in built.items():
+        for shown, det, sets in ((f"{name} untaught", calibrated, ("same", "free", "push")),
+                                 (f"{name} taught", taught, ("same", "free", "push")),
+                                 (f"{name} + 1 cycle per pose", every, ("same", "free", "push"))):
+            tic = time.perf_counter()
+            r = {k: score_set(det, recs, logs[k]) for k in sets}
+            r["monitor_seconds"] = time.perf_counter() - tic
+            if det is not calibrated:
+                r["teach"] = det.calibration["teach"]
+            results[shown] = r
+            lines.append(row_text(shown, r))
+            print(lines[-1], flush=True)
+    lines.append("timings [s]: " + ", ".join(f"{k} {v:.1f}" for k, v in timings.items()))
+    report = {"command": " ".join(["python", "benchmarks/taught_mujoco.py", *(argv or sys.argv[1:])]),
+              "seed": SEED, "timings": timings, "results": results,
+              "logs": {k: v for k, v in logs.items()},
+              "load_average": list(map(float, Path("/proc/loadavg").read_text().split()[:3]))}
+    if args.output:
+        out = Path(args.output)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "taught_mujoco.json").write_text(json.dumps(report, indent=1, default=float))
+        (out / "taught_mujoco.txt").write_text("\n".join(lines) + "\n")
+    return 0
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ from sklearn.exceptions import NotFittedError
 from sklearn.linear_model import Ridge
 
 from sklearn_gpcd.datasets import Contact, JointTrajectory, simulate
+from sklearn_gpcd.layout import block_columns
 from sklearn_gpcd.detection import (AlarmRule, CollisionDetector, Regimes, TaughtTask,
                                     stack_currents,
                                     task_period)
@@ -188,3 +189,100 @@ def test_streaming_monitor_runs_a_taught_task(taught):
     np.testing.assert_array_equal(np.array(taught_rows), batch.taught)
     np.testing.assert_array_equal(np.array(alarms), batch.alarms)
     assert batch.alarms.any()
+
+
+# -- keep learning (partial_fit): a slow drift is tracked, a slow push is not ------------
+def _monitor_and_learn(task, blocks, learn):
+    """Monitor each block (one cycle or more) in turn, learning after each as a cell
+    would between cycles; the alarms of every row as they were monitored."""
+    task = pickle.loads(pickle.dumps(task))
+    alarms = []
+    for X in blocks:
+        alarms.append(task.monitoring_signal(X).alarms.any(axis=1))
+        if learn:
+            task.partial_fit(X)
+    return task, np.concatenate(alarms)
+
+
+def _cycle_blocks(task, X):
+    period = int(round(task.period_ / task.sample_time_))
+    return [X[k:k + period] for k in range(0, len(X) - period + 1, period)]
+
+
+@pytest.fixture(scope="module")
+def warm_up(taught):
+    """24 cycles (eight simulated ones, three times) while friction falls: every
+    joint's current in the direction of motion drops steadily, by 0.45 of its
+    taught threshold in all (warm-up)."""
+    _, task = taught
+    cycles = _cycle_blocks(task, _block(simulate(_cycles(9), "ur10", random_state=9))) * 3
+    n = task.n_joints_
+    rows = np.cumsum([0] + [len(c) for c in cycles])
+    share = np.linspace(0.0, 1.0, rows[-1])
+    out = []
+    for c, lo in zip(cycles, rows[:-1]):
+        c = c.copy()
+        qd = c[:, block_columns("qd", n)]
+        c[:, -n:] -= (share[lo:lo + len(c), None] * 0.45 * task.thresholds_
+                      * np.tanh(qd / 0.05))
+        out.append(c)
+    return out
+
+
+def test_keep_learning_tracks_a_warm_up(taught, warm_up):
+    from sklearn_gpcd.detection.task import LEARN_LIMIT
+
+    _, task = taught
+    _, fixed_alarms = _monitor_and_learn(task, warm_up, learn=False)
+    learned, alarms = _monitor_and_learn(task, warm_up, learn=True)
+    assert fixed_alarms.any()             # the taught thresholds alone raise alarms
+    assert not alarms.any()               # learning cycle by cycle follows the drift
+    # the friction column of every joint carries the drift, within its bound
+    share = learned.drift_ / task.thresholds_
+    assert np.all(share[1] < -0.25), share
+    assert np.all(np.abs(learned.drift_).sum(axis=0) <= LEARN_LIMIT * task.thresholds_ + 1e-12)
+    np.testing.assert_array_equal(learned.thresholds_, task.thresholds_)
+    assert learned.summary()["learned_cycles"] == learned.learned_cycles_ > 12
+
+
+def test_streaming_equals_batch_after_learning(taught, warm_up):
+    det, task = taught
+    learned, _ = _monitor_and_learn(task, warm_up, learn=True)
+    assert np.abs(learned.drift_).max() > 0
+    X = warm_up[-1]
+    batch = learned.monitoring_signal(X)
+    stream = learned.stream()
+    n = det.n_joints
+    for i in range(len(X)):
+        alarm, is_taught = stream.step(X[i, :-n], X[i, -n:], batch.general_alarms[i],
+                                       moving=batch.moving[i])
+        assert is_taught == batch.taught[i]
+        np.testing.assert_allclose(stream.signal, batch.signal[i], rtol=1e-9, atol=1e-12)
+        np.testing.assert_array_equal(alarm, batch.alarms[i])
+
+
+def test_a_slow_push_ramp_is_detected_not_learned(taught):
+    """5 N/s on average up to 60 N on link 3 (a lean that grows), monitored and
+    learned two cycles at a time: caught as early as without learning, and the
+    cycles it touched teach nothing."""
+    _, task = taught
+    lean = Contact(link=3, start=10.0, duration=30.0, rise_time=12.0,
+                   force=[0.0, 0.0, -60.0])
+    rec = simulate(_cycles(9), "ur10", contacts=[lean], random_state=10)
+    X, t = _block(rec), rec.time[FIRST:]
+    blocks = _cycle_blocks(task, X)
+    t = t[:sum(len(b) for b in blocks)]
+    _, fixed_alarms = _monitor_and_learn(task, blocks, learn=False)
+    learned, alarms = _monitor_and_learn(task, blocks, learn=True)
+    assert not alarms[t < lean.start].any()
+    first = t[np.argmax(alarms)]
+    assert alarms.any() and first == t[np.argmax(fixed_alarms)]
+    assert 60.0 * lean.profile([first])[0] < 60.0       # before the lean is full
+    # no cycle from the lean's start on taught anything: the drift is the one
+    # learned before it
+    before = [b for b, lo in zip(blocks, np.cumsum([0] + [len(b) for b in blocks]))
+              if t[min(lo + len(b), len(t)) - 1] < lean.start]
+    early, _ = _monitor_and_learn(task, before, learn=True)
+    np.testing.assert_array_equal(learned.drift_, early.drift_)
+    # and it is still caught by the learned task on the whole log
+    assert learned.monitoring_signal(X).alarms[rec.time[FIRST:] >= lean.start].any()

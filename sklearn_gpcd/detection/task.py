@@ -32,6 +32,18 @@ nearest taught ``[q / 0.1 rad, qd / 0.5 rad/s]`` is more than
 ``novelty_radius`` away) the reference is not trusted: the general
 detector's decision stands there, and the monitor says the motion is
 untaught.
+
+**Keep learning, safely.** :meth:`TaughtTask.partial_fit` learns from
+monitored logs a slow drift of the whole robot (warm-up changes friction):
+per joint ``d_l(x) = a_l + b_l tanh(qd_l / DRIFT_WIDTH)``, subtracted with
+the reference. Only whole cycles teach it: no alarm or event in them or in the cycles
+beside them, and below ``LEARN_BELOW`` of the thresholds once their own
+drift is taken away; each accepted cycle moves ``(a, b)`` by ``LEARN_RATE``
+of the way to its own least-squares fit (at most ``LEARN_STEP`` of the
+threshold per cycle), and ``|a_l| + |b_l|`` never exceeds ``LEARN_LIMIT``
+of the joint's threshold. The thresholds are never raised.
+A contact that grows slowly is learned at most by that bound: it is caught
+when it exceeds ``(1 + LEARN_LIMIT)`` times the threshold, at worst.
 """
 
 from numbers import Integral, Real
@@ -49,8 +61,8 @@ from ..layout import block_columns
 from ._regimes import MOVING
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 
-__all__ = ["EventHold", "TaughtTask", "TaskStream", "local_states", "task_features",
-           "task_period"]
+__all__ = ["EventHold", "TaughtTask", "TaskStream", "drift_features", "local_states",
+           "task_features", "task_period"]
 
 #: Widths [rad/s] of the smooth Coulomb columns of the task features: a
 #: basis over the velocity scales of friction near a reversal (chosen by the
@@ -69,6 +81,21 @@ RELEASE = 0.5
 EVENT_HOLD_S = 0.2
 #: Taught states kept for the novelty search (every k-th row beyond this).
 MAX_TAUGHT_STATES = 20_000
+#: A monitored cycle teaches the drift only if its largest taught ratio
+#: (signal over threshold) stayed at or below this.
+LEARN_BELOW = 0.8
+#: Bound of the learned drift ``|a_l| + |b_l|``, as a share of each joint's
+#: threshold: what learning may take in of a slowly growing contact.
+LEARN_LIMIT = 0.5
+#: Share of the way to an accepted cycle's own fit that the drift moves.
+LEARN_RATE = 0.5
+#: Largest change of the drift per accepted cycle, ``sum |step|``, as a share
+#: of each joint's threshold: warm-up is slow, a contact is not.
+LEARN_STEP = 0.1
+#: Velocity width [rad/s] of the drift's friction column.
+DRIFT_WIDTH = 0.05
+#: Share of a cycle's rows that must be taught for it to teach the drift.
+LEARN_TAUGHT_SHARE = 0.5
 
 
 def task_features(X, n_joints):
@@ -192,6 +219,12 @@ def _held(moving, starts, hold):
     return held[:, 0] > 0
 
 
+def drift_features(qd):
+    """Columns ``[1, tanh(qd_l / DRIFT_WIDTH)]`` of the drift, shape (2, n, n_joints)."""
+    qd = np.atleast_2d(qd)
+    return np.stack([np.ones_like(qd), np.tanh(qd / DRIFT_WIDTH)])
+
+
 def _cycle_units(starts, n_rows, period_rows):
     """Row ranges ``(lo, hi)`` of the cycles: each recording cut every
     ``period_rows`` rows; a remainder under half a period joins the last cycle."""
@@ -252,6 +285,15 @@ class TaughtTask(BaseEstimator):
     cycle_times_ : ndarray of shape (n_cycles, 2)
         Start and end [s from the first taught row] of each cycle.
     filter_coefficients_ : tuple of ndarray
+    drift_ : ndarray of shape (2, n_joints)
+        The learned drift ``(a, b)`` (zero after :meth:`fit`; see
+        :meth:`partial_fit`).
+    learned_cycles_ : int
+        Monitored cycles that taught the drift since :meth:`fit`.
+    pending_drift_ : ndarray of shape (2, n_joints) or None
+        The last monitored cycle's drift, applied if the next one is clean.
+    last_cycle_alarm_ : bool
+        Whether an alarm or event touched the last monitored cycle.
 
     Examples
     --------
@@ -344,7 +386,129 @@ class TaughtTask(BaseEstimator):
         self.bias_ = np.median(m[moving], axis=0)
         self._set_thresholds(m, starts, units, moving)
         self._set_states(X[moving, :-n_joints])
+        self.drift_ = np.zeros((2, n_joints))
+        self.learned_cycles_ = 0
+        self.pending_drift_, self.last_cycle_alarm_ = None, False
         return self
+
+    def partial_fit(self, X, y=None, groups=None):
+        """Learn the slow drift from monitored logs of the task (keep learning).
+
+        Each recording is cut into cycles of ``period_``; successive calls are
+        successive cycles (a cell learning between cycles or shifts). A cycle
+        is a candidate if at least half its rows are taught and no alarm or
+        event touched it or the cycles beside it: the last cycle of a call
+        waits (``pending_drift_``) until the next call shows its first cycle
+        clean. Its own drift ``(a, b)`` is the least-squares
+        fit of ``s - r(x) - bias_`` on ``[1, tanh(qd / DRIFT_WIDTH)]`` over its
+        taught rows; it teaches only if what that fit leaves stays at or below
+        ``LEARN_BELOW`` of the thresholds (a slow drift is what the fit takes
+        away; a contact, shaped by the arm's Jacobian along the cycle, is not).
+        Then the drift moves ``LEARN_RATE`` of the way to the cycle's, by at
+        most ``LEARN_STEP`` of each joint's threshold, and is shrunk so that
+        ``|a_l| + |b_l| <= LEARN_LIMIT * thresholds_l``. Nothing else
+        changes: the thresholds are never raised, the reference is the taught
+        one.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_inputs + n_joints)
+            Monitored rows (the detector's input).
+        y : None
+            Ignored.
+        groups : array-like of shape (n_samples,), default=None
+            Recording of each row.
+
+        Returns
+        -------
+        self : TaughtTask
+            With ``drift_``, ``learned_cycles_`` updated and
+            ``last_learning_`` (``accepted`` and ``rejected`` cycle counts, the
+            reasons, the drift before and after).
+        """
+        check_is_fitted(self, "drift_")
+        X = np.asarray(X, dtype=float)
+        n = self.n_joints_
+        res = self.monitoring_signal(X, groups)
+        starts = segment_starts(len(X), groups)
+        units = _cycle_units(starts, len(X), int(round(self.period_ / self.sample_time_)))
+        verdicts, bad = self._learning_verdicts(res, units, starts)
+        before = self.drift_.copy()
+        pending = getattr(self, "pending_drift_", None)
+        if pending is not None and not bad[0]:   # the cycle after it was clean too
+            self._learn_drift(pending)
+        if getattr(self, "last_cycle_alarm_", False) and verdicts[0] == "candidate":
+            verdicts[0] = "beside an alarm"
+        self.pending_drift_ = None
+        qd = X[:, block_columns("qd", n)]
+        u = res.residual - self.reference(X[:, :-n]) - self.bias_
+        for k, (lo, hi) in enumerate(units):
+            if verdicts[k] != "candidate":
+                continue
+            target, left = self._cycle_drift(u[lo:hi], qd[lo:hi], res.taught[lo:hi])
+            if left > LEARN_BELOW:
+                verdicts[k] = "above LEARN_BELOW"
+            elif k + 1 == len(units):       # waits for the next cycle to be clean
+                verdicts[k], self.pending_drift_ = "pending", target
+            else:
+                verdicts[k] = "accepted"
+                self._learn_drift(target)
+        self.last_cycle_alarm_ = bad[-1]
+        self.learned_cycles_ += verdicts.count("accepted") + (
+            pending is not None and not bad[0])
+        self.last_learning_ = {
+            "accepted": verdicts.count("accepted"), "rejected": len(units) - verdicts.count(
+                "accepted") - verdicts.count("pending"), "verdicts": verdicts,
+            "drift_before_A": before.tolist(), "drift_A": self.drift_.tolist()}
+        return self
+
+    def _learning_verdicts(self, res, units, starts):
+        """Per cycle: "candidate", or why not ("alarm", "beside an alarm",
+        "untaught"); and whether an alarm or event touched it."""
+        bad = [bool(res.alarms[lo:hi].any() or res.event[lo:hi].any()) for lo, hi in units]
+        first = {int(s) for s in starts}
+        verdicts = []
+        for k, (lo, hi) in enumerate(units):
+            near = (k > 0 and lo not in first and bad[k - 1]) or (
+                k + 1 < len(units) and units[k + 1][0] not in first and bad[k + 1])
+            verdicts.append("alarm" if bad[k] else "beside an alarm" if near else
+                            "untaught" if res.taught[lo:hi].mean() < LEARN_TAUGHT_SHARE
+                            else "candidate")
+        return verdicts, bad
+
+    def _cycle_drift(self, u, qd, taught):
+        """The cycle's own drift fit ``(a, b)`` on its taught rows, and the largest
+        ratio of what it leaves (filtered and debounced as the monitor does)."""
+        g = drift_features(qd)                        # (2, rows, joints)
+        target = np.empty_like(self.drift_)
+        for j in range(self.n_joints_):
+            target[:, j] = np.linalg.lstsq(g[:, taught, j].T, u[taught, j], rcond=None)[0]
+        left = u - np.einsum("knj,kj->nj", g, target)
+        m = filter_segments(left, *self.filter_coefficients_, np.array([0]))
+        debounced = window_segments(np.abs(m), self.min_duration, np.array([0]), np.min,
+                                    pad=0.0)
+        return target, float((debounced[taught] / self.thresholds_).max())
+
+    def _learn_drift(self, target):
+        """Move ``drift_`` toward ``target``: ``LEARN_RATE`` of the way, at most
+        ``LEARN_STEP`` and in all ``LEARN_LIMIT`` of each joint's threshold."""
+        step = LEARN_RATE * (target - self.drift_)
+        size = np.abs(step).sum(axis=0)
+        step *= np.minimum(1.0, LEARN_STEP * self.thresholds_ / np.maximum(size, 1e-300))
+        drift = self.drift_ + step
+        size = np.abs(drift).sum(axis=0)
+        bound = LEARN_LIMIT * self.thresholds_
+        self.drift_ = drift * np.minimum(1.0, bound / np.maximum(size, 1e-300))
+
+    def drift(self, inputs):
+        """The learned drift ``d(x)`` [A] of regressor inputs, (n, n_joints)."""
+        check_is_fitted(self, "coef_")
+        qd = np.asarray(inputs, dtype=float)[:, block_columns("qd", self.n_joints_)]
+        return np.einsum("knj,kj->nj", drift_features(qd), self._drift())
+
+    def _drift(self):
+        """``drift_`` (files taught before keep-learning existed have none)."""
+        return getattr(self, "drift_", np.zeros((2, self.n_joints_)))
 
     def _hold(self):
         """Rows of motion before the taught thresholds apply (``BREAKAWAY_S``)."""
@@ -493,8 +657,8 @@ class TaughtTask(BaseEstimator):
         general = self.detector.monitoring_signal(X, groups)
         residual = np.asarray(general.residual, dtype=float).reshape(len(X), -1)
         inputs = X[:, :-n]
-        m = filter_segments(residual - self.reference(inputs), *self.filter_coefficients_,
-                            starts) - self.bias_
+        m = filter_segments(residual - self.reference(inputs) - self.drift(inputs),
+                            *self.filter_coefficients_, starts) - self.bias_
         debounced = window_segments(np.abs(m), self.min_duration, starts, np.min, pad=0.0)
         taught_alarms = debounced > self.thresholds_
         novelty = self.novelty(inputs)
@@ -565,7 +729,9 @@ class TaughtTask(BaseEstimator):
                 "filter": {"cutoff_hz": self.cutoff, "order": self.order,
                            "min_duration": self.min_duration},
                 "false_alarm_bound_per_cycle": 1.0 / (self.n_cycles_ + 1),
-                "false_alarms_per_hour_bound": 3600.0 / self.period_ / (self.n_cycles_ + 1)}
+                "false_alarms_per_hour_bound": 3600.0 / self.period_ / (self.n_cycles_ + 1),
+                "drift_A": self._drift().tolist(),
+                "learned_cycles": int(getattr(self, "learned_cycles_", 0))}
 
 
 class EventHold:
@@ -652,11 +818,12 @@ class TaskStream:
         self._local_scale = np.repeat(LOCAL_SCALE, n)
         self._k = min(LOCAL_NEIGHBOURS, task._ref.tree.n)
         self._hold = task._hold()
+        self._drift = task._drift()
         self.reset()
 
     def _reference(self, x):
-        """:meth:`TaughtTask.reference` and the novelty of one row, without the
-        per-call checks (the same arithmetic)."""
+        """:meth:`TaughtTask.reference` plus :meth:`TaughtTask.drift`, and the
+        novelty of one row, without the per-call checks (the same arithmetic)."""
         task = self.task
         q, qd, qdd = x[self._q], x[self._qd], x[self._qdd]
         phi = np.concatenate([q, np.sin(q), np.cos(q), qd,
@@ -669,7 +836,9 @@ class TaskStream:
         total = w.sum()
         local = w @ task.local_residual_[np.atleast_1d(i)] / max(total, 1e-300)
         novelty, _ = task._tree.query(np.concatenate([q / 0.1, qd / 0.5]))
-        return smooth + local * (1.0 - np.exp(-total)), novelty / task.novelty_radius
+        drift = self._drift[0] + self._drift[1] * np.tanh(qd / DRIFT_WIDTH)
+        return (smooth + local * (1.0 - np.exp(-total)) + drift,
+                novelty / task.novelty_radius)
 
     def reset(self):
         """Restart the filter and debounce (a new recording, or after a fault)."""

@@ -23,6 +23,7 @@ import numbers
 
 import numpy as np
 
+from ..detection.task import LEARN_LIMIT
 from ..persistence import MalformedFileError, load
 
 #: Fields that must be positive wherever they occur in a loaded file.
@@ -94,6 +95,16 @@ def _check_task(task, path, fix):
     _need(task.coef_.shape[1:] == (n_joints,)
           and task.local_residual_.shape[1:] == (n_joints,), path, fix,
           "field detector.coef_ or local_residual_ has no column per joint")
+    if hasattr(task, "drift_"):   # learned by partial_fit (gpcd teach --update)
+        _need(np.shape(task.drift_) == (2, n_joints), path, fix,
+              f"field detector.drift_ has shape {np.shape(task.drift_)}, not (2, {n_joints})")
+        _need(bool(np.all(np.abs(task.drift_).sum(axis=0)
+                          <= LEARN_LIMIT * task.thresholds_ * (1 + 1e-9))), path, fix,
+              "field detector.drift_ exceeds its bound (LEARN_LIMIT of the thresholds)")
+        pending = getattr(task, "pending_drift_", None)
+        _need(pending is None or (np.shape(pending) == (2, n_joints)
+                                  and bool(np.all(np.isfinite(pending)))), path, fix,
+              "field detector.pending_drift_ is not a finite (2, joints) array")
 
 
 def check_model_bundle(bundle, path, fix):
