@@ -50,8 +50,12 @@ sys.path.insert(0, str(REPO))  # this checkout's package
 sys.path.insert(0, str(HERE))
 
 #: Fixed before the first run (issue 45, session 24); ``little_data_mujoco``
-#: used 38.
+#: used 38. The development seed: the per-joint stiction gate and the tail
+#: level of ``TaughtTask`` were chosen after its first run (3 onsets on the
+#: same task, all where a joint was at |qd| < sigma_v or breaking away).
 SEED = 4524
+#: The scoring seed, fixed after those choices and before its only run.
+SCORE_SEED = 4525
 #: Calibration and teaching: the first ``TASK_SECONDS`` of the task log, cut in
 #: pieces of ``SPLIT`` seconds for the calibration.
 TASK_SECONDS, SPLIT = 120.0, 30.0
@@ -99,12 +103,12 @@ def simulate_log(setup, path, seconds, waypoint_seed, dwell_seed, pushes=0):
             "pushes": rec.metadata.get("contacts", []) if pushes else []}
 
 
-def make_logs(folder, setup):
+def make_logs(folder, setup, seed):
     """Every log of the protocol (``logs.json`` describes them)."""
     import little_data_mujoco as L
 
     folder.mkdir(parents=True, exist_ok=True)
-    base = SEED * 1000
+    base = seed * 1000
     task = base + 1
     push_s = L.PUSH_FIRST + L.PUSHES_PER_LOG * L.PUSH_SLOT + 4.0
     logs = {"task": simulate_log(setup, folder / "task.csv", TASK_SECONDS, task, task),
@@ -117,19 +121,19 @@ def make_logs(folder, setup):
                      for i in range(N_PUSH_LOGS)]}
     logs["cycles"] = []
     for entry in logs["free"] + logs["push"]:
-        seed, dwell = entry["waypoint_seed"], entry["dwell_seed"] + 500
-        seconds = cycle_seconds(setup[0], seed, dwell)
+        waypoints, dwell = entry["waypoint_seed"], entry["dwell_seed"] + 500
+        seconds = cycle_seconds(setup[0], waypoints, dwell)
         name = f"cycle_{Path(entry['path']).stem}.csv"
-        logs["cycles"].append(simulate_log(setup, folder / name, seconds, seed, dwell))
+        logs["cycles"].append(simulate_log(setup, folder / name, seconds, waypoints, dwell))
     (folder / "logs.json").write_text(json.dumps(logs, indent=1, default=float))
     return logs
 
 
-def train(work, setup):
+def train(work, setup, seed):
     """``gpcd train --robot ur10`` defaults on the identification logs (subprocess)."""
     import little_data_mujoco as L
 
-    paths = L.make_training(work / "train", SEED, setup, False, True)
+    paths = L.make_training(work / "train", seed, setup, False, True)
     tic = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "sklearn_gpcd.cli", "train", *paths,
                            "--robot", L.ROBOT, "-o", str(work / "model.skops"), "-q"],
@@ -253,6 +257,8 @@ def main(argv=None):
     parser.add_argument("--prepare-only", action="store_true",
                         help="simulate and train, then stop")
     parser.add_argument("--output", default=None, help="folder for the results")
+    parser.add_argument("--seed", type=int, default=SCORE_SEED,
+                        help=f"{SCORE_SEED} scores; {SEED} is the development seed")
     args = parser.parse_args(argv)
     try:
         import mujoco  # noqa: F401
@@ -269,10 +275,10 @@ def main(argv=None):
     if args.reuse and (work / "logs.json").exists():
         logs = json.loads((work / "logs.json").read_text())
     else:
-        logs = make_logs(work, setup)
+        logs = make_logs(work, setup, args.seed)
     print(f"logs in {work}", flush=True)
     if not (args.reuse and (work / "model.skops").exists()):
-        out = train(work, setup)
+        out = train(work, setup, args.seed)
         print(f"trained in {out['seconds']:.0f} s", flush=True)
     if args.prepare_only:
         return 0
@@ -297,7 +303,7 @@ def main(argv=None):
             print(lines[-1], flush=True)
     lines.append("timings [s]: " + ", ".join(f"{k} {v:.1f}" for k, v in timings.items()))
     report = {"command": " ".join(["python", "benchmarks/taught_mujoco.py", *(argv or sys.argv[1:])]),
-              "seed": SEED, "timings": timings, "results": results,
+              "seed": args.seed, "timings": timings, "results": results,
               "logs": {k: v for k, v in logs.items()},
               "load_average": list(map(float, Path("/proc/loadavg").read_text().split()[:3]))}
     if args.output:
