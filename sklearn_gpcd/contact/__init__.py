@@ -21,8 +21,8 @@ monitor (a GP detector, ``i - i_des`` or the
 """
 
 from .events import describe_alarms
-from .force import contact_point, estimate_force
+from .force import contact_point, estimate_force, protected_force
 from .isolation import LINK_GROUPS, isolate_contact, link_group
 
 __all__ = ["LINK_GROUPS", "contact_point", "describe_alarms", "estimate_force", "isolate_contact",
-           "link_group"]
+           "link_group", "protected_force"]

@@ -47,7 +47,7 @@ from sklearn.utils import Bunch
 from ..robots.loading import resolve_robot
 from ..robots.robot import as_joint_batch
 
-__all__ = ["contact_point", "estimate_force"]
+__all__ = ["contact_point", "estimate_force", "protected_force"]
 
 
 def _body_frame(model, link):
@@ -201,3 +201,91 @@ def estimate_force(robot, q, torque, *, link, point=None, torque_std=None,
 def _skew(p):
     """The matrix of ``p x .``."""
     return np.array([[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]])
+
+
+def protected_force(robot, q, thresholds, *, link=None, point=None):
+    r"""The smallest force at a point that the thresholds always catch [N].
+
+    A force :math:`F` at the point loads the joints with
+    :math:`\tau = J_p(q)^T F`; an alarm needs some joint over its threshold,
+    :math:`|\tau_\ell| > \bar\tau_\ell`. The forces that stay silent form the
+    polytope :math:`P = \{F : |a_\ell^T F| \le 1\}`, :math:`a_\ell =
+    J_{p,\ell} / \bar\tau_\ell`, and the monitor is *protected at*
+    :math:`X = \max_{F \in P} |F|`: every force above :math:`X` N, in any
+    direction, raises an alarm. The maximum of :math:`|F|` over a polytope
+    is at a vertex, where three of the planes :math:`a_\ell^T F = \pm 1`
+    meet: ``X`` is exact, from the :math:`\binom{n}{3} \cdot 8` candidate
+    vertices. Where the joints see fewer than three force directions (a
+    point on link 1 or 2, a singular pose), some force is never seen:
+    ``X = inf``.
+
+    This is the threshold's reach alone: the normal residual at the moment
+    adds to or subtracts from a contact's torque (a margin of
+    :math:`|m_\ell|` per joint).
+
+    Parameters
+    ----------
+    robot : str, path or Robot
+    q : array-like of shape (n_joints,) or (n_samples, n_joints)
+        Joint positions [rad].
+    thresholds : array-like of shape (n_joints,) or the shape of ``q``
+        Joint torque thresholds [Nm] (current thresholds [A] times the
+        torque constants); ``inf`` for a joint that cannot alarm.
+    link : int, default=None
+        1-based link of the point; None takes the last (the flange).
+    point : array-like of shape (3,), default=None
+        The point in the joint frame of ``link`` (:func:`contact_point`).
+
+    Returns
+    -------
+    force : float or ndarray of shape (n_samples,)
+        ``X`` [N].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.contact import protected_force
+    >>> q = np.array([0.3, -1.2, 1.4, -1.5, -1.4, 0.2])
+    >>> x = protected_force("ur10", q, np.full(6, 5.0))     # 5 Nm on every joint
+    >>> round(x, 1), bool(protected_force("ur10", q, np.full(6, 10.0)) > x)
+    (20.4, True)
+    """
+    robot = resolve_robot(robot)
+    n = robot.n_joints
+    q, single = as_joint_batch(q, n, "q")
+    thresholds = np.broadcast_to(np.asarray(thresholds, dtype=float), q.shape)
+    if np.any(~(thresholds > 0)):
+        raise ValueError("thresholds must be > 0 (inf for a joint that cannot alarm)")
+    link = n if link is None else int(link)
+    p = contact_point(robot, link, point)
+    model = robot.model
+    data = model.createData()
+    triples = np.array([t for t in _triples(n)])
+    signs = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], float)
+    out = np.empty(len(q))
+    for k in range(len(q)):
+        pin.forwardKinematics(model, data, q[k])
+        J = pin.computeJointJacobian(model, data, q[k], link)
+        Jp = data.oMi[link].rotation @ (J[:3] - _skew(p) @ J[3:])
+        out[k] = _farthest_vertex(Jp.T / thresholds[k][:, None], triples, signs)
+    return float(out[0]) if single else out
+
+
+def _triples(n):
+    for i in range(n):
+        for j in range(i + 1, n):
+            for k in range(j + 1, n):
+                yield (i, j, k)
+
+
+def _farthest_vertex(A, triples, signs):
+    """``max |F|`` over ``{F : |A F| <= 1}`` (rows ``a_l``), inf if unbounded."""
+    scale = max(float(np.abs(A).max()), 1e-300)
+    if np.linalg.matrix_rank(A / scale, tol=1e-9) < 3:
+        return np.inf
+    M = A[triples] / scale                               # (n_triples, 3, 3)
+    ok = np.abs(np.linalg.det(M)) > 1e-12
+    F = np.linalg.solve(M[ok], np.broadcast_to(signs.T, (ok.sum(), 3, 8)))  # (t, 3, 8)
+    F = F.transpose(0, 2, 1).reshape(-1, 3) / scale      # every candidate vertex
+    feasible = np.all(np.abs(F @ A.T) <= 1.0 + 1e-9, axis=1)
+    return float(np.linalg.norm(F[feasible], axis=1).max()) if feasible.any() else 0.0

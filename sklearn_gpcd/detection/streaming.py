@@ -445,6 +445,16 @@ class StreamingMonitor(VersionedStateMixin):
         return bool(self.alarms.any()) if self._task_stream is None else self._task_stream.event
 
     @property
+    def applied_thresholds(self):
+        """Per joint, the threshold [A] that decided the last tick: the taught
+        task's where its joint was taught, else the first band's in its regime
+        (what ``protected_force`` turns into N at the tool)."""
+        general = np.asarray(self.bands[0].thresholds[self.bands[0].regime], dtype=float)
+        if self._task_stream is None:
+            return general
+        return np.where(self._task_stream.joints, self.task.thresholds_, general)
+
+    @property
     def task_signal(self):
         """The taught task's filtered residual of the last tick [A] (None untaught)."""
         return None if self._task_stream is None else self._task_stream.signal

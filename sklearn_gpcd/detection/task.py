@@ -25,7 +25,11 @@ debounced ``|m_l|`` over the cycles; a cycle's score is
 cycles, and the one level ``level_`` is the largest score. With ``n`` cycles
 a new cycle of the same task exceeds it with probability of about
 ``1 / (n + 1)`` (split-conformal, one comparison per cycle whatever the
-number of joints or states).
+number of joints or states). That is a weak promise for a few cycles (a
+2-minute log of a 30-s task: 1/5 per cycle), so the level is at least the
+Gumbel quantile of the cycle scores at ``false_alarm_rate`` per hour
+(:func:`tail_level`): cycle scores are maxima, and the law of maxima
+extrapolates where four cycles cannot count.
 
 **Where it protects.** Far from every taught state (``novelty > 1``: the
 nearest taught ``[q / 0.1 rad, qd / 0.5 rad/s]`` is more than
@@ -57,12 +61,13 @@ from sklearn.utils import Bunch
 from sklearn.utils._param_validation import HasMethods, Interval
 from sklearn.utils.validation import check_is_fitted
 
+from .._gate import DEFAULT_SIGMA_V
 from ..layout import block_columns
 from ._regimes import MOVING
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 
 __all__ = ["EventHold", "TaughtTask", "TaskStream", "drift_features", "local_states",
-           "task_features", "task_period"]
+           "tail_level", "task_features", "task_period"]
 
 #: Widths [rad/s] of the smooth Coulomb columns of the task features: a
 #: basis over the velocity scales of friction near a reversal (chosen by the
@@ -211,6 +216,67 @@ def _moving(general, n_rows):
     return np.asarray(regime).reshape(n_rows) == MOVING
 
 
+def tail_level(scores, period, cutoff, n_joints, false_alarm_rate):
+    """The level a cycle's score exceeds ``false_alarm_rate`` times per hour.
+
+    A cycle's score is a maximum over its samples and joints, so the scores
+    follow a Gumbel law ``P(S <= s) = exp(-exp(-(s - mu) / beta))``. ``beta``
+    comes from the moments of the scores (``std * sqrt(6) / pi``), but not below
+    the maxima of ``N`` Gaussian samples, ``beta >= mean / (2 ln N)`` with
+    ``N = 2 cutoff period n_joints`` independent samples per cycle (a band of
+    ``cutoff`` Hz); ``mu = mean - 0.5772 beta``. With ``p =
+    false_alarm_rate * period / 3600`` per cycle, the level is
+    ``mu - beta ln(-ln(1 - p))``. A few cycles cannot bound such a rate
+    without a law: this is the law, and the teach summary says so beside
+    the distribution-free ``1 / (n + 1)``.
+
+    Parameters
+    ----------
+    scores : array-like of shape (n_cycles,)
+    period : float
+        Cycle length [s].
+    cutoff : float
+        Band [Hz].
+    n_joints : int
+    false_alarm_rate : float
+        Per hour.
+
+    Returns
+    -------
+    level : float
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.detection.task import tail_level
+    >>> round(tail_level([0.95, 1.0, 1.05], 20.0, 10.0, 6, 0.1), 2)
+    1.44
+    """
+    s = np.asarray(scores, dtype=float)
+    mean = float(s.mean())
+    n_samples = max(2.0 * cutoff * period * n_joints, 3.0)
+    beta = max(float(s.std(ddof=1)) * np.sqrt(6.0) / np.pi if s.size > 1 else 0.0,
+               mean / (2.0 * np.log(n_samples)))
+    mu = mean - 0.5772156649 * beta
+    p = min(false_alarm_rate * period / 3600.0, 0.5)
+    return float(mu - beta * np.log(-np.log1p(-p)))
+
+
+def _detector_sigma_v(detector):
+    """The detector's ``sigma_v`` [rad/s] (the trained model's, :mod:`sklearn_gpcd._gate`)."""
+    rule = detector.rules_[0]
+    value = getattr(rule, "sigma_v_", None)
+    return DEFAULT_SIGMA_V if value is None else float(value)
+
+
+def _sliding(inputs, n_joints, sigma_v, starts, hold):
+    """(n, n_joints): joints at ``|qd| >= sigma_v`` for ``hold`` rows in a row.
+    Below it a joint's friction is static, set by how it got there (the
+    paper's quasi-static gate), and so is its breakaway: the taught reference
+    does not speak for that joint then."""
+    fast = np.abs(inputs[:, block_columns("qd", n_joints)]) >= sigma_v
+    return window_segments(fast.astype(float), hold, starts, np.min, pad=0.0) > 0
+
+
 def _held(moving, starts, hold):
     """Rows moving for ``hold`` rows in a row: at rest, settling and in the
     breakaway from rest the current hangs on friction's history, which no
@@ -259,6 +325,9 @@ class TaughtTask(BaseEstimator):
         untaught.
     min_period : float, default=1.0
         Shortest cycle [s] searched for (:func:`task_period`).
+    false_alarm_rate : float, default=0.1
+        Target false alarms per hour of the task: the level is at least the
+        Gumbel quantile of the cycle scores at that rate (:func:`tail_level`).
 
     Attributes
     ----------
@@ -275,8 +344,14 @@ class TaughtTask(BaseEstimator):
         Median of the filtered cross-fitted residual.
     scale_ : ndarray of shape (n_joints,)
         Largest debounced ``|m_l - bias_l|`` over the taught cycles [A].
+    conformal_level_ : float
+        The largest cycle score: a new cycle exceeds it with probability
+        at most ``1 / (n_cycles_ + 1)``.
+    tail_level_ : float
+        The score a new cycle exceeds ``false_alarm_rate`` times per hour
+        under a Gumbel law of the cycle scores (:func:`tail_level`).
     level_ : float
-        The one conformal level; ``thresholds_ = level_ * scale_``.
+        The larger of the two; ``thresholds_ = level_ * scale_``.
     thresholds_ : ndarray of shape (n_joints,)
     cycle_scores_ : ndarray of shape (n_cycles,)
         Each cycle's score against the other cycles' scale (``level_`` is
@@ -288,6 +363,9 @@ class TaughtTask(BaseEstimator):
     drift_ : ndarray of shape (2, n_joints)
         The learned drift ``(a, b)`` (zero after :meth:`fit`; see
         :meth:`partial_fit`).
+    sigma_v_ : float
+        The detector's ``sigma_v`` [rad/s]: a joint slower than it is not
+        taught (static friction is history, not state).
     learned_cycles_ : int
         Monitored cycles that taught the drift since :meth:`fit`.
     pending_drift_ : ndarray of shape (2, n_joints) or None
@@ -305,7 +383,8 @@ class TaughtTask(BaseEstimator):
     >>> qd = np.gradient(q[:, 0], t)[:, None]
     >>> X = np.hstack([q, qd, np.gradient(qd[:, 0], t)[:, None]])
     >>> current = 0.3 * np.tanh(qd[:, 0] / 0.05) + 0.01 * np.sin(40 * t)
-    >>> det = CollisionDetector(Ridge(), rules=AlarmRule(contamination=0.01),
+    >>> rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=2.0)
+    >>> det = CollisionDetector(Ridge(), rules=rule,
     ...                         sample_time=0.01).fit(np.column_stack([X, current]))
     >>> task = TaughtTask(det).fit(np.column_stack([X, current]))
     >>> task.n_cycles_, round(task.period_, 1)
@@ -325,10 +404,11 @@ class TaughtTask(BaseEstimator):
         "min_duration": [Interval(Integral, 1, None, closed="left")],
         "novelty_radius": [Interval(Real, 0, None, closed="neither")],
         "min_period": [Interval(Real, 0, None, closed="neither")],
+        "false_alarm_rate": [Interval(Real, 0, None, closed="neither")],
     }
 
     def __init__(self, detector, *, alpha=1.0, cutoff=10.0, order=1, min_duration=2,
-                 novelty_radius=1.0, min_period=1.0):
+                 novelty_radius=1.0, min_period=1.0, false_alarm_rate=0.1):
         self.detector = detector
         self.alpha = alpha
         self.cutoff = cutoff
@@ -336,6 +416,7 @@ class TaughtTask(BaseEstimator):
         self.min_duration = min_duration
         self.novelty_radius = novelty_radius
         self.min_period = min_period
+        self.false_alarm_rate = false_alarm_rate
 
     # -- fit -------------------------------------------------------------------
     @_fit_context(prefer_skip_nested_validation=True)
@@ -384,7 +465,10 @@ class TaughtTask(BaseEstimator):
                                  / np.maximum(residual[moving].var(axis=0), 1e-12))
         m = filter_segments(cross, *self.filter_coefficients_, starts)
         self.bias_ = np.median(m[moving], axis=0)
-        self._set_thresholds(m, starts, units, moving)
+        self.sigma_v_ = _detector_sigma_v(det)
+        sliding = moving[:, None] & _sliding(X[:, :-n_joints], n_joints, self.sigma_v_,
+                                             starts, self._hold())
+        self._set_thresholds(m, starts, units, sliding)
         self._set_states(X[moving, :-n_joints])
         self.drift_ = np.zeros((2, n_joints))
         self.learned_cycles_ = 0
@@ -506,6 +590,10 @@ class TaughtTask(BaseEstimator):
         qd = np.asarray(inputs, dtype=float)[:, block_columns("qd", self.n_joints_)]
         return np.einsum("knj,kj->nj", drift_features(qd), self._drift())
 
+    def _sigma_v(self):
+        """``sigma_v_`` (files taught before it existed: the default)."""
+        return getattr(self, "sigma_v_", DEFAULT_SIGMA_V)
+
     def _drift(self):
         """``drift_`` (files taught before keep-learning existed have none)."""
         return getattr(self, "drift_", np.zeros((2, self.n_joints_)))
@@ -564,12 +652,13 @@ class TaughtTask(BaseEstimator):
         self.local_states_, self.local_residual_ = ref.tree.data.copy(), ref.left.copy()
         self._ref = ref
 
-    def _set_thresholds(self, m, starts, units, moving):
-        """``scale_``, ``level_``, ``thresholds_`` from the filtered cross-fitted residual:
-        each cycle's peaks scored against the scale of the *other* cycles, one level."""
+    def _set_thresholds(self, m, starts, units, sliding):
+        """``scale_``, ``level_``, ``thresholds_`` from the filtered cross-fitted residual
+        where each joint is taught (``sliding``, (n, n_joints)): each cycle's peaks
+        scored against the scale of the *other* cycles, one level."""
         debounced = window_segments(np.abs(m - self.bias_), self.min_duration, starts,
                                     np.min, pad=0.0)
-        debounced[~moving] = 0.0
+        debounced[~sliding] = 0.0
         peaks = np.array([debounced[lo:hi].max(axis=0) for lo, hi in units])
         floor = np.finfo(float).tiny
         self.scale_ = np.maximum(peaks.max(axis=0), floor)
@@ -577,7 +666,10 @@ class TaughtTask(BaseEstimator):
                   for c, p in enumerate(peaks)]
         self.cycle_scores_ = np.asarray(scores)
         self.cycle_times_ = np.array([(lo, hi) for lo, hi in units]) * self.sample_time_
-        self.level_ = float(max(scores))
+        self.conformal_level_ = float(max(scores))
+        self.tail_level_ = tail_level(scores, self.period_, self.cutoff, self.n_joints_,
+                                      self.false_alarm_rate)
+        self.level_ = max(self.conformal_level_, self.tail_level_)
         self.thresholds_ = self.level_ * self.scale_
 
     def _set_states(self, inputs):
@@ -643,12 +735,16 @@ class TaughtTask(BaseEstimator):
             ``residual`` (the detector's ``i - i_hat``, A), ``signal`` (its
             filtered taught part minus ``bias_``, A),
             ``novelty``, ``moving`` (the detector's regime), ``taught``
-            (``novelty <= 1`` after ``BREAKAWAY_S`` of motion), ``taught_alarms`` and
+            (``novelty <= 1`` after ``BREAKAWAY_S`` of motion), ``joints``
+            (n, n_joints: where each joint's taught threshold applies),
+            ``taught_alarms`` and
             ``general_alarms`` (n, n_joints) and ``alarms``: the taught ones
-            where taught, the general ones elsewhere; ``ratio``, the largest
-            debounced ``|m_l| / threshold_l`` where taught (2 or 0 by the
-            detector's alarms elsewhere), and ``event`` (bool): the rows of
-            contact events (:class:`EventHold`).
+            where taught and the joint has slid (``|qd_l| >= sigma_v_``) for
+            ``BREAKAWAY_S``, the
+            general ones elsewhere; ``ratio``, the largest of the debounced
+            ``|m_l| / threshold_l`` where taught (2 or 0 by the detector's
+            alarms elsewhere), and ``event`` (bool): the rows of contact
+            events (:class:`EventHold`).
         """
         check_is_fitted(self, "coef_")
         X = np.asarray(X, dtype=float)
@@ -665,15 +761,15 @@ class TaughtTask(BaseEstimator):
         moving = _moving(general, len(X))
         taught = (novelty <= 1.0) & _held(moving, starts, self._hold())
         general_alarms = np.asarray(general.alarms, dtype=bool).reshape(len(X), -1)
-        alarms = np.where(taught[:, None], taught_alarms, general_alarms)
-        ratio = np.where(taught, (debounced / self.thresholds_).max(axis=1),
-                         2.0 * alarms.any(axis=1))
+        joints = taught[:, None] & _sliding(inputs, n, self._sigma_v(), starts, self._hold())
+        alarms = np.where(joints, taught_alarms, general_alarms)
+        ratio = np.where(joints, debounced / self.thresholds_, 2.0 * general_alarms).max(axis=1)
         events = EventHold(self._hold_rows(EVENT_HOLD_S))
         event = np.array([events.step(r, start) for r, start in zip(
             ratio, np.isin(np.arange(len(X)), starts))], dtype=bool)
         return Bunch(residual=residual, signal=m, novelty=novelty, moving=moving,
-                     taught=taught, taught_alarms=taught_alarms, general_alarms=general_alarms,
-                     alarms=alarms, ratio=ratio, event=event)
+                     taught=taught, joints=joints, taught_alarms=taught_alarms,
+                     general_alarms=general_alarms, alarms=alarms, ratio=ratio, event=event)
 
     def predict(self, X, groups=None):
         """+1 normal, -1 collision, per row.
@@ -728,6 +824,8 @@ class TaughtTask(BaseEstimator):
                 "thresholds_A": self.thresholds_.tolist(),
                 "filter": {"cutoff_hz": self.cutoff, "order": self.order,
                            "min_duration": self.min_duration},
+                "conformal_level": self.conformal_level_, "tail_level": self.tail_level_,
+                "false_alarm_rate": self.false_alarm_rate,
                 "false_alarm_bound_per_cycle": 1.0 / (self.n_cycles_ + 1),
                 "false_alarms_per_hour_bound": 3600.0 / self.period_ / (self.n_cycles_ + 1),
                 "drift_A": self._drift().tolist(),
@@ -819,6 +917,7 @@ class TaskStream:
         self._k = min(LOCAL_NEIGHBOURS, task._ref.tree.n)
         self._hold = task._hold()
         self._drift = task._drift()
+        self._sigma_v = task._sigma_v()
         self.reset()
 
     def _reference(self, x):
@@ -845,8 +944,10 @@ class TaskStream:
         self._z = None
         self._window = []
         self._moving_run = 0
+        self._sliding_run = np.zeros(self.task.n_joints_, dtype=int)
         self._first = True
         self._events = EventHold(self.task._hold_rows(EVENT_HOLD_S))
+        self.joints = np.zeros(self.task.n_joints_, dtype=bool)
         self.signal = None
         self.ratio = 0.0
         self.event = False
@@ -893,9 +994,18 @@ class TaskStream:
                      else np.zeros_like(u))
         self._moving_run = self._moving_run + 1 if moving else 0
         taught = self._moving_run >= self._hold and bool(novelty <= 1.0)
-        alarm = debounced > task.thresholds_ if taught else np.asarray(general_alarm, bool)
-        self.ratio = (float((debounced / task.thresholds_).max()) if taught
-                      else 2.0 * bool(alarm.any()))
+        general_alarm = np.asarray(general_alarm, bool)
+        fast = np.abs(inputs[self._qd]) >= self._sigma_v
+        self._sliding_run = np.where(fast, self._sliding_run + 1, 0)
+        joints = self._sliding_run >= self._hold if taught else np.zeros_like(fast)
+        self.joints = joints
+        if taught:
+            alarm = np.where(joints, debounced > task.thresholds_, general_alarm)
+            self.ratio = float(np.where(joints, debounced / task.thresholds_,
+                                        2.0 * general_alarm).max())
+        else:
+            alarm = general_alarm
+            self.ratio = 2.0 * bool(alarm.any())
         self.event = self._events.step(self.ratio, self._first)
         self._first = False
         return alarm, taught

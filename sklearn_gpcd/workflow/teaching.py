@@ -82,6 +82,20 @@ def teach_task(calibrated, recordings, *, keys=None, **params):
     return CalibratedDetector(task, features, {**calibrated.calibration, "teach": summary})
 
 
+def _level_lines(summary):
+    bound = (f"bounds a new cycle's alarm by {summary['false_alarm_bound_per_cycle']:.2g} = "
+             f"1/(cycles+1)")
+    free = (f"at most {summary['false_alarms_per_hour_bound']:.0f} per hour of the task; "
+            "teach more cycles to lower it")
+    if summary.get("tail_level", 0.0) > summary.get("conformal_level", np.inf):
+        return [f"  level {summary['level']:.2f} = the Gumbel law of the cycle scores at "
+                f"{summary['false_alarm_rate']:g} false alarms per hour",
+                f"  (the largest cycle score, {summary['conformal_level']:.2f}, {bound}",
+                f"  without a law: {free})"]
+    return [f"  level {summary['level']:.2f} = the largest cycle score: it {bound}:",
+            f"  {free}"]
+
+
 def teach_report(summary):
     """The lines ``gpcd teach`` prints for ``calibration["teach"]``.
 
@@ -101,13 +115,15 @@ def teach_report(summary):
     ...     "n_cycles": 3, "repeatability": 0.96, "explained": [0.9, 0.8],
     ...     "level": 2.1, "thresholds_A": [0.5, 0.4], "deviant_cycles": [],
     ...     "filter": {"cutoff_hz": 10.0, "order": 1, "min_duration": 2},
-    ...     "false_alarm_bound_per_cycle": 0.25, "false_alarms_per_hour_bound": 132.0}))
+    ...     "false_alarm_bound_per_cycle": 0.25, "false_alarms_per_hour_bound": 132.0,
+    ...     "conformal_level": 1.6, "tail_level": 2.1, "false_alarm_rate": 0.1}))
     taught on 1 recording(s), 18.0 s: 3 cycles of 6.80 s (repeatability 0.96)
       the task reference removes 80-90 % of the residual's variance (cross-fitted)
       band 10 Hz, order 1, debounce 2 samples; level 2.10
       thresholds [A]     0.500     0.400
-      a new collision-free cycle alarms with probability <= 0.25 (1/(cycles+1)):
-      at most 132 false alarms per hour of the task; teach more cycles to lower it
+      level 2.10 = the Gumbel law of the cycle scores at 0.1 false alarms per hour
+      (the largest cycle score, 1.60, bounds a new cycle's alarm by 0.25 = 1/(cycles+1)
+      without a law: at most 132 per hour of the task; teach more cycles to lower it)
     """
     explained = np.asarray(summary["explained"]) * 100
     band = summary["filter"]
@@ -119,10 +135,7 @@ def teach_report(summary):
            f"  band {band['cutoff_hz']:g} Hz, order {band['order']}, debounce "
            f"{band['min_duration']} samples; level {summary['level']:.2f}",
            "  thresholds [A]" + "".join(f"{v:>10.3f}" for v in summary["thresholds_A"]),
-           f"  a new collision-free cycle alarms with probability <= "
-           f"{summary['false_alarm_bound_per_cycle']:.2g} (1/(cycles+1)):",
-           f"  at most {summary['false_alarms_per_hour_bound']:.0f} false alarms per hour of "
-           "the task; teach more cycles to lower it"]
+           *_level_lines(summary)]
     for cycle in summary["deviant_cycles"]:
         out.append(f"  warning: cycle {cycle['index'] + 1} ({cycle['start_s']:.1f}-"
                    f"{cycle['end_s']:.1f} s) is unlike the others (score "
