@@ -51,7 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_ur10e as R  # noqa: E402
 from _common import real_data_path, require_data  # noqa: E402
 
-from sklearn_gpcd.contact import describe_alarms  # noqa: E402
+from sklearn_gpcd.contact import describe_alarms, protected_force  # noqa: E402
 from sklearn.utils import Bunch  # noqa: E402
 
 from sklearn_gpcd.detection import StreamingMonitor, TaughtTask, stack_currents  # noqa: E402
@@ -62,6 +62,23 @@ from sklearn_gpcd.workflow import (  # noqa: E402
 
 #: Seconds after a labelled collision's end still counted as its own.
 TAIL = 0.5
+#: Rate [Hz] at which "protected at <= X N" is evaluated along a recording.
+PROTECTION_RATE = 10.0
+#: The collision file whose protection is plotted.
+PLOT_FILE = "collision_detection_data_2020/collision_2link.csv"
+
+
+def protection(out, rec, robot):
+    """``protected_force`` at the flange along ``rec`` (every 1/PROTECTION_RATE s):
+    the thresholds that decided each tick, in Nm through the torque constants."""
+    step = max(1, int(round(1.0 / PROTECTION_RATE / np.median(np.diff(rec.time)))))
+    rows = np.arange(0, rec.n_samples, step)
+    force = protected_force(robot, rec.q[rows],
+                            np.asarray(out.thresholds)[rows] * robot.torque_constants)
+    moving = np.asarray(out.regime)[rows] == 0
+    taught = np.asarray(out.taught)[rows]
+    return {"t": (rec.time[rows] - rec.time[0]).tolist(), "force_N": force.tolist(),
+            "taught": taught.tolist(), "moving": moving.tolist()}
 
 
 def _quiet(fn, *args, **kwargs):
@@ -92,11 +109,18 @@ def causal_outputs(calibrated, rec):
         X = stack_currents(_quiet(features.transform, rec), rec.current)
         if isinstance(det, TaughtTask):
             res = det.monitoring_signal(X)
+            general = det.detector.monitoring_signal(X)
+            regime = np.asarray(general.regime).reshape(len(X))
+            applied = np.where(res.joints, det.thresholds_,
+                               np.atleast_2d(det.detector.thresholds_)[regime])
             return Bunch(alarms=res.alarms, residual=res.residual,
-                         regime=np.where(res.moving, 0, 1), taught=res.taught, event=res.event)
+                         regime=np.where(res.moving, 0, 1), taught=res.taught, event=res.event,
+                         thresholds=applied)
         res = det.monitoring_signal(X)
+        regime = np.asarray(res.regime).reshape(len(X))
         return Bunch(alarms=res.alarms, residual=res.residual, regime=res.regime,
-                     taught=np.zeros(len(X), dtype=bool), event=res.alarms.any(axis=1))
+                     taught=np.zeros(len(X), dtype=bool), event=res.alarms.any(axis=1),
+                     thresholds=np.atleast_2d(det.thresholds_)[regime])
     return _quiet(monitor.replay_recording, rec)
 
 
@@ -136,10 +160,41 @@ def score_file(calibrated, rec, entry, robot):
             e.pop(k, None)
     moving = out.regime == 0
     return {"collisions": collisions, "free_onsets": free,
+            "protection": protection(out, rec, robot),
             "free_minutes": sum(t[b - 1] - t[a] for a, b in segments) / 60,
             "taught_share": float(out.taught.mean()),
             "untaught_motion_share": float((moving & ~out.taught).mean()),
             "events": events, "monitor_seconds": seconds, "samples": int(rec.n_samples)}
+
+
+def plot_protection(results, labels, path, key=PLOT_FILE):
+    """Protected force along one collision file, untaught and taught (P_f)."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    fig, ax = plt.subplots(figsize=(9, 3))
+    for shown, style in (("P_f untaught", "C7"), ("P_f taught", "C0")):
+        if shown not in results:
+            continue
+        p = results[shown]["files"][key]["protection"]
+        force = np.where(np.asarray(p["moving"]), np.asarray(p["force_N"]), np.nan)
+        ax.plot(p["t"], force, lw=0.8, color=style, label=shown + " (moving)")
+    for k, ev in enumerate(labels[key]["events"]):
+        ax.axvspan(ev["start_s"], ev["stop_s"], color="C3", alpha=0.2,
+                   label="labelled collision" if k == 0 else None)
+    ax.set_yscale("log")
+    ax.set_ylabel("protected at <= X [N]")
+    ax.set_xlabel("t [s]")
+    ax.set_title(f"{key}: smallest force at the flange always caught", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
 
 
 def summarise(files):
@@ -159,7 +214,24 @@ def summarise(files):
             "events_with_well_conditioned_force": sum(
                 bool(e.get("force_well_conditioned")) for f in files.values()
                 for e in f["events"]),
-            "n_events": sum(len(f["events"]) for f in files.values())}
+            "n_events": sum(len(f["events"]) for f in files.values()),
+            **protection_summary(files)}
+
+
+def protection_summary(files):
+    """Median and 90th percentile of the protected force [N] over the moving time,
+    taught and untaught (finite values; the share of moving time never protected)."""
+    out = {}
+    for name, pick in (("taught", True), ("untaught", False)):
+        force = np.concatenate([np.asarray(f["protection"]["force_N"])[
+            np.asarray(f["protection"]["moving"]) & (np.asarray(f["protection"]["taught"])
+                                                     == pick)] for f in files.values()])
+        finite = force[np.isfinite(force)]
+        out[f"protected_N_{name}_median"] = float(np.median(finite)) if finite.size else None
+        out[f"protected_N_{name}_p90"] = (float(np.percentile(finite, 90)) if finite.size
+                                          else None)
+        out[f"protected_{name}_samples"] = int(force.size)
+    return out
 
 
 def main(argv=None):
@@ -226,7 +298,18 @@ def main(argv=None):
                      f"        {100 * untaught:5.1f} %        {s['events_with_link_and_force']:>3}/"
                      f"{s['n_events']:<3} ({s['events_with_well_conditioned_force']:>2})"
                      f"                    {s['monitor_us_per_tick']:6.0f}")
+    lines.append("")
+    lines.append("protected at <= X N at the flange, over the moving time (10 Hz): "
+                 "median / 90th percentile")
+    for shown, res in results.items():
+        s = res["summary"]
+        cells = []
+        for name in ("taught", "untaught"):
+            med, p90 = s[f"protected_N_{name}_median"], s[f"protected_N_{name}_p90"]
+            cells.append(f"{name} " + ("-" if med is None else f"{med:6.0f} / {p90:6.0f} N"))
+        lines.append(f"  {shown:<24} " + "   ".join(cells))
     lines.append("timings [s]: " + ", ".join(f"{k} {v:.1f}" for k, v in timings.items()))
+    plot_protection(results, labels, out_dir / "taught_task_protection.png")
     (out_dir / "taught_task.txt").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     return 0

@@ -65,7 +65,8 @@ def test_teach_writes_a_taught_detector_and_says_what_it_learnt(work, capsys):
                  "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "3 cycles of 4.5" in text or "3 cycles of 4.6" in text
-    assert "false alarms per hour of the task" in text
+    # the level: the Gumbel law at the target rate, beside the distribution-free bound
+    assert "at 0.1 false alarms per hour" in text and "per hour of the task" in text
     detector, features, calibration = load_detector(out)
     assert isinstance(detector, TaughtTask)
     assert calibration["teach"]["n_cycles"] == 3
@@ -122,3 +123,27 @@ def test_a_taught_file_edited_to_nan_is_refused_in_one_line(work, capsys):
     assert main(["monitor", str(broken), str(work["push"]), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "thresholds_" in err[0] and "gpcd" in err[0], err
+
+
+def test_update_keeps_learning_and_says_what_it_took(work, capsys):
+    taught, updated = work["folder"] / "t.skops", work["folder"] / "u.skops"
+    assert main(["teach", str(work["detector"]), str(work["task"]), "-q",
+                 "-o", str(taught)]) == 0
+    capsys.readouterr()
+    assert main(["teach", str(taught), str(work["task"]), str(work["push"]), "--update", "-q",
+                 "-o", str(updated)]) == 0
+    text = capsys.readouterr().out
+    assert "learnt from task.csv" in text and "learnt from push.csv" in text
+    learning = load_detector(updated)[2]["teach"]["learning"]
+    assert [e["recording"] for e in learning] == ["task.csv", "push.csv"]
+    # this detector rings at the task's stops (calibrated on other motions): every
+    # cycle holds an alarm, so nothing is learnt (test_task.py learns a warm-up)
+    assert learning[1]["rejected"].get("alarm", 0) >= 1
+    assert all(e["accepted"] == e["pending"] == 0 for e in learning)
+    assert not np.any(learning[-1]["drift_A"])
+
+
+def test_update_needs_a_taught_file(work, capsys):
+    assert main(["teach", str(work["detector"]), str(work["task"]), "--update", "-q",
+                 "-o", str(work["folder"] / "x.skops")]) == 2
+    assert "run gpcd teach DETECTOR TASK_LOG" in capsys.readouterr().err

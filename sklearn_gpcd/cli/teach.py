@@ -4,7 +4,8 @@ collision-free cycles, a thin layer over :func:`sklearn_gpcd.workflow.teach_task
 
 import time
 
-from ..workflow import load_detector, recording_keys, save_detector, teach_report, teach_task
+from ..workflow import (load_detector, recording_keys, save_detector, teach_report,
+                        teach_task, update_task)
 from ._args import (
     add_file_options,
     add_recording_options,
@@ -43,6 +44,14 @@ def add_parser(sub):
     teach.add_argument("--novelty-radius", type=positive_float, default=1.0, metavar="R",
                        help="a state farther than R from every taught one, in units of "
                        "0.1 rad and 0.5 rad/s, is untaught (default 1)")
+    teach.add_argument("--false-alarm-rate", type=positive_float, default=0.1, metavar="PER_H",
+                       help="target false alarms per hour of the task: the level is at least "
+                       "the Gumbel quantile of the cycle scores at this rate (default 0.1)")
+    teach.add_argument("--update", action="store_true",
+                       help="keep learning: DETECTOR is a taught file and the recordings are "
+                       "monitored runs of its task, in time order; the slow drift (warm-up) "
+                       "is learnt from whole cycles far from every alarm, bounded by half "
+                       "the thresholds, which never rise")
     add_file_options(teach, "taught detector file", "detector file")
     teach.set_defaults(func=run)
 
@@ -52,8 +61,16 @@ def run(args):
     start = time.perf_counter()
     calibrated = load_detector(args.detector, trust_pickle=args.trust_pickle)
     recordings = read_recordings(args.recordings, args, "task recordings")
+    if args.update:
+        updated = update_task(calibrated, recordings, keys=recording_keys(recordings))
+        save_detector(updated, args.output)
+        print(teach_report(updated.calibration["teach"]))
+        print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}, "
+              f"{file_size(args.output)}")
+        return 0
     band = args.band or {}
-    params = {"novelty_radius": args.novelty_radius}
+    params = {"novelty_radius": args.novelty_radius,
+              "false_alarm_rate": args.false_alarm_rate}
     params.update({k: band[b] for k, b in (("cutoff", "filter_cutoff"),
                                            ("order", "filter_order"),
                                            ("min_duration", "min_duration")) if b in band})

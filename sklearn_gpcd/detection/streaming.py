@@ -445,6 +445,13 @@ class StreamingMonitor(VersionedStateMixin):
         return bool(self.alarms.any()) if self._task_stream is None else self._task_stream.event
 
     @property
+    def taught_joints(self):
+        """Per joint, whether the taught task decided it at the last tick."""
+        if self._task_stream is None:
+            return np.zeros(self.n_joints, dtype=bool)
+        return np.asarray(self._task_stream.joints, dtype=bool)
+
+    @property
     def applied_thresholds(self):
         """Per joint, the threshold [A] that decided the last tick: the taught
         task's where its joint was taught, else the first band's in its regime
@@ -755,8 +762,9 @@ class StreamingMonitor(VersionedStateMixin):
             and ``residual``; ``bands``, one Bunch per rule with its
             ``signal``, ``ratio``, ``alarms``, ``regime`` and ``level``, the
             first band's ``signal``, ``ratio`` and ``regime`` also at the top
-            level; ``taught`` (bool, rows the taught task decided) and
-            ``event`` (rows of an open contact event). Sensor
+            level; ``taught`` (bool, rows the taught task decided),
+            ``event`` (rows of an open contact event) and ``thresholds``
+            (:attr:`applied_thresholds` per row). Sensor
             faults leave NaN float rows and no alarm.
         """
         X = np.asarray(X, dtype=float)
@@ -784,12 +792,14 @@ class StreamingMonitor(VersionedStateMixin):
                                  alarms=np.zeros(shape, dtype=bool),
                                  regime=np.zeros(n, dtype=np.intp), level=band.level)
                            for band in self.bands],
-                    taught=np.zeros(n, dtype=bool), event=np.zeros(n, dtype=bool))
+                    taught=np.zeros(n, dtype=bool), event=np.zeros(n, dtype=bool),
+                    thresholds=np.empty(shape))
         for t, status in enumerate(statuses):
             out.status[t] = status.value
             out.alarms[t], out.score[t] = self.alarms, self.score
             out.predicted[t], out.residual[t] = self.predicted, self.residual
             out.taught[t], out.event[t] = self.taught, self.event
+            out.thresholds[t] = self.applied_thresholds
             for record, band in zip(out.bands, self.bands):
                 record.signal[t], record.ratio[t] = band.signal, band.ratio
                 record.alarms[t], record.regime[t] = band.alarms, band.regime

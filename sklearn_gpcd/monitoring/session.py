@@ -394,12 +394,12 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
     def _alarm(self, rel, firing):
         """A tick where the bands ``firing`` (indices) alarm: open or extend the event."""
         alarms = self.monitor.alarms
-        taught = self.task is not None and self.monitor.taught
-        if taught:
-            peak = float(np.abs(self.monitor.task_signal[alarms]).max())
-        else:
-            peak = max(float(np.abs(self.bands[b].signal[self.bands[b].alarms]).max())
-                       for b in firing)
+        by_task = alarms & self.monitor.taught_joints  # joints the taught task decided
+        taught = bool(by_task.any())
+        peaks = [float(np.abs(self.monitor.task_signal[by_task]).max())] if taught else []
+        peaks += [float(np.abs(self.bands[b].signal[self.bands[b].alarms & ~by_task]).max())
+                  for b in firing if (self.bands[b].alarms & ~by_task).any()]
+        peak = max(peaks, default=0.0)
         if self.open is None:
             self.open = {"recording": self.name, "start_s": rel, "end_s": rel,
                          "joints": set(), "peak_A": peak,

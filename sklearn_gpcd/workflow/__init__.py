@@ -56,7 +56,7 @@ from .model_choice import (
     compare_models,
     input_signals,
 )
-from .teaching import teach_report, teach_task
+from .teaching import teach_report, teach_task, update_task
 from .training import (
     INPUTS,
     MAX_TRAIN_ROWS,
@@ -90,6 +90,6 @@ __all__ = [
     "check_calibration_options", "check_signals", "check_target_current", "choose_model",
     "compare_models", "input_signals", "load_detector",
     "load_model", "recording_keys", "resolve_select", "save_detector", "save_model",
-    "signal_check", "split_recordings", "teach_report", "teach_task", "train_model",
+    "signal_check", "split_recordings", "teach_report", "teach_task", "train_model", "update_task",
     "training_report", "training_rows", "training_set", "untaught_detector",
 ]

@@ -14,7 +14,7 @@ import numpy as np
 
 from .calibration import CalibratedDetector, untaught_detector
 
-__all__ = ["teach_task", "teach_report"]
+__all__ = ["teach_task", "teach_report", "update_task"]
 
 
 def teach_task(calibrated, recordings, *, keys=None, **params):
@@ -64,22 +64,98 @@ def teach_task(calibrated, recordings, *, keys=None, **params):
     4
     """
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..detection import TaughtTask, stack_currents
+    from ..detection import TaughtTask
 
     detector = untaught_detector(calibrated.detector)
     features = calibrated.features
     keys = list(keys) if keys is not None else [r.name for r in recordings]
     blocks, groups = [], []
     for k, rec in enumerate(recordings):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # missing controller signals: zeros, as calibrated
-            X = features.transform(rec)
-        blocks.append(stack_currents(X, rec.current))
-        groups.append(np.full(len(X), k))
+        blocks.append(_task_rows(calibrated, rec))
+        groups.append(np.full(len(blocks[-1]), k))
     task = TaughtTask(detector, **params).fit(np.vstack(blocks), groups=np.concatenate(groups))
     summary = {**task.summary(), "recordings": keys,
                "seconds": [float(r.time[-1] - r.time[0]) for r in recordings]}
     return CalibratedDetector(task, features, {**calibrated.calibration, "teach": summary})
+
+
+def _task_rows(calibrated, rec):
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from ..detection import stack_currents
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # missing controller signals: zeros, as calibrated
+        X = calibrated.features.transform(rec)
+    return stack_currents(X, rec.current)
+
+
+def update_task(taught, recordings, *, keys=None):
+    """Keep learning: the slow drift of a taught task from monitored recordings.
+
+    Each recording, in order, is one :meth:`TaughtTask.partial_fit
+    <sklearn_gpcd.detection.TaughtTask.partial_fit>` call (successive cycles
+    of the cell): only whole cycles far from every alarm teach, the drift is
+    bounded, the thresholds never rise.
+
+    Parameters
+    ----------
+    taught : CalibratedDetector
+        What :func:`teach_task` (or :func:`~sklearn_gpcd.workflow.load_detector`
+        on a ``gpcd teach`` file) returned.
+    recordings : list of Recording
+        Monitored recordings of the task, in time order.
+    keys : list of str, default=None
+        Their names in the summary.
+
+    Returns
+    -------
+    updated : CalibratedDetector
+        A copy; ``calibration["teach"]["learning"]`` lists, per recording,
+        the cycles accepted and rejected (with the reasons) and the drift
+        [A] after it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.frozen import FrozenEstimator
+    >>> from sklearn.linear_model import Ridge
+    >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
+    >>> from sklearn_gpcd.features import CausalFeatures
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(0, 16, 0.01)
+    >>> q = np.sin(2 * np.pi * t / 4)[:, None]
+    >>> rec = Recording(time=t, q=q, qd=np.gradient(q[:, 0], t)[:, None],
+    ...                 current=0.2 * np.tanh(np.gradient(q[:, 0], t))[:, None])
+    >>> features = CausalFeatures(signals=()).fit([rec])
+    >>> X = features.transform(rec)
+    >>> det = CollisionDetector(FrozenEstimator(Ridge().fit(X, rec.current)),
+    ...                         rules=AlarmRule(contamination=0.01), sample_time=0.01)
+    >>> det = det.fit(stack_currents(X, rec.current))
+    >>> taught = teach_task(CalibratedDetector(det, features, {}), [rec])
+    >>> updated = update_task(taught, [rec])
+    >>> updated.calibration["teach"]["learning"][0]["cycles"]
+    4
+    """
+    import copy
+
+    task = copy.deepcopy(taught.detector)
+    if not hasattr(task, "partial_fit"):
+        raise ValueError("the detector is not taught: run gpcd teach DETECTOR TASK_LOG... "
+                         "first, then update the taught file")
+    keys = list(keys) if keys is not None else [r.name for r in recordings]
+    learning = list(taught.calibration.get("teach", {}).get("learning", []))
+    for key, rec in zip(keys, recordings):
+        task.partial_fit(_task_rows(taught, rec))
+        last = task.last_learning_
+        verdicts = last["verdicts"]
+        learning.append({"recording": key, "cycles": len(verdicts),
+                         "accepted": verdicts.count("accepted"),
+                         "pending": verdicts.count("pending"),
+                         "rejected": {v: verdicts.count(v) for v in sorted(set(verdicts))
+                                      if v not in ("accepted", "pending")},
+                         "drift_A": last["drift_A"]})
+    summary = {**taught.calibration.get("teach", {}), **task.summary(), "learning": learning}
+    return CalibratedDetector(task, taught.features, {**taught.calibration, "teach": summary})
 
 
 def _level_lines(summary):
@@ -136,6 +212,13 @@ def teach_report(summary):
            f"{band['min_duration']} samples; level {summary['level']:.2f}",
            "  thresholds [A]" + "".join(f"{v:>10.3f}" for v in summary["thresholds_A"]),
            *_level_lines(summary)]
+    for entry in summary.get("learning", []):
+        rejected = ", ".join(f"{n} {why}" for why, n in entry["rejected"].items()) or "none"
+        drift = np.abs(np.asarray(entry["drift_A"])).sum(axis=0)
+        out.append(f"  learnt from {entry['recording']}: {entry['accepted']} of "
+                   f"{entry['cycles']} cycle(s) ({entry['pending']} waiting for the next; "
+                   f"rejected: {rejected}); drift now <= {drift.max():.3f} A on a joint "
+                   f"(bound: half its threshold)")
     for cycle in summary["deviant_cycles"]:
         out.append(f"  warning: cycle {cycle['index'] + 1} ({cycle['start_s']:.1f}-"
                    f"{cycle['end_s']:.1f} s) is unlike the others (score "
