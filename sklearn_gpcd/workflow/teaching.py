@@ -8,6 +8,7 @@ wrapping the calibrated :class:`~sklearn_gpcd.detection.CollisionDetector`
 (the calibration summary gains a ``"teach"`` entry).
 """
 
+import copy
 import warnings
 
 import numpy as np
@@ -136,8 +137,6 @@ def update_task(taught, recordings, *, keys=None):
     >>> updated.calibration["teach"]["learning"][0]["cycles"]
     4
     """
-    import copy
-
     task = copy.deepcopy(taught.detector)
     if not hasattr(task, "partial_fit"):
         raise ValueError("the detector is not taught: run gpcd teach DETECTOR TASK_LOG... "
