@@ -15,8 +15,12 @@ re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
     \\beta = 1 - e^{-T/\\tau},
 
 so a contact shows in full while the slow relaxation of the current held
-after a stop does not. :class:`AlarmState`: one band's per-sample decision,
-shared by batch and streaming.
+after a stop does not. **A contact never sets the reference**: when the
+arm comes to rest while a contact event of the band is open (a push that
+holds the arm), ``b`` starts from the last signal before the event, not from
+the pushed one, so that the push's release is no mirror-image alarm.
+:class:`AlarmState`: one band's per-sample decision, shared by batch and
+streaming. :class:`EventHold`: one event per contact, the same on every path.
 """
 
 import numpy as np
@@ -27,6 +31,68 @@ from .._gate import quasi_static
 #: with a braking limit).
 REGIME_NAMES = ("moving", "settling", "rest", "braking")
 MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
+#: Release level of an event (ratio of the signal to its threshold).
+RELEASE = 0.5
+#: Seconds below the release level that end an event.
+EVENT_HOLD_S = 0.2
+
+
+class EventHold:
+    """One event per contact: open at an alarm, closed after a hold below release.
+
+    An event opens where the ratio (signal over threshold) exceeds 1 and
+    stays open while it is above ``RELEASE`` or has been below it for fewer
+    than ``hold`` samples: a contact whose signal dips under the threshold
+    for a moment is one event, and the next contact, which starts from
+    below the release level, is another (hysteresis and a hold time).
+
+    Parameters
+    ----------
+    hold : int
+        Samples below release that end an event.
+
+    Examples
+    --------
+    >>> hold = EventHold(3)
+    >>> ratios = [0.2, 1.3, 0.8, 1.1, 0.4, 0.3, 0.2, 0.1, 1.2, 0.1]
+    >>> [int(hold.step(r)) for r in ratios]
+    [0, 1, 1, 1, 1, 1, 0, 0, 1, 1]
+    """
+
+    def __init__(self, hold):
+        self.hold = int(hold)
+        self.open = False
+        self._below = 0
+
+    def step(self, ratio, restart=False):
+        """One sample's ``ratio``; ``restart`` closes any open event first.
+
+        Returns
+        -------
+        open : bool
+        """
+        if restart:
+            self.open, self._below = False, 0
+        if ratio > 1.0:
+            self.open, self._below = True, 0
+        elif self.open:
+            self._below = self._below + 1 if ratio <= RELEASE else 0
+            if self._below >= self.hold:
+                self.open, self._below = False, 0
+        return self.open
+
+
+def event_rows(ratio, starts, hold):
+    """:class:`EventHold` over a batch, restarting at every segment start.
+
+    ``ratio``: (n,) the signal over its threshold (1: the threshold);
+    returns the rows of an open event (bool, (n,)).
+    """
+    events = EventHold(hold)
+    restart = np.zeros(len(ratio), dtype=bool)
+    restart[np.asarray(starts, dtype=np.intp)] = True
+    return np.array([events.step(r, s) for r, s in zip(np.asarray(ratio).tolist(),
+                                                       restart.tolist())], dtype=bool)
 
 
 class RegimeState:
@@ -52,6 +118,7 @@ class RegimeState:
         self.alarm_hold = int(alarm_hold)
         self.reference = np.zeros(n_joints)
         self._step = np.zeros(n_joints)
+        self._quiet = np.zeros(n_joints)  # the last signal outside a contact event
         self.reset()
 
     def reset(self):
@@ -61,6 +128,7 @@ class RegimeState:
         self._referenced = False
         self._braking_for = 0
         self._held_for = 0
+        self._has_quiet = False
         self.reference[:] = 0.0
 
     def braking(self, qdd):
@@ -87,7 +155,7 @@ class RegimeState:
         self._moved = True
         return MOVING
 
-    def step(self, motion, signal, hold=None):
+    def step(self, motion, signal, hold=None, contact=False):
         """Regime of one sample (``motion``: velocities, then accelerations with a
         braking limit); ``signal`` is re-referenced in place at rest.
 
@@ -96,9 +164,14 @@ class RegimeState:
         own threshold**: while the band is in alarm the caller passes the
         regime of the alarm's onset as ``hold``, returned (at rest the
         reference subtracted, not tracked) for ``alarm_hold`` samples at most
-        while the counters advance.
+        while the counters advance. **A contact never sets the reference**:
+        ``contact`` (a contact event of the band is open) makes a rest entry
+        start ``b`` from the last signal before the event.
         """
         n = self.n_joints
+        if not contact:
+            self._quiet[:] = signal
+            self._has_quiet = True
         regime = self.regime(motion[:n])
         braking = self.brake_limit is not None and self.braking(motion[n:])
         self._held_for = self._held_for + 1 if hold is not None else 0
@@ -106,11 +179,12 @@ class RegimeState:
             if hold == REST and self._referenced:
                 np.subtract(signal, self.reference, out=signal)
             return hold
-        self._reference(regime, signal)
+        self._reference(regime, signal, contact)
         return BRAKING if braking else regime
 
-    def _reference(self, regime, signal):
-        """Re-reference ``signal`` in place at rest (Eq. above), track ``b``."""
+    def _reference(self, regime, signal, contact=False):
+        """Re-reference ``signal`` in place at rest (Eq. above), track ``b``; a rest
+        entry inside a contact event starts ``b`` from the signal before it."""
         if self.beta is None:
             return
         if regime != REST:
@@ -118,7 +192,7 @@ class RegimeState:
             self.reference[:] = 0.0
             return
         if not self._referenced:
-            self.reference[:] = signal
+            self.reference[:] = self._quiet if contact and self._has_quiet else signal
             self._referenced = True
         np.subtract(signal, self.reference, out=signal)  # m~ = m - b
         np.multiply(signal, self.beta, out=self._step)
@@ -153,17 +227,21 @@ class AlarmState:
     the ratio to the regime's scale, over the motion envelope while moving,
     and the joints above ``level``. While an alarm lasts its regime and
     envelope factor are frozen; it ends after ``release`` samples at or below
-    the level (meanwhile the joints that fired last stay in alarm). A sample
-    allocates no array.
+    the level (meanwhile the joints that fired last stay in alarm). The
+    band's contact event (:class:`EventHold` on the largest ratio over the
+    level, ``event_hold`` samples) keeps a contact out of the rest reference.
+    A sample allocates no array.
     """
 
-    def __init__(self, n_joints, settings, scales, level, min_duration, release=0):
+    def __init__(self, n_joints, settings, scales, level, min_duration, release=0,
+                 event_hold=0):
         self.regimes = None if settings is None else RegimeState(n_joints=n_joints, **settings)
         self.scales = np.atleast_2d(np.asarray(scales, dtype=float))
         self.level, self.release = float(level), int(release)
         self.window = np.zeros((min_duration, n_joints))
         self.ratio = np.full(n_joints, np.nan)
         self.alarms = np.zeros(n_joints, dtype=bool)
+        self.contact = EventHold(event_hold)
         self._bind()
         self.reset()
 
@@ -182,6 +260,7 @@ class AlarmState:
         """A new stream: no regime, debounce or alarm history."""
         self.window[:] = 0.0
         self.position, self.regime, self.factor = 0, 0, 1.0
+        self.contact.step(0.0, restart=True)
         self.clear()
         if self.regimes is not None:
             self.regimes.reset()
@@ -200,7 +279,8 @@ class AlarmState:
         """
         if self.regimes is not None:
             self.regime = self.regimes.step(motion, signal,
-                                            self.regime if self.alarmed else None)
+                                            self.regime if self.alarmed else None,
+                                            self.contact.open)
         np.abs(signal, out=self._rows[self.position])
         self.position = (self.position + 1) % len(self._rows)
         np.minimum.reduce(self.window, axis=0, out=self.ratio)
@@ -217,11 +297,12 @@ class AlarmState:
             self.below += 1  # the joints that fired last stay in alarm
         elif self.alarmed:
             self.clear()
+        self.contact.step(top / self.level if self.level > 0 else float(top > 0) * 2.0)
         return top
 
 
 def held_regime_pass(signal, motion, settings, scales, level, min_duration, envelope=None,
-                     release=0):
+                     release=0, event_hold=0):
     """:class:`AlarmState` over one segment, as a streaming monitor runs it.
 
     ``envelope``: the held motion envelope factor of each sample. Returns
@@ -232,7 +313,8 @@ def held_regime_pass(signal, motion, settings, scales, level, min_duration, enve
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     ratio = np.empty_like(out)
     alarms = np.zeros(signal.shape, dtype=bool)
-    state = AlarmState(signal.shape[1], settings, scales, level, min_duration, release)
+    state = AlarmState(signal.shape[1], settings, scales, level, min_duration, release,
+                       event_hold)
     for k in range(signal.shape[0]):
         state.step(out[k], motion[k], None if envelope is None else envelope[k:k + 1])
         regimes[k], ratio[k], alarms[k] = state.regime, state.ratio, state.alarms

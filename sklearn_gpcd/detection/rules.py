@@ -33,7 +33,8 @@ from ._envelope import (
     over_envelope,
     window_peaks,
 )
-from ._regimes import BRAKING, MOVING, REGIME_NAMES, held_regime_pass, regime_pass
+from ._regimes import (BRAKING, EVENT_HOLD_S, MOVING, REGIME_NAMES, held_regime_pass,
+                       regime_pass)
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
@@ -466,8 +467,12 @@ class AlarmRule(BaseEstimator):
              held[rows]) = held_regime_pass(
                 filtered[rows], motion[rows], self.regime_settings(), scales, -self.offset_,
                 self.min_duration, None if factor is None else factor[rows],
-                self.release_samples())
+                self.release_samples(), self.event_hold_samples())
         return signal, regime, reference, ratio, held
+
+    def event_hold_samples(self):
+        """Samples below the release level that end a contact event (``EVENT_HOLD_S``)."""
+        return max(1, int(round(EVENT_HOLD_S / self.sample_time_)))
 
     def release_samples(self):
         """Samples below the level that end an alarm (0 without regimes)."""
