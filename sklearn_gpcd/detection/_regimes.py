@@ -15,12 +15,9 @@ re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
     \\beta = 1 - e^{-T/\\tau},
 
 so a contact shows in full while the slow relaxation of the current held
-after a stop does not. **A contact never sets the reference**: when the
-arm comes to rest while a contact event of the band is open (a push that
-holds the arm), ``b`` starts from the last signal before the event, not from
-the pushed one, so that the push's release is no mirror-image alarm.
-:class:`AlarmState`: one band's per-sample decision, shared by batch and
-streaming. :class:`EventHold`: one event per contact, the same on every path.
+after a stop does not. :class:`AlarmState`: one band's per-sample decision,
+shared by batch and streaming. :class:`EventHold`: one event per contact, the
+same on every path.
 """
 
 import numpy as np
@@ -118,7 +115,6 @@ class RegimeState:
         self.alarm_hold = int(alarm_hold)
         self.reference = np.zeros(n_joints)
         self._step = np.zeros(n_joints)
-        self._quiet = np.zeros(n_joints)  # the last signal outside a contact event
         self.reset()
 
     def reset(self):
@@ -128,7 +124,6 @@ class RegimeState:
         self._referenced = False
         self._braking_for = 0
         self._held_for = 0
-        self._has_quiet = False
         self.reference[:] = 0.0
 
     def braking(self, qdd):
@@ -155,7 +150,7 @@ class RegimeState:
         self._moved = True
         return MOVING
 
-    def step(self, motion, signal, hold=None, contact=False):
+    def step(self, motion, signal, hold=None):
         """Regime of one sample (``motion``: velocities, then accelerations with a
         braking limit); ``signal`` is re-referenced in place at rest.
 
@@ -164,14 +159,9 @@ class RegimeState:
         own threshold**: while the band is in alarm the caller passes the
         regime of the alarm's onset as ``hold``, returned (at rest the
         reference subtracted, not tracked) for ``alarm_hold`` samples at most
-        while the counters advance. **A contact never sets the reference**:
-        ``contact`` (a contact event of the band is open) makes a rest entry
-        start ``b`` from the last signal before the event.
+        while the counters advance.
         """
         n = self.n_joints
-        if not contact:
-            self._quiet[:] = signal
-            self._has_quiet = True
         regime = self.regime(motion[:n])
         braking = self.brake_limit is not None and self.braking(motion[n:])
         self._held_for = self._held_for + 1 if hold is not None else 0
@@ -179,12 +169,11 @@ class RegimeState:
             if hold == REST and self._referenced:
                 np.subtract(signal, self.reference, out=signal)
             return hold
-        self._reference(regime, signal, contact)
+        self._reference(regime, signal)
         return BRAKING if braking else regime
 
-    def _reference(self, regime, signal, contact=False):
-        """Re-reference ``signal`` in place at rest (Eq. above), track ``b``; a rest
-        entry inside a contact event starts ``b`` from the signal before it."""
+    def _reference(self, regime, signal):
+        """Re-reference ``signal`` in place at rest (Eq. above), track ``b``."""
         if self.beta is None:
             return
         if regime != REST:
@@ -192,7 +181,7 @@ class RegimeState:
             self.reference[:] = 0.0
             return
         if not self._referenced:
-            self.reference[:] = self._quiet if contact and self._has_quiet else signal
+            self.reference[:] = signal
             self._referenced = True
         np.subtract(signal, self.reference, out=signal)  # m~ = m - b
         np.multiply(signal, self.beta, out=self._step)
@@ -226,22 +215,17 @@ class AlarmState:
     regimes), the debounce over the last ``min_duration`` samples (a ring),
     the ratio to the regime's scale, over the motion envelope while moving,
     and the joints above ``level``. While an alarm lasts its regime and
-    envelope factor are frozen; it ends after ``release`` samples at or below
-    the level (meanwhile the joints that fired last stay in alarm). The
-    band's contact event (:class:`EventHold` on the largest ratio over the
-    level, ``event_hold`` samples) keeps a contact out of the rest reference.
-    A sample allocates no array.
+    envelope factor are frozen; it ends at the first sample at or below
+    the level. A sample allocates no array.
     """
 
-    def __init__(self, n_joints, settings, scales, level, min_duration, release=0,
-                 event_hold=0):
+    def __init__(self, n_joints, settings, scales, level, min_duration):
         self.regimes = None if settings is None else RegimeState(n_joints=n_joints, **settings)
         self.scales = np.atleast_2d(np.asarray(scales, dtype=float))
-        self.level, self.release = float(level), int(release)
+        self.level = float(level)
         self.window = np.zeros((min_duration, n_joints))
         self.ratio = np.full(n_joints, np.nan)
         self.alarms = np.zeros(n_joints, dtype=bool)
-        self.contact = EventHold(event_hold)
         self._bind()
         self.reset()
 
@@ -260,7 +244,6 @@ class AlarmState:
         """A new stream: no regime, debounce or alarm history."""
         self.window[:] = 0.0
         self.position, self.regime, self.factor = 0, 0, 1.0
-        self.contact.step(0.0, restart=True)
         self.clear()
         if self.regimes is not None:
             self.regimes.reset()
@@ -268,7 +251,7 @@ class AlarmState:
     def clear(self):
         """No alarm (a new stream, or a rejected sample)."""
         self.alarms[:] = False
-        self.alarmed, self.below = False, 0
+        self.alarmed = False
 
     def step(self, signal, motion, envelope=None):
         """One sample; returns the largest ratio over the joints.
@@ -279,8 +262,7 @@ class AlarmState:
         """
         if self.regimes is not None:
             self.regime = self.regimes.step(motion, signal,
-                                            self.regime if self.alarmed else None,
-                                            self.contact.open)
+                                            self.regime if self.alarmed else None)
         np.abs(signal, out=self._rows[self.position])
         self.position = (self.position + 1) % len(self._rows)
         np.minimum.reduce(self.window, axis=0, out=self.ratio)
@@ -292,17 +274,13 @@ class AlarmState:
         top = max(self.ratio.tolist())
         if top > self.level:
             np.greater(self.ratio, self.level, out=self.alarms)
-            self.alarmed, self.below = True, 0
-        elif self.alarmed and self.below < self.release:
-            self.below += 1  # the joints that fired last stay in alarm
+            self.alarmed = True
         elif self.alarmed:
             self.clear()
-        self.contact.step(top / self.level if self.level > 0 else float(top > 0) * 2.0)
         return top
 
 
-def held_regime_pass(signal, motion, settings, scales, level, min_duration, envelope=None,
-                     release=0, event_hold=0):
+def held_regime_pass(signal, motion, settings, scales, level, min_duration, envelope=None):
     """:class:`AlarmState` over one segment, as a streaming monitor runs it.
 
     ``envelope``: the held motion envelope factor of each sample. Returns
@@ -313,8 +291,7 @@ def held_regime_pass(signal, motion, settings, scales, level, min_duration, enve
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     ratio = np.empty_like(out)
     alarms = np.zeros(signal.shape, dtype=bool)
-    state = AlarmState(signal.shape[1], settings, scales, level, min_duration, release,
-                       event_hold)
+    state = AlarmState(signal.shape[1], settings, scales, level, min_duration)
     for k in range(signal.shape[0]):
         state.step(out[k], motion[k], None if envelope is None else envelope[k:k + 1])
         regimes[k], ratio[k], alarms[k] = state.regime, state.ratio, state.alarms

@@ -679,8 +679,9 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         -------
         y_pred : ndarray of shape (n_samples,)
             -1 where some joint fired in some band: where
-            :meth:`decision_function` is negative, and during an alarm's
-            release time (``Regimes(alarm_release=...)``).
+            :meth:`decision_function` is negative (the rows of a contact
+            *event*, which outlasts its alarms by the release hold, are
+            :meth:`monitoring_signal`'s ``event``).
         """
         return np.where(self.monitoring_signal(X, groups).alarms.any(axis=1), -1, 1)
 

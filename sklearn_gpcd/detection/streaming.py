@@ -161,8 +161,7 @@ class BandState:
         self.level = -float(rule.offset_)
         self.thresholds = np.atleast_2d(np.asarray(rule.thresholds_, dtype=float))
         self.state = AlarmState(n_joints, rule.regime_settings(), rule.scale_, self.level,
-                                rule.min_duration, rule.release_samples(),
-                                rule.event_hold_samples())
+                                rule.min_duration)
         # the envelope of the last envelope_hold() samples (a ring)
         self._envelope = (None if getattr(rule, "envelope_", None) is None
                           else np.ones((rule.envelope_hold(), n_joints)))
