@@ -176,8 +176,9 @@ def report_text(rows, streamed, same, hours):
                  f"force; onsets equal to the batch events: {same}")
     for e in streamed:
         force = e.get("force_N")
-        force = force if isinstance(force, str) else f"{force:.0f} N" + (
-            "" if e.get("force_well_conditioned") else " (lower bound)")
+        force = ("n/a (no joint sees the link's frame move)" if force is None else force
+                 if isinstance(force, str) else f"{force:.0f} N" + (
+                     "" if e.get("force_well_conditioned") else " (lower bound)"))
         lines.append(f"  {Path(e['recording']).stem}  {e['start_s']:7.3f}-{e['released_s']:7.3f} s"
                      f"  joints {e['joints']}  {e['link_group']} ({e['link_confidence']:.2f})"
                      f"  {force}")

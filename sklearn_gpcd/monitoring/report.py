@@ -53,6 +53,8 @@ def _link_text(event):
 def _force_text(event):
     """The force estimate of an event [N], or ``"no model"``; ``*``: ill-conditioned."""
     force = event.get("force_N", "no model")
+    if force is None:
+        return "n/a"
     if isinstance(force, str):
         return force
     return f"{force:.0f}" + ("" if event.get("force_well_conditioned") else "*")

@@ -102,7 +102,8 @@ class _ContactPeaks:
         q, signal, thresholds = self.sample
         force = estimate_force(robot, q, kt * signal, link=found.link,
                                torque_std=kt * thresholds)
-        return {**out, "force_N": round(float(force.magnitude), 3),
+        seen = int(force.rank) > 0  # rank 0: no joint up to the link sees the point move
+        return {**out, "force_N": round(float(force.magnitude), 3) if seen else None,
                 "force_rank": int(force.rank),
                 "force_well_conditioned": bool(force.well_conditioned)}
 
@@ -211,7 +212,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         ``peak_per_joint_A`` (largest ``|m|``), ``delay_s``, ``link``,
         ``link_group`` and ``link_confidence``
         (:func:`~sklearn_gpcd.contact.isolate_contact` on each joint's peak
-        over its threshold), ``force_N`` (or ``"no model"``), ``force_rank``
+        over its threshold), ``force_N`` (``"no model"`` without a robot
+        model, None when no joint sees the link's frame move), ``force_rank``
         and ``force_well_conditioned``
         (:func:`~sklearn_gpcd.contact.estimate_force` at the link's frame, at
         the sample of largest peak over threshold); ``bands`` with several
