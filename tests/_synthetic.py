@@ -72,3 +72,18 @@ def banded(detector, *bands):
     rule = detector.rules if detector.rules is not None else AlarmRule()
     extra = [clone(rule).set_params(**band) for band in (bands or (FAST,))]
     return clone(detector).set_params(rules=[clone(rule), *extra])
+
+
+def benchmark_module(name):
+    """The script ``benchmarks/<name>.py`` as a module (its folder on the path, for
+    the benchmarks' shared helpers)."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    sys.path.insert(0, str(script.parent))
+    spec = importlib.util.spec_from_file_location(name, script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -232,26 +232,54 @@ def test_a_push_that_moves_the_arm_does_not_relax_its_threshold(alarm_hold, n_ev
                                atol=1e-12)
 
 
-@pytest.mark.parametrize("alarm_release, n_events", [(0.25, 1), (0.0, 2)])
-def test_a_contact_whose_force_dips_is_one_event(alarm_release, n_events):
-    """A push whose current dips below the threshold for 0.1 s: one alarm with a
-    0.25 s release (Regimes(alarm_release=...)), two without (the default);
-    streaming gives the same decisions."""
+def test_a_contact_whose_force_dips_is_one_event():
+    """A push whose current dips below the threshold for 0.1 s: two alarm runs, one
+    event (EventHold: it ends 0.2 s below half the threshold); a second push after
+    a pause is a second event; streaming gives the same alarms and events."""
     qd, current = _still_then_moving()
-    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=2.0, min_duration=3,
-                     regimes=Regimes(rest_reference=2.0, alarm_release=alarm_release))
+    # margin 3: the noise stays below the release level (half the threshold)
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=3.0, min_duration=3,
+                     regimes=Regimes(rest_reference=2.0))
     det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
                             velocity_columns=[0, 1], rules=rule).fit(stack_currents(qd, current))
     pushed = current.copy()
     pushed[700:730, 1] += 1.0
     pushed[740:770, 1] += 1.0                            # a 0.1 s dip in between
+    pushed[850:880, 1] += 1.0                            # the next push, 0.8 s later
     Z = stack_currents(qd, pushed)
-    alarm = det.predict(Z) == -1
+    batch = det.monitoring_signal(Z)
+    alarm = batch.alarms.any(axis=1)
     onsets = np.flatnonzero(alarm[1:] & ~alarm[:-1]) + 1
-    assert np.count_nonzero((onsets >= 690) & (onsets < 800)) == n_events
-    assert not alarm[:700].any() and not alarm[850:].any()  # released 0.25 s after
+    events = np.flatnonzero(batch.event[1:] & ~batch.event[:-1]) + 1
+    assert np.count_nonzero((onsets >= 690) & (onsets < 800)) == 2
+    assert events.tolist() == [onsets[0], onsets[-1]] and onsets[-1] >= 850
+    assert not batch.event[:700].any() and batch.event[705:780].all()
+    assert not batch.event[800:850].any()                # closed 0.2 s after the dip
     out = StreamingMonitor(det).replay(Z)
     assert np.array_equal(out.prediction, det.predict(Z))
+    assert np.array_equal(out.event, batch.event)
+
+
+def test_batch_events_equal_streaming_with_several_bands_and_recordings():
+    """Two bands, two recordings (``groups``): the batch ``event`` rows are the
+    streaming monitor's, and an event never spans the recordings' boundary."""
+    qd, current = _still_then_moving()
+    rules = [AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.5, filter_cutoff=2.0,
+                       min_duration=3, regimes=Regimes(rest_reference=2.0)),
+             AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.5, filter_cutoff=10.0,
+                       min_duration=2, regimes=Regimes(rest_reference=2.0))]
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rules).fit(stack_currents(qd, current))
+    pushed = current.copy()
+    pushed[700:760, 0] += 1.0
+    pushed[-20:, 1] += 1.0                               # on at the end of the first
+    Z = stack_currents(np.vstack([qd, qd]), np.vstack([pushed, current]))
+    groups = np.repeat([0, 1], len(qd))
+    batch = det.monitoring_signal(Z, groups)
+    out = StreamingMonitor(det).replay(Z, groups=groups)
+    assert np.array_equal(out.event, batch.event)
+    assert batch.event[700:760].any() and batch.event[len(qd) - 1]
+    assert not batch.event[len(qd):].any()
 
 
 # ----------------------------------------------- raw samples on the simulator

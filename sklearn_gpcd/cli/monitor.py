@@ -20,8 +20,8 @@ from pathlib import Path
 from .._atomic import atomic_write
 from ..monitoring.stops import StopSignal, hold_stop_signals, stop_signals
 from ..monitoring import MonitorSession
-from ..workflow.calibration import (check_recordings, check_signals, load_detector,
-                                    recording_keys, signal_check)
+from ..workflow.calibration import (check_recordings, check_signals, detector_robot,
+                                    load_detector, recording_keys, signal_check)
 from ._args import (
     column_map_arg,
     confirmed_kinds,
@@ -45,9 +45,11 @@ def add_parser(sub):
         "monitor",
         help="detect collisions in recordings, a real-time replay or a live UR (RTDE)",
         description="Run a detector from 'gpcd calibrate' sample by sample through the "
-        "causal streaming path and report alarm events: start, end, joints (1-based), peak "
-        "|m| and the delay from the first threshold crossing to the alarm; with several "
-        "bands (gpcd calibrate --band), an alarm of any band, and which bands alarmed.",
+        "causal streaming path and report one event per contact (it ends when the signal "
+        "has stayed below half its threshold for 0.2 s): start, end, joints (1-based), peak "
+        "|m| per joint, the delay from the first threshold crossing to the alarm, the link "
+        "hit and the force (with the robot's model); with several bands (gpcd calibrate "
+        "--band), an alarm of any band, and which bands alarmed.",
     )
     mon.add_argument("detector", type=existing_file,
                      help="detector file written by gpcd calibrate")
@@ -117,7 +119,8 @@ def run(args):
                              keep_series=args.plot is not None, echo=live,
                              stall_timeout=args.stall_timeout,
                              signal_check=(signal_check(calibrated) if args.rtde is not None
-                                           else None))  # files: checked before the run
+                                           else None),  # files: checked before the run
+                             robot=detector_robot(calibrated))
     plots = []
     with stop_signals():  # SIGTERM and SIGHUP end the run like Ctrl-C
         try:

@@ -16,7 +16,7 @@
 * :func:`stack_currents` -- builds the detector input ``[inputs | currents]``.
 """
 
-from ._regimes import REGIME_NAMES
+from ._regimes import REGIME_NAMES, EventHold
 from .calibration import (
     MARGIN_RULES,
     calibrate_across_recordings,
@@ -36,7 +36,7 @@ from .detector import (
 from .model_selection import CollisionThresholdCV
 from .rules import THRESHOLD_RULES, AlarmRule, Regimes
 from .streaming import BandState, MonitorStatus, StreamingMonitor
-from .task import EventHold, TaskStream, TaughtTask, task_features, task_period
+from .task import TaskStream, TaughtTask, task_features, task_period
 
 __all__ = [
     "EventHold",

@@ -16,7 +16,8 @@ re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
 
 so a contact shows in full while the slow relaxation of the current held
 after a stop does not. :class:`AlarmState`: one band's per-sample decision,
-shared by batch and streaming.
+shared by batch and streaming. :class:`EventHold`: one event per contact, the
+same on every path.
 """
 
 import numpy as np
@@ -27,6 +28,68 @@ from .._gate import quasi_static
 #: with a braking limit).
 REGIME_NAMES = ("moving", "settling", "rest", "braking")
 MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
+#: Release level of an event (ratio of the signal to its threshold).
+RELEASE = 0.5
+#: Seconds below the release level that end an event.
+EVENT_HOLD_S = 0.2
+
+
+class EventHold:
+    """One event per contact: open at an alarm, closed after a hold below release.
+
+    An event opens where the ratio (signal over threshold) exceeds 1 and
+    stays open while it is above ``RELEASE`` or has been below it for fewer
+    than ``hold`` samples: a contact whose signal dips under the threshold
+    for a moment is one event, and the next contact, which starts from
+    below the release level, is another (hysteresis and a hold time).
+
+    Parameters
+    ----------
+    hold : int
+        Samples below release that end an event.
+
+    Examples
+    --------
+    >>> hold = EventHold(3)
+    >>> ratios = [0.2, 1.3, 0.8, 1.1, 0.4, 0.3, 0.2, 0.1, 1.2, 0.1]
+    >>> [int(hold.step(r)) for r in ratios]
+    [0, 1, 1, 1, 1, 1, 0, 0, 1, 1]
+    """
+
+    def __init__(self, hold):
+        self.hold = int(hold)
+        self.open = False
+        self._below = 0
+
+    def step(self, ratio, restart=False):
+        """One sample's ``ratio``; ``restart`` closes any open event first.
+
+        Returns
+        -------
+        open : bool
+        """
+        if restart:
+            self.open, self._below = False, 0
+        if ratio > 1.0:
+            self.open, self._below = True, 0
+        elif self.open:
+            self._below = self._below + 1 if ratio <= RELEASE else 0
+            if self._below >= self.hold:
+                self.open, self._below = False, 0
+        return self.open
+
+
+def event_rows(ratio, starts, hold):
+    """:class:`EventHold` over a batch, restarting at every segment start.
+
+    ``ratio``: (n,) the signal over its threshold (1: the threshold);
+    returns the rows of an open event (bool, (n,)).
+    """
+    events = EventHold(hold)
+    restart = np.zeros(len(ratio), dtype=bool)
+    restart[np.asarray(starts, dtype=np.intp)] = True
+    return np.array([events.step(r, s) for r, s in zip(np.asarray(ratio).tolist(),
+                                                       restart.tolist())], dtype=bool)
 
 
 class RegimeState:
@@ -152,15 +215,14 @@ class AlarmState:
     regimes), the debounce over the last ``min_duration`` samples (a ring),
     the ratio to the regime's scale, over the motion envelope while moving,
     and the joints above ``level``. While an alarm lasts its regime and
-    envelope factor are frozen; it ends after ``release`` samples at or below
-    the level (meanwhile the joints that fired last stay in alarm). A sample
-    allocates no array.
+    envelope factor are frozen; it ends at the first sample at or below
+    the level. A sample allocates no array.
     """
 
-    def __init__(self, n_joints, settings, scales, level, min_duration, release=0):
+    def __init__(self, n_joints, settings, scales, level, min_duration):
         self.regimes = None if settings is None else RegimeState(n_joints=n_joints, **settings)
         self.scales = np.atleast_2d(np.asarray(scales, dtype=float))
-        self.level, self.release = float(level), int(release)
+        self.level = float(level)
         self.window = np.zeros((min_duration, n_joints))
         self.ratio = np.full(n_joints, np.nan)
         self.alarms = np.zeros(n_joints, dtype=bool)
@@ -189,7 +251,7 @@ class AlarmState:
     def clear(self):
         """No alarm (a new stream, or a rejected sample)."""
         self.alarms[:] = False
-        self.alarmed, self.below = False, 0
+        self.alarmed = False
 
     def step(self, signal, motion, envelope=None):
         """One sample; returns the largest ratio over the joints.
@@ -212,16 +274,13 @@ class AlarmState:
         top = max(self.ratio.tolist())
         if top > self.level:
             np.greater(self.ratio, self.level, out=self.alarms)
-            self.alarmed, self.below = True, 0
-        elif self.alarmed and self.below < self.release:
-            self.below += 1  # the joints that fired last stay in alarm
+            self.alarmed = True
         elif self.alarmed:
             self.clear()
         return top
 
 
-def held_regime_pass(signal, motion, settings, scales, level, min_duration, envelope=None,
-                     release=0):
+def held_regime_pass(signal, motion, settings, scales, level, min_duration, envelope=None):
     """:class:`AlarmState` over one segment, as a streaming monitor runs it.
 
     ``envelope``: the held motion envelope factor of each sample. Returns
@@ -232,7 +291,7 @@ def held_regime_pass(signal, motion, settings, scales, level, min_duration, enve
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     ratio = np.empty_like(out)
     alarms = np.zeros(signal.shape, dtype=bool)
-    state = AlarmState(signal.shape[1], settings, scales, level, min_duration, release)
+    state = AlarmState(signal.shape[1], settings, scales, level, min_duration)
     for k in range(signal.shape[0]):
         state.step(out[k], motion[k], None if envelope is None else envelope[k:k + 1])
         regimes[k], ratio[k], alarms[k] = state.regime, state.ratio, state.alarms

@@ -15,6 +15,7 @@ from ..layout import block_columns
 from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
 from ..gp import make_sp_p
+from ._regimes import event_rows
 from ._signal import recording_index, segment_starts
 from .rules import AlarmRule
 
@@ -574,22 +575,33 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             ``alarms`` and ``level`` (the rule's :math:`\\gamma`); ``alarms``
             (bool, (n_samples, n_joints): joints that fired in some band),
             ``score`` and ``decision`` (the :meth:`score_samples` and
-            :meth:`decision_function` values). With one rule its stages are
-            also at the top level.
+            :meth:`decision_function` values) and ``event`` (bool,
+            (n_samples,): the rows of a contact event, one per contact:
+            :class:`~sklearn_gpcd.detection.EventHold` on the largest ratio
+            over its band's level). With one rule its stages are also at the
+            top level.
         """
         u = self._normalized(residuals.residual, residuals.std)
         bands = [Bunch(level=-float(rule.offset_),
                        **rule.stages(u, residuals.starts, residuals.motion))
                  for rule in self.rules_]
         alarms = np.logical_or.reduce([band.alarms for band in bands])
+        event = self._events(bands, residuals.starts)
         if len(bands) == 1:
             score = -bands[0].ratio.max(axis=1)
             out = Bunch(bands=bands, alarms=alarms, score=score,
-                        decision=score - self.offset_)
+                        decision=score - self.offset_, event=event)
             out.update({k: v for k, v in bands[0].items() if k not in ("level", "alarms")})
             return out
         decision = np.min([band.level - band.ratio.max(axis=1) for band in bands], axis=0)
-        return Bunch(bands=bands, alarms=alarms, score=decision, decision=decision)
+        return Bunch(bands=bands, alarms=alarms, score=decision, decision=decision, event=event)
+
+    def _events(self, bands, starts):
+        """Rows of a contact event: :func:`event_rows` on the largest ratio over its
+        band's level (1: some joint at its threshold)."""
+        over = np.max([band.ratio.max(axis=1) / max(band.level, np.finfo(float).tiny)
+                       for band in bands], axis=0)
+        return event_rows(over, starts, self.rules_[0].event_hold_samples())
 
     def monitoring_signal(self, X, groups=None):
         """Every stage of the monitoring pipeline for the rows of ``X``.
@@ -667,8 +679,9 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         -------
         y_pred : ndarray of shape (n_samples,)
             -1 where some joint fired in some band: where
-            :meth:`decision_function` is negative, and during an alarm's
-            release time (``Regimes(alarm_release=...)``).
+            :meth:`decision_function` is negative (the rows of a contact
+            *event*, which outlasts its alarms by the release hold, are
+            :meth:`monitoring_signal`'s ``event``).
         """
         return np.where(self.monitoring_signal(X, groups).alarms.any(axis=1), -1, 1)
 

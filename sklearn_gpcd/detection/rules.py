@@ -33,7 +33,8 @@ from ._envelope import (
     over_envelope,
     window_peaks,
 )
-from ._regimes import BRAKING, MOVING, REGIME_NAMES, held_regime_pass, regime_pass
+from ._regimes import (BRAKING, EVENT_HOLD_S, MOVING, REGIME_NAMES, held_regime_pass,
+                       regime_pass)
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
@@ -82,14 +83,9 @@ class Regimes(BaseEstimator):
     alarm_hold : float, default=1.0
         Seconds at most that an alarm holds the regime (and rest reference)
         of its onset: a push that moves a still arm is judged at the rest
-        thresholds while it lasts (one push, one event). 0: no hold.
-    alarm_release : float, default=0.0
-        Seconds the ratio must stay below the level before an alarm ends: a
-        contact whose force dips for less is one event (the joints that
-        fired last stay in alarm; the score follows the ratio). Off by
-        default: on the real UR10e a 0.25 s release also prolongs the alarms
-        that linger after a push at rest, so that the next push starts inside
-        them (results page, issue 38).
+        thresholds while it lasts. 0: no hold. (A contact whose force dips
+        below the threshold for a moment is one *event*:
+        :class:`~sklearn_gpcd.detection.EventHold`, on every path.)
     motion_envelope : float or None, default=None
         Moving thresholds that follow the motion
         (:mod:`sklearn_gpcd.detection._envelope`): joint ``l``'s band widens
@@ -116,18 +112,16 @@ class Regimes(BaseEstimator):
         "brake_limit": [None, Interval(Real, 0, None, closed="neither")],
         "brake_hold": [Interval(Real, 0, None, closed="left")],
         "alarm_hold": [Interval(Real, 0, None, closed="left")],
-        "alarm_release": [Interval(Real, 0, None, closed="left")],
         "motion_envelope": [None, Interval(Real, 0, None, closed="neither")],
     }
 
     def __init__(self, settle_time=0.5, rest_reference=None, brake_limit=None, brake_hold=0.5,
-                 alarm_hold=1.0, alarm_release=0.0, motion_envelope=None):
+                 alarm_hold=1.0, motion_envelope=None):
         self.settle_time = settle_time
         self.rest_reference = rest_reference
         self.brake_limit = brake_limit
         self.brake_hold = brake_hold
         self.alarm_hold = alarm_hold
-        self.alarm_release = alarm_release
         self.motion_envelope = motion_envelope
 
     @property
@@ -465,15 +459,12 @@ class AlarmRule(BaseEstimator):
             (signal[rows], regime[rows], reference[rows], ratio[rows],
              held[rows]) = held_regime_pass(
                 filtered[rows], motion[rows], self.regime_settings(), scales, -self.offset_,
-                self.min_duration, None if factor is None else factor[rows],
-                self.release_samples())
+                self.min_duration, None if factor is None else factor[rows])
         return signal, regime, reference, ratio, held
 
-    def release_samples(self):
-        """Samples below the level that end an alarm (0 without regimes)."""
-        if self.regimes is None:
-            return 0
-        return int(round(self.regimes.alarm_release / self.sample_time_))
+    def event_hold_samples(self):
+        """Samples below the release level that end a contact event (``EVENT_HOLD_S``)."""
+        return max(1, int(round(EVENT_HOLD_S / self.sample_time_)))
 
     # ------------------------------------------------------- calibration
     def calibrate(self, u, starts=None, motion=None, *, sample_time, sigma_v=None, std=None,

@@ -12,7 +12,7 @@ from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..features.inputs import as_recordings
 from ..gp import compile_predictor
-from ._regimes import MOVING, AlarmState
+from ._regimes import MOVING, AlarmState, EventHold
 from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning, reads_currents
 from .task import TaughtTask
 
@@ -49,6 +49,9 @@ class MonitorStatus(str, Enum):
 
     def __str__(self):
         return self.value
+
+
+_TINY = np.finfo(float).tiny
 
 
 def _numbers(value, name):
@@ -158,7 +161,7 @@ class BandState:
         self.level = -float(rule.offset_)
         self.thresholds = np.atleast_2d(np.asarray(rule.thresholds_, dtype=float))
         self.state = AlarmState(n_joints, rule.regime_settings(), rule.scale_, self.level,
-                                rule.min_duration, rule.release_samples())
+                                rule.min_duration)
         # the envelope of the last envelope_hold() samples (a ring)
         self._envelope = (None if getattr(rule, "envelope_", None) is None
                           else np.ones((rule.envelope_hold(), n_joints)))
@@ -362,6 +365,7 @@ class StreamingMonitor(VersionedStateMixin):
         self._u = np.full(n, np.nan)
         self.residual = np.full(n, np.nan) if self._use_std else self._u
         self.bands = [BandState(rule, n) for rule in detector.rules_]
+        self._events = EventHold(detector.rules_[0].event_hold_samples())
         self._motion = None
         if detector.motion_columns_ is not None:
             self._motion_columns = np.asarray(detector.motion_columns_, dtype=np.intp)
@@ -440,9 +444,9 @@ class StreamingMonitor(VersionedStateMixin):
 
     @property
     def event(self):
-        """Whether a contact event is open (:class:`EventHold`; with a taught
-        task, else whether some joint alarms)."""
-        return bool(self.alarms.any()) if self._task_stream is None else self._task_stream.event
+        """Whether a contact event is open (:class:`EventHold`: on the largest
+        ratio over its band's level, or the taught task's)."""
+        return self._events.open if self._task_stream is None else self._task_stream.event
 
     @property
     def taught_joints(self):
@@ -473,6 +477,7 @@ class StreamingMonitor(VersionedStateMixin):
         a long outage; the counters keep running.
         """
         self.last_time = None
+        self._events.step(0.0, restart=True)
         for band in self.bands:
             band.reset()
         if self._task_stream is not None:
@@ -534,12 +539,17 @@ class StreamingMonitor(VersionedStateMixin):
             np.take(self._inputs, self._motion_columns, out=self._motion, mode="clip")
         if len(self.bands) == 1:
             band = self.bands[0]
-            self.score = -band._commit(self._motion)
+            top = band._commit(self._motion)
+            self.score = -top
+            over = top / max(band.level, _TINY)
             alarmed = band.alarmed
         else:
-            self.score = min([band.level - band._commit(self._motion) for band in self.bands])
+            tops = [band._commit(self._motion) for band in self.bands]
+            self.score = min([band.level - top for band, top in zip(self.bands, tops)])
+            over = max([top / max(band.level, _TINY) for band, top in zip(self.bands, tops)])
             np.logical_or.reduce([band.alarms for band in self.bands], out=self.alarms)
             alarmed = any(band.alarmed for band in self.bands)
+        self._events.step(over)
         if self._task_stream is not None:
             alarmed = self._taught_step()
         self.last_time = stamp

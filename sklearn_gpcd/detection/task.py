@@ -63,7 +63,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._gate import DEFAULT_SIGMA_V
 from ..layout import block_columns
-from ._regimes import MOVING
+from ._regimes import EVENT_HOLD_S, MOVING, EventHold
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 
 __all__ = ["EventHold", "TaughtTask", "TaskStream", "drift_features", "local_states",
@@ -80,10 +80,6 @@ LOCAL_NEIGHBOURS = 10
 #: Seconds of motion after a start from rest before the taught thresholds
 #: apply: the breakaway from static friction is history, not state.
 BREAKAWAY_S = 0.25
-#: Release level of an event (ratio of the signal to its threshold).
-RELEASE = 0.5
-#: Seconds below the release level that end an event.
-EVENT_HOLD_S = 0.2
 #: Taught states kept for the novelty search (every k-th row beyond this).
 MAX_TAUGHT_STATES = 20_000
 #: A monitored cycle teaches the drift only if its largest taught ratio
@@ -830,51 +826,6 @@ class TaughtTask(BaseEstimator):
                 "false_alarms_per_hour_bound": 3600.0 / self.period_ / (self.n_cycles_ + 1),
                 "drift_A": self._drift().tolist(),
                 "learned_cycles": int(getattr(self, "learned_cycles_", 0))}
-
-
-class EventHold:
-    """One event per contact: open at an alarm, closed after a hold below release.
-
-    An event opens where the ratio (signal over threshold) reaches 1 and
-    stays open while it is above ``RELEASE`` or has been below it for fewer
-    than ``hold`` samples: a contact whose signal dips under the threshold
-    for a moment is one event, and the next contact, which starts from
-    below the release level, is another.
-
-    Parameters
-    ----------
-    hold : int
-        Samples below release that end an event.
-
-    Examples
-    --------
-    >>> hold = EventHold(3)
-    >>> ratios = [0.2, 1.3, 0.8, 1.1, 0.4, 0.3, 0.2, 0.1, 1.2, 0.1]
-    >>> [int(hold.step(r)) for r in ratios]
-    [0, 1, 1, 1, 1, 1, 0, 0, 1, 1]
-    """
-
-    def __init__(self, hold):
-        self.hold = int(hold)
-        self.open = False
-        self._below = 0
-
-    def step(self, ratio, restart=False):
-        """One sample's ``ratio``; ``restart`` closes any open event first.
-
-        Returns
-        -------
-        open : bool
-        """
-        if restart:
-            self.open, self._below = False, 0
-        if ratio > 1.0:
-            self.open, self._below = True, 0
-        elif self.open:
-            self._below = self._below + 1 if ratio <= RELEASE else 0
-            if self._below >= self.hold:
-                self.open, self._below = False, 0
-        return self.open
 
 
 class TaskStream:

@@ -43,6 +43,23 @@ class _LogHistogram:
         return min(max(centre, self.min), self.max)
 
 
+def _link_text(event):
+    """The link estimate of an event, e.g. ``"link 2 (0.93)"``."""
+    if event.get("link") is None:
+        return "-"
+    return f"{event['link_group']} ({event['link_confidence']:.2f})"
+
+
+def _force_text(event):
+    """The force estimate of an event [N], or ``"no model"``; ``*``: ill-conditioned."""
+    force = event.get("force_N", "no model")
+    if force is None:
+        return "n/a"
+    if isinstance(force, str):
+        return force
+    return f"{force:.0f}" + ("" if event.get("force_well_conditioned") else "*")
+
+
 class _SessionReport:
     """Statistics, text, figures and the report dict of a session."""
 
@@ -77,6 +94,7 @@ class _SessionReport:
                    ("joints", "<12", lambda e: ",".join(map(str, e["joints"]))),
                    (f"peak |m| [{self.units}]", ">12", lambda e: f"{e['peak_A']:.3f}"),
                    ("delay [s]", ">9", lambda e: f"{e['delay_s']:.3f}")]
+        columns += [("link", "<18", _link_text), ("force [N]", ">9", _force_text)]
         if self.task is not None:
             columns.append(("taught", "<6", lambda e: "yes" if e.get("taught") else "no"))
         if self.multiband:
@@ -84,6 +102,9 @@ class _SessionReport:
         out.append("  ".join(f"{name:{spec}}" for name, spec, _ in columns))
         for e in self.events:
             out.append("  ".join(f"{value(e):{spec}}" for _, spec, value in columns))
+        if any(_force_text(e).endswith("*") for e in self.events):
+            out.append("  force *: the joints up to the link do not see every force "
+                       "direction (rank < 3 or ill-conditioned): a lower bound")
         return "\n".join(out)
 
     def summary_text(self, live=False):

@@ -65,6 +65,49 @@ def recording_samples(recording):
         yield float(recording.time[k]), {n: v[k] for n, v in columns.items()}
 
 
+class _ContactPeaks:
+    """Where and how hard, accumulated over an open event: each joint's peak
+    ``|m|`` and peak ``|m| / threshold``, and the sample of the largest ratio
+    (its ``q``, signal and thresholds) for the force."""
+
+    def __init__(self, n_joints):
+        self.peak = np.zeros(n_joints)
+        self.rho = np.zeros(n_joints)
+        self.best, self.sample = -1.0, None
+
+    def add(self, signal, thresholds, q):
+        ratio = np.abs(signal) / thresholds
+        np.maximum(self.peak, np.abs(signal), out=self.peak)
+        np.maximum(self.rho, ratio, out=self.rho)
+        norm = float(np.sum(ratio * ratio))
+        if norm > self.best:
+            self.best = norm
+            self.sample = (np.array(q, dtype=float), np.array(signal, dtype=float),
+                           np.array(thresholds, dtype=float))
+
+    def describe(self, robot, units):
+        """The event's contact fields (see :class:`MonitorSession`'s ``events``)."""
+        # deferred: the contact part loads pinocchio (gpcd starts without it)
+        from ..contact import estimate_force, isolate_contact
+
+        if self.sample is None:
+            return {"link": None, "force_N": "no model"}
+        found = isolate_contact(self.rho[None, :], np.ones_like(self.rho))
+        out = {"peak_per_joint_A": self.peak.round(6).tolist(), "link": found.link,
+               "link_group": found.group, "link_confidence": round(found.confidence, 4)}
+        kt = None if robot is None else getattr(robot, "torque_constants", None)
+        if robot is None or (units == "A" and kt is None):
+            return {**out, "force_N": "no model"}
+        kt = np.ones_like(self.rho) if units != "A" else np.asarray(kt, dtype=float)
+        q, signal, thresholds = self.sample
+        force = estimate_force(robot, q, kt * signal, link=found.link,
+                               torque_std=kt * thresholds)
+        seen = int(force.rank) > 0  # rank 0: no joint up to the link sees the point move
+        return {**out, "force_N": round(float(force.magnitude), 3) if seen else None,
+                "force_rank": int(force.rank),
+                "force_well_conditioned": bool(force.well_conditioned)}
+
+
 def paced(samples, speed, duration=None):
     """Yield ``(received, time, fields)`` at the samples' time stamps / ``speed``.
 
@@ -151,6 +194,9 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         ``SIGNALS`` line per implausible column, all in the report's
         ``signal_findings``. Files are checked before the run instead
         (:func:`sklearn_gpcd.workflow.check_signals`).
+    robot : Robot, default=None
+        The robot model: each event's contact force at its link
+        (:func:`~sklearn_gpcd.contact.estimate_force`); None: ``"no model"``.
 
     Attributes
     ----------
@@ -158,8 +204,20 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
     state : str
         ``"monitoring"``, ``"blind"`` or ``"recovering"``.
     events : list of dict
-        Alarm events (``recording``, ``start_s``, ``end_s``, ``joints``
-        (1-based), ``peak_A``, ``delay_s``; ``bands`` with several bands).
+        Contact events, one per contact (an event ends when the signal has
+        stayed below the release level for the hold time,
+        :class:`~sklearn_gpcd.detection.EventHold`): ``recording``,
+        ``start_s`` (onset), ``end_s`` (last alarm), ``released_s`` (the
+        event closed), ``joints`` (that fired, 1-based), ``peak_A`` and
+        ``peak_per_joint_A`` (largest ``|m|``), ``delay_s``, ``link``,
+        ``link_group`` and ``link_confidence``
+        (:func:`~sklearn_gpcd.contact.isolate_contact` on each joint's peak
+        over its threshold), ``force_N`` (``"no model"`` without a robot
+        model, None when no joint sees the link's frame move), ``force_rank``
+        and ``force_well_conditioned``
+        (:func:`~sklearn_gpcd.contact.estimate_force` at the link's frame, at
+        the sample of largest peak over threshold); ``bands`` with several
+        bands.
     faults : list of dict
         Blind periods (``recording``, ``start_s``, ``kind``, ``reason``,
         ``last_stamp``: the controller time stamp of the last valid sample
@@ -206,7 +264,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
     """
 
     def __init__(self, detector, features, *, hook=None, keep_series=False, echo=False,
-                 band_labels=None, stall_timeout=None, signal_check=None):
+                 band_labels=None, stall_timeout=None, signal_check=None, robot=None):
         # deferred: gpcd starts without scikit-learn (test_architecture.py)
         from ..detection import StreamingMonitor
 
@@ -242,6 +300,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self.live_signals = (None if signal_check is None
                              else LiveSignalCheck(signal_check, self.sample_time))
         self.signal_findings = []
+        self.robot = robot
 
     def _warmup(self, rule):
         """Debounce window plus one low-pass time constant (and the settle time) [s]."""
@@ -335,8 +394,10 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             self._count_taught(rel)
         if mon.alarms.any():
             self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
-        elif self.open is not None and not mon.event:  # a taught event holds (EventHold)
-            self._close()
+        elif self.open is not None and not mon.event:  # an event holds (EventHold)
+            self._close(rel)
+        if self.open is not None:
+            self._contact.add(*self._contact_signal(), fields["q"])
         if self.keep_series:
             s = self.series
             s["t"].append(rel)
@@ -391,6 +452,17 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self._last_rel = rel
         return rel
 
+    def _contact_signal(self):
+        """This tick's signal [A] and thresholds of the band with the largest ratio
+        (the taught task's where it decides)."""
+        mon = self.monitor
+        if self.task is not None and mon.taught:
+            return mon.task_signal, self.task.thresholds_
+        ratios = [np.max(np.abs(band.signal) / thresholds[band.regime])
+                  for band, thresholds in zip(self.bands, self.thresholds)]
+        b = int(np.argmax(ratios))
+        return self.bands[b].signal, self.thresholds[b][self.bands[b].regime]
+
     def _alarm(self, rel, firing):
         """A tick where the bands ``firing`` (indices) alarm: open or extend the event."""
         alarms = self.monitor.alarms
@@ -409,6 +481,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                 self.open["bands"] = set()
             if self.task is not None:
                 self.open["taught"] = taught
+            self._contact = _ContactPeaks(self.monitor.n_joints)
             self._onset(self.open, alarms, firing)
         self.open["end_s"] = rel
         self.open["joints"].update(int(j) + 1 for j in np.flatnonzero(alarms))
@@ -453,9 +526,14 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                               "goes on", HookWarning, stacklevel=3)
         self._hooks = running
 
-    def _close(self):
+    def _close(self, rel=None):
         event = self.open
+        if rel is None:  # the stream ended or went blind: its last valid time
+            rel = event["end_s"] if self._last_rel is None else max(self._last_rel,
+                                                                    event["end_s"])
+        event["released_s"] = rel
         event["joints"] = sorted(event["joints"])
+        event.update(self._contact.describe(self.robot, self.units))
         if self.multiband:
             event["bands"] = sorted(event["bands"])
         self.events.append(event)

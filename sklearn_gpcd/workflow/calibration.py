@@ -1051,6 +1051,46 @@ CHECK_CHUNK_ROWS = 50_000
 CHECK_PREDICTED_ROWS = 2_000
 
 
+def detector_robot(calibrated, robot=None):
+    """The robot model a detector file names (its calibration's, else its model's).
+
+    Parameters
+    ----------
+    calibrated : CalibratedDetector
+        What :func:`calibrate_detector` or :func:`load_detector` returned.
+    robot : Robot, str or None, default=None
+        The robot when the file names none.
+
+    Returns
+    -------
+    robot : Robot or None
+        None when no robot is named, it cannot be loaded, or its number of
+        joints is not the detector's.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> calibrated = CalibratedDetector(None, SimpleNamespace(n_joints_=6), {"robot": "ur10e"})
+    >>> detector_robot(calibrated).name
+    'ur10e'
+    >>> detector_robot(calibrated._replace(calibration={})) is None
+    True
+    """
+    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
+    from ..robots import load_robot
+
+    _, features, calibration = calibrated
+    training = calibration.get("training") or {}
+    name = calibration.get("robot") or training.get("robot") or robot
+    if name is None:
+        return None
+    try:
+        robot = load_robot(name) if isinstance(name, str) else name
+    except (ValueError, OSError):
+        return None
+    return robot if robot.n_joints == features.n_joints_ else None
+
+
 def signal_check(calibrated, robot=None):
     """A :class:`~sklearn_gpcd.io.SignalCheck` with what a detector file knows.
 
@@ -1082,25 +1122,17 @@ def signal_check(calibrated, robot=None):
     >>> check.current_limits.round(1).tolist()   # 1.5 effort limit / torque constant [A]
     [41.3, 41.3, 22.9, 7.8, 7.8, 7.8]
     """
-    # deferred: pinocchio, loaded when a robot is (gpcd starts without it)
-    from ..robots import load_robot
-
     detector, features, calibration = calibrated
     detector = untaught_detector(detector)
     training = calibration.get("training") or {}
     ranges = calibration.get("signal_ranges") or training.get("signal_ranges")
-    name = calibration.get("robot") or training.get("robot") or robot
+    robot = detector_robot(calibrated, robot)
     limits = current = None
-    if name is not None:
-        try:
-            robot = load_robot(name) if isinstance(name, str) else name
-        except (ValueError, OSError):
-            robot = None
-        if robot is not None and robot.n_joints == features.n_joints_:
-            limits = [robot.lower, robot.upper]
-            kt = getattr(robot, "torque_constants", None)
-            if kt is not None and (ranges or {}).get("units", "A") == "A":
-                current = DRIVE_SLACK * np.asarray(robot.effort_limits) / np.asarray(kt)
+    if robot is not None:
+        limits = [robot.lower, robot.upper]
+        kt = getattr(robot, "torque_constants", None)
+        if kt is not None and (ranges or {}).get("units", "A") == "A":
+            current = DRIVE_SLACK * np.asarray(robot.effort_limits) / np.asarray(kt)
     thresholds = [np.max(np.atleast_2d(rule.thresholds_), axis=0)
                   for rule in getattr(detector, "rules_", ())
                   if getattr(detector, "normalize", None) is None]  # else in std units
