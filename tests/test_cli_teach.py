@@ -102,6 +102,14 @@ def test_monitor_with_the_taught_detector_catches_the_push(work, capsys):
     # calibrated on other motions and rings at the task's stops)
     assert all(not e["taught"] for e in events if e not in inside)
     assert result["recordings"][0]["taught_s"] > 0
+    # how well it protects, in N at the flange (the UR10 model the files name):
+    # finer in taught motion than where the calibrated thresholds decide
+    protected = result["recordings"][0]["protected_N"]
+    assert 0 < protected["taught"]["median"] < protected["untaught"]["median"]
+    assert "protected at <=" in text
+    plots = work["folder"] / "plots"
+    assert main(["monitor", str(taught), str(work["push"]), "-q", "--plot", str(plots)]) in (0, 1)
+    assert (plots / "push.png").stat().st_size > 0
     # a detector that was not taught says so
     main(["monitor", str(work["detector"]), str(work["push"]), "-q", "--json", str(report)])
     assert "not taught any task" in capsys.readouterr().out

@@ -81,6 +81,7 @@ class _SessionReport:
             out.append(f"  taught task: {taught:.1f} s in taught motion, {untaught:.1f} s of "
                        f"untaught motion ({100 * untaught / moving if moving else 0:.0f} % of the "
                        "motion: the calibrated thresholds there)")
+        out += self._protection_lines()
         if self.multiband:
             for b, label in enumerate(self.band_labels, start=1):
                 n_events = sum(b in e["bands"] for e in self.events)
@@ -106,6 +107,25 @@ class _SessionReport:
             out.append("  force *: the joints up to the link do not see every force "
                        "direction (rank < 3 or ill-conditioned): a lower bound")
         return "\n".join(out)
+
+    def _protection_lines(self):
+        """``protected at <= X N`` over the recordings' moving time (with a model)."""
+        lines = []
+        for name in ("taught", "untaught"):
+            figures = [r["protected_N"][name] for r in self.recordings
+                       if name in r.get("protected_N", {})]
+            if figures:
+                worst = max(figures, key=lambda f: f["median"])
+                motion = f"{name} motion" if self.task is not None else "while moving"
+                lines.append(f"  protected at <= {worst['median']:.0f} N at the flange "
+                             f"{motion} (median; 90 % of the time <= {worst['p90']:.0f} N"
+                             + (", worst recording" if len(figures) > 1 else "") + ")")
+        never = sum(r.get("protected_N", {}).get("never_protected_samples", 0)
+                    for r in self.recordings)
+        if never:
+            lines.append(f"  {never} moment(s) in motion where some force at the flange "
+                         "is never seen (a singular pose)")
+        return lines
 
     def summary_text(self, live=False):
         """:meth:`events_text`, then (``live``) the tick latency and drops, and the
@@ -171,7 +191,10 @@ class _SessionReport:
         signal, regime = np.asarray(s["signal"]), np.asarray(s["regime"], dtype=int)
         alarms = np.asarray(s["alarms"], dtype=bool)
         n = signal.shape[2] if signal.ndim == 3 else 0
-        fig, axes = plt.subplots(max(n, 1), 1, figsize=(9, 1.6 * max(n, 1) + 0.8),
+        protected = np.asarray(s.get("protected", []), dtype=float)
+        extra = int(protected.size == t.size and np.isfinite(protected).any())
+        fig, axes = plt.subplots(max(n, 1) + extra, 1,
+                                 figsize=(9, 1.6 * (max(n, 1) + extra) + 0.8),
                                  sharex=True, squeeze=False)
         events = [e for e in self.events if e["recording"] == key]
         draw = self._draw_ratios if self.multiband else self._draw_signal
@@ -184,6 +207,13 @@ class _SessionReport:
             if alarms[:, j].any():
                 ax.plot(t[alarms[:, j]], np.zeros(alarms[:, j].sum()), "|", color="k", ms=8,
                         label="alarm")
+            ax.tick_params(labelsize=7)
+            ax.legend(fontsize=6, loc="upper right")
+        if extra:
+            ax = axes[-1, 0]
+            ax.plot(t, protected, lw=0.8, color="C2", label="moving (10 Hz)")
+            ax.set_yscale("log")
+            ax.set_ylabel("protected at\n<= X [N]", fontsize=8)
             ax.tick_params(labelsize=7)
             ax.legend(fontsize=6, loc="upper right")
         axes[-1, 0].set_xlabel("t [s]")

@@ -21,6 +21,8 @@ MAX_SIGNAL_FINDINGS = 100
 
 #: Untaught motion [s] after which a stretch is announced and counted.
 UNTAUGHT_NOTICE_S = 0.25
+#: Rate [Hz] of the "protected at <= X N" figure while the arm moves.
+PROTECTION_RATE = 10.0
 
 
 class HookWarning(UserWarning):
@@ -63,6 +65,51 @@ def recording_samples(recording):
     columns = {n: getattr(recording, n) for n in names if getattr(recording, n) is not None}
     for k in range(recording.n_samples):
         yield float(recording.time[k]), {n: v[k] for n, v in columns.items()}
+
+
+class _Protection:
+    """``protected_force`` at the flange while the arm moves, every
+    1/PROTECTION_RATE s: the thresholds that decided the tick, in Nm through the
+    torque constants; percentiles in fixed memory, per recording."""
+
+    def __init__(self, robot, sample_time):
+        self.robot = robot
+        self.every = max(1, int(round(1.0 / (PROTECTION_RATE * sample_time))))
+        self.start()
+
+    def start(self):
+        self.n, self.taught, self.untaught = 0, _LogHistogram(), _LogHistogram()
+        self.never = 0  # moving samples where some force is never seen (X = inf)
+        self.last = math.nan
+
+    def add(self, monitor, q, units):
+        """One tick; returns the last protected force [N] (NaN at rest)."""
+        self.n += 1
+        if monitor.regime != 0:
+            self.last = math.nan
+            return self.last
+        if self.n % self.every:
+            return self.last
+        # deferred: the contact part loads pinocchio (gpcd starts without it)
+        from ..contact import protected_force
+
+        kt = 1.0 if units != "A" else np.asarray(self.robot.torque_constants, dtype=float)
+        self.last = protected_force(self.robot, q, monitor.applied_thresholds * kt)
+        if not math.isfinite(self.last):
+            self.never += 1
+        else:
+            (self.taught if monitor.taught else self.untaught).add(self.last)
+        return self.last
+
+    def summary(self):
+        """``protected_N``: median and 90th percentile [N], taught and untaught motion."""
+        out = {}
+        for name, hist in (("taught", self.taught), ("untaught", self.untaught)):
+            if hist.n:
+                out[name] = {"median": round(hist.percentile(50), 1),
+                             "p90": round(hist.percentile(90), 1), "samples": hist.n}
+        out["never_protected_samples"] = self.never
+        return out
 
 
 class _ContactPeaks:
@@ -301,6 +348,9 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                              else LiveSignalCheck(signal_check, self.sample_time))
         self.signal_findings = []
         self.robot = robot
+        kt = None if robot is None else getattr(robot, "torque_constants", None)
+        self.protection = (None if kt is None or getattr(robot, "model", None) is None
+                           else _Protection(robot, self.sample_time))
 
     def _warmup(self, rule):
         """Debounce window plus one low-pass time constant (and the settle time) [s]."""
@@ -329,6 +379,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             self.live_signals.reset()
         self._lost = 0  # samples lost in the current blind period
         self._taught_n = self._untaught_n = self._untaught_run = 0
+        if self.protection is not None:
+            self.protection.start()
         self._untaught_stretches = []  # [start_s, end_s] of untaught motion
 
     def tick(self, t, fields, received=None):
@@ -398,8 +450,11 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             self._close(rel)
         if self.open is not None:
             self._contact.add(*self._contact_signal(), fields["q"])
+        protected = (math.nan if self.protection is None else
+                     self.protection.add(mon, fields["q"], self.units))
         if self.keep_series:
             s = self.series
+            s.setdefault("protected", []).append(protected)
             s["t"].append(rel)
             s["stamp"].append(t)
             s["signal"].append([band.signal.copy() for band in self.bands])
@@ -456,12 +511,15 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         """This tick's signal [A] and thresholds of the band with the largest ratio
         (the taught task's where it decides)."""
         mon = self.monitor
-        if self.task is not None and mon.taught:
-            return mon.task_signal, self.task.thresholds_
         ratios = [np.max(np.abs(band.signal) / thresholds[band.regime])
                   for band, thresholds in zip(self.bands, self.thresholds)]
         b = int(np.argmax(ratios))
-        return self.bands[b].signal, self.thresholds[b][self.bands[b].regime]
+        signal, thresholds = self.bands[b].signal, self.thresholds[b][self.bands[b].regime]
+        if self.task is not None and mon.taught:   # joint by joint (stiction gate)
+            joints = mon.taught_joints
+            signal = np.where(joints, mon.task_signal, signal)
+            thresholds = np.where(joints, self.task.thresholds_, thresholds)
+        return signal, thresholds
 
     def _alarm(self, rel, firing):
         """A tick where the bands ``firing`` (indices) alarm: open or extend the event."""
@@ -554,6 +612,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             summary.update(taught_s=self._taught_n * self.sample_time,
                            untaught_motion_s=self._untaught_n * self.sample_time,
                            untaught_stretches=stretches[:MAX_FAULT_RECORDS])
+        if self.protection is not None:
+            summary["protected_N"] = self.protection.summary()
         return summary
 
     # ------------------------------------------------------------ sources
