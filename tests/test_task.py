@@ -121,9 +121,14 @@ def test_streaming_equals_batch(taught):
     det, task = taught
     push = Contact(link=3, start=5.4, duration=0.5, force=[0.0, 0.0, -60.0])
     X = _block(simulate(_cycles(2), "ur10", contacts=[push], random_state=5))
+    _assert_stream_equals_batch(task, X)
+
+
+def _assert_stream_equals_batch(task, X):
+    """TaskStream, tick by tick, against the batch decisions of ``X``."""
     batch = task.monitoring_signal(X)
     stream = task.stream()
-    n = det.n_joints
+    n = task.n_joints_
     for i in range(len(X)):
         alarm, is_taught = stream.step(X[i, :-n], X[i, -n:], batch.general_alarms[i],
                                        moving=batch.moving[i])
@@ -250,16 +255,7 @@ def test_streaming_equals_batch_after_learning(taught, warm_up):
     det, task = taught
     learned, _ = _monitor_and_learn(task, warm_up, learn=True)
     assert np.abs(learned.drift_).max() > 0
-    X = warm_up[-1]
-    batch = learned.monitoring_signal(X)
-    stream = learned.stream()
-    n = det.n_joints
-    for i in range(len(X)):
-        alarm, is_taught = stream.step(X[i, :-n], X[i, -n:], batch.general_alarms[i],
-                                       moving=batch.moving[i])
-        assert is_taught == batch.taught[i]
-        np.testing.assert_allclose(stream.signal, batch.signal[i], rtol=1e-9, atol=1e-12)
-        np.testing.assert_array_equal(alarm, batch.alarms[i])
+    _assert_stream_equals_batch(learned, warm_up[-1])
 
 
 def test_a_slow_push_ramp_is_detected_not_learned(taught):

@@ -117,25 +117,26 @@ def update_task(taught, recordings, *, keys=None):
 
     Examples
     --------
+    A task taught as in :func:`teach_task`'s example, then given two more logs:
+
     >>> import numpy as np
+    >>> from sklearn_gpcd.io import Recording
+    >>> t = np.arange(0, 16, 0.01)
+    >>> q = np.sin(np.pi * t / 2)[:, None]
     >>> from sklearn.frozen import FrozenEstimator
     >>> from sklearn.linear_model import Ridge
     >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
     >>> from sklearn_gpcd.features import CausalFeatures
-    >>> from sklearn_gpcd.io import Recording
-    >>> t = np.arange(0, 16, 0.01)
-    >>> q = np.sin(2 * np.pi * t / 4)[:, None]
-    >>> rec = Recording(time=t, q=q, qd=np.gradient(q[:, 0], t)[:, None],
-    ...                 current=0.2 * np.tanh(np.gradient(q[:, 0], t))[:, None])
+    >>> qd = np.gradient(q[:, 0], t)[:, None]
+    >>> rec = Recording(time=t, q=q, qd=qd, current=0.2 * np.tanh(qd))
     >>> features = CausalFeatures(signals=()).fit([rec])
-    >>> X = features.transform(rec)
-    >>> det = CollisionDetector(FrozenEstimator(Ridge().fit(X, rec.current)),
-    ...                         rules=AlarmRule(contamination=0.01), sample_time=0.01)
-    >>> det = det.fit(stack_currents(X, rec.current))
-    >>> taught = teach_task(CalibratedDetector(det, features, {}), [rec])
-    >>> updated = update_task(taught, [rec])
-    >>> updated.calibration["teach"]["learning"][0]["cycles"]
-    4
+    >>> ridge = FrozenEstimator(Ridge().fit(features.transform(rec), rec.current))
+    >>> rows = stack_currents(features.transform(rec), rec.current)
+    >>> det = CollisionDetector(ridge, rules=AlarmRule(contamination=0.01), sample_time=0.01)
+    >>> taught = teach_task(CalibratedDetector(det.fit(rows), features, {}), [rec])
+    >>> updated = update_task(taught, [rec, rec])
+    >>> [entry["cycles"] for entry in updated.calibration["teach"]["learning"]]
+    [4, 4]
     """
     task = copy.deepcopy(taught.detector)
     if not hasattr(task, "partial_fit"):
