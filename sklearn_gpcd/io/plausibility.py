@@ -28,6 +28,13 @@ Model-free checks (the readers' single
   scaled down). Unlike a correlation test, this needs no motion: a
   velocity that is not zero at rest integrates to a travel the positions
   never show.
+* the reverse at rest: a position cannot span more than the path its
+  velocity allows, :math:`\max q_j - \min q_j \le \int |\dot q_j|\,dt`.
+  A span beyond :data:`SPAN_FACTOR` times that path plus
+  :data:`FROZEN_STEPS` of the position's smallest steps is a velocity
+  scaled down or frozen (``qd`` x0.001 of a push at rest: the UR10e log
+  moves 11-26 encoder steps while ``qd`` is 0 at 4 decimals; the
+  recordings of the data set stay within 2 steps where ``qd`` is 0).
 
 Checks against what the model knows (:class:`SignalCheck` with the ranges
 :func:`signal_ranges` of the training and calibration recordings, stored in
