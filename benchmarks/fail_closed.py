@@ -48,7 +48,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -57,118 +56,12 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # this checkout's package
 sys.path.insert(0, str(ROOT / "tests"))  # the crafting functions of the tests
 import test_fail_closed as tfc  # noqa: E402
-from _live import free_runs, linear_bundle, with_pushes  # noqa: E402
 from test_model_files import _Payload  # noqa: E402
 
-from sklearn.linear_model import LinearRegression  # noqa: E402
-
 from sklearn_gpcd.cli import main as gpcd  # noqa: E402
-from sklearn_gpcd.io import write_rtde_csv  # noqa: E402
-from sklearn_gpcd.persistence import save  # noqa: E402
-from sklearn_gpcd.workflow import (DETECTOR_KIND, MODEL_KIND, CalibratedDetector,  # noqa: E402
-                                   save_detector)
+from sklearn_gpcd.workflow import DETECTOR_KIND  # noqa: E402
 
 RESULTS = ROOT / "docs" / "_static" / "results"
-
-
-def make_good(folder):
-    """The valid detector and model files, a run and a pushed run (as the tests')."""
-    runs = free_runs(n=2, n_targets=1)
-    detector, features = linear_bundle(runs)
-    path = save_detector(CalibratedDetector(detector, features, {"margin": 1.5}),
-                         folder / "detector.skops")
-    regressor = LinearRegression().fit(np.eye(3), np.eye(3)[:, :2])
-    model = save({"kind": MODEL_KIND, "regressor": regressor, "features": None,
-                  "training": {}}, folder / "model.skops")
-    recording = write_rtde_csv(runs[0], folder / "run.csv", robot_comment=True)
-    pushed = write_rtde_csv(with_pushes(runs[0], [0.5, 1.5]), folder / "push.csv",
-                            robot_comment=True)
-    return {"folder": folder, "detector": path, "model": model, "recording": recording,
-            "objects": (detector, features), "run": runs[0], "pushed": pushed}
-
-
-# ------------------------------------------------------------------ 1. files
-def _archive_case(good, target, case):
-    """The malformed archives of ``test_a_malformed_archive_is_one_line``."""
-    entries = tfc.entries_of(good["detector"])
-    arrays = sorted(n for n in entries if n.endswith(".npy"))
-    if case == "no schema":
-        del entries["schema.json"]
-    elif case == "schema a list":
-        entries["schema.json"] = b"[1, 2, 3]"
-    elif case == "schema not JSON":
-        entries["schema.json"] = entries["schema.json"][:1000]
-    elif case == "schema without protocol":
-        schema = json.loads(entries["schema.json"])
-        del schema["protocol"]
-        entries["schema.json"] = json.dumps(schema).encode()
-    elif case == "missing array":
-        del entries[arrays[0]]
-    elif case == "array header 134 GiB":
-        header = np.lib.format.header_data_from_array_1_0(np.zeros(1))
-        header["shape"] = (18_000_000_000,)
-        out = io.BytesIO()
-        np.lib.format.write_array_header_1_0(out, header)
-        entries[arrays[0]] = out.getvalue() + bytes(64)
-    elif case == "truncated array":
-        entries[arrays[0]] = entries[arrays[0]][:-8]
-    elif case == "array of objects":
-        out = io.BytesIO()
-        np.save(out, np.array([None, 1], dtype=object), allow_pickle=True)
-        entries[arrays[0]] = out.getvalue()
-    return tfc.write_entries(target, entries)
-
-
-def _filter_case(good, target, a):
-    entries = tfc.entries_of(good["detector"])
-    schema = json.loads(entries["schema.json"])
-    for node in tfc.array_nodes(schema, "filter_coefficients_"):
-        out = io.BytesIO()
-        np.save(out, np.array(a))
-        entries[node["content"][1]["file"]] = out.getvalue()
-    return tfc.write_entries(target, entries)
-
-
-def _param_case(good, target):
-    entries = tfc.entries_of(good["detector"])
-    schema = json.loads(entries["schema.json"])
-    for node in tfc.array_nodes(schema, "min_duration"):
-        node["content"] = "-3"
-    entries["schema.json"] = json.dumps(schema).encode()
-    return tfc.write_entries(target, entries)
-
-
-def _zip_bomb(good, target):
-    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as archive:
-        archive.writestr("schema.json", tfc.entries_of(good["detector"])["schema.json"])
-        with archive.open("zeros.npy", "w", force_zip64=True) as member:
-            block = bytes(1 << 24)
-            for _ in range(256):  # 4 GiB of zeros
-                member.write(block)
-    return target
-
-
-def _pinocchio_cases(folder):
-    """Model files whose pinocchio model text is cut in half, or huge."""
-    from sklearn_gpcd.robots import load_robot
-    from sklearn_gpcd.robots.robot import MAX_MODEL_TEXT
-
-    path = save({"kind": MODEL_KIND, "regressor": LinearRegression().fit(np.eye(2), [0, 1]),
-                 "features": None, "training": {}, "robot": load_robot("ur10")},
-                folder / "robot.skops")
-    entries = tfc.entries_of(path)
-    text = json.loads(entries["schema.json"])
-    node = tfc.array_nodes(text, "model")[0]
-    original = json.loads(node["content"])
-    out = []
-    for label, changed in [("truncated", original[: len(original) // 2]),
-                           ("huge", original + " 0" * (MAX_MODEL_TEXT // 2))]:
-        node["content"] = json.dumps(changed)
-        entries["schema.json"] = json.dumps(text).encode()
-        out.append((f"pinocchio model text {label}", "model",
-                    tfc.write_entries(folder / f"pinocchio_{label}.skops", dict(entries),
-                                      zipfile.ZIP_DEFLATED)))
-    return out
 
 
 #: Code a crafted file asks the loader to call (skops' reduce node).
@@ -203,21 +96,20 @@ def crafted_files(good):
     for a, label in (([np.nan, np.nan], "NaN"), ([1.0, -1.5], "unstable"),
                      ([1.0, -1.0], "marginally stable"), ([0.0, 0.5], "a[0] = 0")):
         cases.append((f"filter coefficients {label}", "detector",
-                      _filter_case(good, folder / f"filter_{label}.skops", a)))
+                      tfc.filter_file(good, folder / f"filter_{label}.skops", a)))
     cases.append(("thresholds for 3 joints", "detector",
                   tfc.edit_arrays(det, folder / "shape.skops", "thresholds_",
                                   lambda a: a[..., :3])))
-    cases.append(("min_duration = -3", "detector", _param_case(good, folder / "param.skops")))
+    cases.append(("min_duration = -3", "detector",
+                  tfc.parameter_file(good, folder / "param.skops")))
     data = bytearray(det.read_bytes())
     data[-512:] = b"\0" * 512
     (folder / "overwritten.skops").write_bytes(bytes(data))
     cases.append(("zip directory overwritten", "detector", folder / "overwritten.skops"))
-    for case in ("no schema", "schema a list", "schema not JSON", "schema without protocol",
-                 "missing array", "array header 134 GiB", "truncated array",
-                 "array of objects"):
-        cases.append((case, "detector",
-                      _archive_case(good, folder / f"{case.replace(' ', '_')}.skops", case)))
-    cases.append(("zip bomb 4 GiB", "detector", _zip_bomb(good, folder / "bomb.skops")))
+    for case in tfc.ARCHIVE_CASES:
+        cases.append((case, "detector", tfc.malformed_archive(
+            good, folder / f"{case.replace(' ', '_')}.skops", case)))
+    cases.append(("zip bomb 4 GiB", "detector", tfc.zip_bomb(good, folder / "bomb.skops")))
     for target, args in CALLS:
         cases.append((f"calls {target}", "detector",
                       tfc.craft_call(folder / f"call_{target}.skops", good, target, args)))
@@ -228,7 +120,8 @@ def crafted_files(good):
     cases.append(("model coef_ NaN", "model",
                   tfc.edit_arrays(good["model"], folder / "model_nan.skops", "coef_",
                                   lambda a: a * np.nan)))
-    cases.extend(_pinocchio_cases(folder))
+    cases.extend((f"pinocchio model text {label}", "model", path)
+                 for label, path, _ in tfc.pinocchio_files(folder))
     return cases
 
 
@@ -476,7 +369,7 @@ def main(argv=None):
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        good = make_good(tmp)
+        good = tfc.make_good(tmp)
         for part, probe in (("files", lambda: files_probe(good)),
                             ("writes", lambda: writes_probe(good, tmp)),
                             ("stops", lambda: stops_probe(good, tmp)),
