@@ -25,7 +25,7 @@ through ``gpcd monitor`` in process (the checked-out code). Outcomes:
 
 False warnings (``--clean``): the same checks (:func:`sklearn_gpcd.workflow.
 check_signals`, all kinds collected) over every UNMUTATED real recording: the
-44 UR10e CSVs against the detector (those without ``target_current``, which
+45 UR10e CSVs against the detector (those without ``target_current``, which
 the model needs, and the other arms, Panda and UR10, through the model-free
 checks of :class:`~sklearn_gpcd.io.SignalCheck`). The checks' constants
 were chosen on the recordings the model knows (``tuning``: the training and
@@ -216,27 +216,32 @@ def outcome(result, base, columns):
     return "warned" if named else "silent"
 
 
-#: Finding kinds collected (none raises) in the ``--clean`` pass.
-ALL_KINDS = ("units", "current", "limits", "time", "range")
+#: The statistics of the ``--clean`` pass and the value above which each is reported.
+LIMITS = (("quiet_share", 0.5), ("span_steps", 10), ("permutation_gain", 0.5))
 
 
 def _findings(rec, calibrated, name):
-    """Every finding of ``check_signals``; the model-free ones without a prediction."""
+    """Every finding of the checks ``check_signals`` runs (none raises), their
+    statistics (how near each is to its verdict) and which checks ran: with
+    the model's prediction, or without (its inputs not logged, another arm)."""
     from sklearn_gpcd.io import SignalCheck
-    from sklearn_gpcd.workflow import check_signals, signal_check
+    from sklearn_gpcd.workflow import fed_signal_check, signal_check
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        how, check = "model-free", None
         if calibrated is None:
             check = SignalCheck(rec.n_joints)
         else:
             try:
-                return check_signals(rec, calibrated, accept=ALL_KINDS, name=name), "model"
+                check, how = fed_signal_check(rec, calibrated, name=name), "model"
             except ValueError as exc:  # the model's inputs are not logged
                 if "target_current" not in str(exc):
                     raise
-            check = signal_check(calibrated)
-        return check.update(rec.time, rec.q, rec.qd, rec.current).findings(), "model-free"
+                check = signal_check(calibrated)
+        if how == "model-free":
+            check.update(rec.time, rec.q, rec.qd, rec.current)
+        return check.findings(), check.statistics(), how
 
 
 def _other_arms(data_root):
@@ -275,15 +280,21 @@ def clean_recordings(root, detector):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             rec = load_recording(path)
-        found, how = _findings(rec, calibrated, key)
+        found, stats, how = _findings(rec, calibrated, key)
         rows.append({"recording": f"{bench.DATASET}/{key}", "set": "tuning"
                      if path.resolve() in tuning else "held_out", "checks": how,
-                     "findings": [f._asdict() for f in found]})
+                     "findings": [f._asdict() for f in found], "statistics": stats})
     for key, rec in _other_arms(root.parent):
-        found, how = _findings(rec, None, key)
+        found, stats, how = _findings(rec, None, key)
         rows.append({"recording": key, "set": "held_out", "checks": how,
-                     "findings": [f._asdict() for f in found]})
+                     "findings": [f._asdict() for f in found], "statistics": stats})
     return rows
+
+
+def _largest(rows, name):
+    values = [v for r in rows for v in np.atleast_1d(r["statistics"][name])]
+    values = [v for v in values if np.isfinite(v)]
+    return max(values) if values else float("nan")
 
 
 def _clean_summary(rows):
@@ -299,6 +310,8 @@ def _clean_summary(rows):
         lines.append(f"{part}: {len(mine)} recordings, {flagged} with a finding"
                      + (" (" + ", ".join(f"{v} {k}" for k, v in sorted(kinds.items())) + ")"
                         if kinds else ""))
+        lines.append("  largest statistics (reported above): " + "; ".join(
+            f"{name} {_largest(mine, name):.3g} ({limit:g})" for name, limit in LIMITS))
     for r in rows:
         lines.append(f"  {r['set']:8s} {r['checks']:10s} {r['recording']}: "
                      + ("; ".join(f"{f['severity']} {f['kind']} {','.join(f['columns'])}"

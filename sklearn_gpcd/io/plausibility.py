@@ -29,7 +29,7 @@ Model-free checks (the readers' single
   velocity that is not zero at rest integrates to a travel the positions
   never show.
 * the reverse at rest: a position cannot span more than the path its
-  velocity allows, :math:`\max q_j - \min q_j \le \int |\dot q_j|\,dt`.
+  velocity allows, :math:`\\max q_j - \\min q_j \\le \\int |\\dot q_j|\\,dt`.
   A span beyond :data:`SPAN_FACTOR` times that path plus
   :data:`FROZEN_STEPS` of the position's smallest steps is a velocity
   scaled down or frozen (``qd`` x0.001 of a push at rest: the UR10e log
@@ -54,8 +54,19 @@ the model and detector files; ``gpcd calibrate``, ``gpcd monitor`` and
   that errs stay within their thresholds). Ratios
   near 0 are not judged (the UR10e model errs that way at some poses of
   the jointwise runs); a current scaled down leaves the training range
-  (a warning); This holds at rest,
-  where gravity alone sets the current;
+  (a warning); this holds at rest, where gravity alone sets the current;
+* currents below the sensor noise: the step :math:`|i_j(t_{k+1}) -
+  i_j(t_k)|` under :math:`1/`:data:`NOISE_FACTOR` of ``current_noise`` (the
+  smallest median step of the recordings the model knows, per joint) on
+  most samples is a current scaled down (x0.001) or frozen, in motion and
+  at rest alike (an error; UR10e: 0.011-0.039 A per joint);
+* permuted currents: the clipped residual :math:`c_{ab} = \\overline{\\min(
+  |i_a - \\hat\\imath_b| / s_b, 3)}` of column ``a`` read as joint ``b``
+  (``s_b`` the detector's loosest threshold) is summed over the permutation
+  that minimizes it (every permutation up to 7 joints); when it beats the
+  columns as labelled by more than :data:`PERMUTATION_GAIN`, the moved
+  columns are named (an error). At rest gravity sets the prediction, so
+  two joints of different loads swapped are caught standing still;
 * joint positions beyond the robot's limits (an error), or outside the
   training range (a warning: the model extrapolates there, which a
   scaled or swapped ``q`` also does);
@@ -612,6 +623,40 @@ class SignalCheck:
         found = [f for f in found if f is not None]
         return sorted(found, key=lambda f: f.severity != "error")
 
+    def statistics(self):
+        """How near each column check is to its verdict, for choosing and auditing limits.
+
+        Returns
+        -------
+        statistics : dict
+            ``"quiet_share"``: per joint, the share of current steps below
+            the noise floor (reported above :data:`QUIET_SHARE`);
+            ``"span_steps"``: per joint, the span of ``q`` beyond
+            :data:`SPAN_FACTOR` times its velocity's path, in position steps
+            (reported above :data:`FROZEN_STEPS`); ``"permutation_gain"``:
+            what the best permutation of the current columns gains
+            (reported above :data:`PERMUTATION_GAIN`). NaN where not judged.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> t = np.arange(100) * 0.01
+        >>> stats = SignalCheck(1).update(t, np.c_[t], np.c_[np.ones(100)],
+        ...                               np.zeros((100, 1))).statistics()
+        >>> stats["span_steps"]
+        [0.0]
+        """
+        quiet, n = self._quiet
+        span = self._span[1] - self._span[0]
+        step = np.where(np.isfinite(self._q_step) & (self._q_step > 0), self._q_step, np.nan)
+        with np.errstate(invalid="ignore"):
+            beyond = np.maximum(span - SPAN_FACTOR * self._path, 0.0) / step
+        beyond = np.where(np.isfinite(span) & (span == 0), 0.0, beyond)
+        gain = self._permutation()[1]
+        return {"quiet_share": [float(v) for v in (quiet / n if n else np.full(self.n_joints,
+                                                                                np.nan))],
+                "span_steps": [float(v) for v in beyond], "permutation_gain": gain}
+
     def _time_finding(self):
         total, n = self._log_dt
         if not self.sample_time or n < MIN_STEPS:
@@ -685,16 +730,20 @@ class SignalCheck:
                                "another signal."))
         return out
 
-    def _permutation_finding(self):
-        """Current columns that match the model's prediction far better permuted."""
+    def _permutation(self):
+        """The best permutation of the current columns and what it gains (NaN: none)."""
         total, n = self._residual
         if n < MIN_SAMPLES:
-            return None
+            return np.arange(self.n_joints), float("nan")
         cost = total / n
         best = _best_assignment(cost)
-        gain = float(np.trace(cost) - cost[np.arange(len(best)), best].sum())
+        return best, float(np.trace(cost) - cost[np.arange(len(best)), best].sum())
+
+    def _permutation_finding(self):
+        """Current columns that match the model's prediction far better permuted."""
+        best, gain = self._permutation()
         moved = np.flatnonzero(best != np.arange(len(best)))
-        if gain <= PERMUTATION_GAIN or not moved.size:
+        if not gain > PERMUTATION_GAIN or not moved.size:
             return None
         cols = [self._label("current", j) for j in moved]
         pairs = ", ".join(f"{self._label('current', j)} as joint {best[j]}" for j in moved)
