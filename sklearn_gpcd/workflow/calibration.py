@@ -1132,16 +1132,17 @@ def fed_signal_check(recording, calibrated, *, name=None):
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from sklearn_gpcd.io import Recording
     >>> from sklearn_gpcd.workflow import calibrate_detector, train_model
-    >>> t = np.arange(600) * 0.01
-    >>> recs = [Recording(time=t, q=np.c_[np.sin(t + p)], qd=np.c_[np.cos(t + p)],
-    ...                   current=np.c_[2 + np.sin(t + p)], target_current=np.c_[2 + np.sin(t + p)])
-    ...         for p in (0.0, 1.0, 2.0)]
-    >>> calibrated = calibrate_detector(train_model(recs[:1], model="sp_c", n_support=30),
-    ...                                 recs[1:], select=False)
-    >>> fed_signal_check(recs[2], calibrated).statistics()["span_steps"]
+    >>> from sklearn_gpcd.io import Recording
+    >>> import numpy as np
+    >>> time = np.arange(600) / 100
+    >>> def run(phase):
+    ...     s = np.c_[np.sin(time + phase)]
+    ...     return Recording(time=time, q=s, qd=np.c_[np.cos(time + phase)], current=2 + s,
+    ...                      target_current=2 + s)
+    >>> model = train_model([run(0.0)], model="sp_c", n_support=30)
+    >>> calibrated = calibrate_detector(model, [run(1.0), run(2.0)], select=False)
+    >>> fed_signal_check(run(2.0), calibrated).statistics()["span_steps"]
     [0.0]
     """
     detector, features, _ = calibrated
