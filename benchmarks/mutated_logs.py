@@ -23,9 +23,20 @@ through ``gpcd monitor`` in process (the checked-out code). Outcomes:
 * ``silent``: different events and no warning nor refusal naming a column --
   the defect this benchmark counts (target 0).
 
+False warnings (``--clean``): the same checks (:func:`sklearn_gpcd.workflow.
+check_signals`, all kinds collected) over every UNMUTATED real recording: the
+45 UR10e CSVs against the detector (those without ``target_current``, which
+the model needs, and the other arms, Panda and UR10, through the model-free
+checks of :class:`~sklearn_gpcd.io.SignalCheck`). The checks' constants
+were chosen on the recordings the model knows (``tuning``: the training and
+calibration runs of the recipe); the others are reported apart
+(``held_out``: the pushes, the loaded and early identification runs, the
+2020 collision runs, Panda, UR10).
+
 Run::
 
     python benchmarks/mutated_logs.py [--n 200] [--seed 0] [--output DIR]
+    python benchmarks/mutated_logs.py --clean [--output DIR]
 
 Without the data it says so and exits 0.
 """
@@ -205,6 +216,109 @@ def outcome(result, base, columns):
     return "warned" if named else "silent"
 
 
+#: The statistics of the ``--clean`` pass and the value above which each is reported.
+LIMITS = (("quiet_share", 0.5), ("span_steps", 10), ("permutation_gain", 0.5))
+
+
+def _findings(rec, calibrated, name):
+    """Every finding of the checks ``check_signals`` runs (none raises), their
+    statistics (how near each is to its verdict) and which checks ran: with
+    the model's prediction, or without (its inputs not logged, another arm)."""
+    from sklearn_gpcd.io import SignalCheck
+    from sklearn_gpcd.workflow import fed_signal_check, signal_check
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        how, check = "model-free", None
+        if calibrated is None:
+            check = SignalCheck(rec.n_joints)
+        else:
+            try:
+                check, how = fed_signal_check(rec, calibrated, name=name), "model"
+            except ValueError as exc:  # the model's inputs are not logged
+                if "target_current" not in str(exc):
+                    raise
+                check = signal_check(calibrated)
+        if how == "model-free":
+            check.update(rec.time, rec.q, rec.qd, rec.current)
+        return check.findings(), check.statistics(), how
+
+
+def _other_arms(data_root):
+    """(name, Recording) of the Panda and UR10 logs, when present."""
+    from sklearn_gpcd.io import Recording, read_value_files
+
+    out = []
+    panda = data_root / "panda_gaz" / "rbt_log"
+    if panda.is_dir():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out.append(("panda_gaz/rbt_log", read_value_files(panda)))
+    ur10 = data_root / "ur10_polydoros" / "URpickNplace.mat"
+    if ur10.is_file():
+        from scipy.io import loadmat
+
+        table = loadmat(ur10)["urPicknPlace"]
+        out.append(("ur10_polydoros/URpickNplace.mat",
+                    Recording(time=np.arange(len(table)) * 0.008, q=table[:, :6],
+                              qd=table[:, 6:12], current=table[:, 18:24], units="Nm")))
+    return out
+
+
+def clean_recordings(root, detector):
+    """Findings on every unmutated real recording, tagged tuning or held-out."""
+    from sklearn_gpcd.io import load_recording
+    from sklearn_gpcd.workflow import load_detector
+
+    calibrated = load_detector(detector)
+    train, unseen, _ = bench.split_recordings(root, quick=False)
+    tuning = {Path(r.metadata["source"]).resolve() for r in train} \
+        | {(root / k).resolve() for k in unseen}
+    rows = []
+    items = [(str(f.relative_to(root)), f) for f in sorted(root.rglob("*.csv"))]
+    for key, path in items:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rec = load_recording(path)
+        found, stats, how = _findings(rec, calibrated, key)
+        rows.append({"recording": f"{bench.DATASET}/{key}", "set": "tuning"
+                     if path.resolve() in tuning else "held_out", "checks": how,
+                     "findings": [f._asdict() for f in found], "statistics": stats})
+    for key, rec in _other_arms(root.parent):
+        found, stats, how = _findings(rec, None, key)
+        rows.append({"recording": key, "set": "held_out", "checks": how,
+                     "findings": [f._asdict() for f in found], "statistics": stats})
+    return rows
+
+
+def _largest(rows, name):
+    values = [v for r in rows for v in np.atleast_1d(r["statistics"][name])]
+    values = [v for v in values if np.isfinite(v)]
+    return max(values) if values else float("nan")
+
+
+def _clean_summary(rows):
+    lines = []
+    for part in ("tuning", "held_out"):
+        mine = [r for r in rows if r["set"] == part]
+        kinds = {}
+        for r in mine:
+            for f in r["findings"]:
+                key = f"{f['severity']} {f['kind']}"
+                kinds[key] = kinds.get(key, 0) + 1
+        flagged = sum(bool(r["findings"]) for r in mine)
+        lines.append(f"{part}: {len(mine)} recordings, {flagged} with a finding"
+                     + (" (" + ", ".join(f"{v} {k}" for k, v in sorted(kinds.items())) + ")"
+                        if kinds else ""))
+        lines.append("  largest statistics (reported above): " + "; ".join(
+            f"{name} {_largest(mine, name):.3g} ({limit:g})" for name, limit in LIMITS))
+    for r in rows:
+        lines.append(f"  {r['set']:8s} {r['checks']:10s} {r['recording']}: "
+                     + ("; ".join(f"{f['severity']} {f['kind']} {','.join(f['columns'])}"
+                                  for f in r["findings"]) or "none"))
+    return lines
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=None)
@@ -214,6 +328,8 @@ def main(argv=None):
     parser.add_argument("--output", type=Path, default=None,
                         help="write mutated_logs.json and mutated_logs.txt here")
     parser.add_argument("--train-only", action="store_true")
+    parser.add_argument("--clean", action="store_true",
+                        help="the checks over every unmutated real recording instead")
     args = parser.parse_args(argv)
     root = args.data or real_data_path(bench.DATASET)
     if root is None or not (Path(root) / PUSH).is_file():
@@ -222,6 +338,16 @@ def main(argv=None):
     detector = trained(Path(root), args.cache)
     print(f"detector: {detector}")
     if args.train_only:
+        return 0
+    if args.clean:
+        rows = clean_recordings(Path(root), detector)
+        lines = _clean_summary(rows)
+        print("\n".join(lines))
+        if args.output is not None:
+            args.output.mkdir(parents=True, exist_ok=True)
+            (args.output / "signal_checks_clean.json").write_text(
+                json.dumps({"detector": str(detector), "rows": rows}, indent=1))
+            (args.output / "signal_checks_clean.txt").write_text("\n".join(lines) + "\n")
         return 0
     text = (Path(root) / PUSH).read_text()
     rows, counts = [], {}

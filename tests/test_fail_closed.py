@@ -37,10 +37,8 @@ from sklearn_gpcd.workflow import (
 skops_io = pytest.importorskip("skops.io")
 
 
-@pytest.fixture(scope="module")
-def good(tmp_path_factory):
-    """A valid detector file, a model file and a recording to monitor."""
-    folder = tmp_path_factory.mktemp("fail_closed")
+def make_good(folder):
+    """A valid detector file, a model file and a recording to monitor, in ``folder``."""
     runs = free_runs(n=2, n_targets=1)
     detector, features = linear_bundle(runs)
     path = save_detector(CalibratedDetector(detector, features, {"margin": 1.5}),
@@ -53,6 +51,12 @@ def good(tmp_path_factory):
                             robot_comment=True)
     return {"folder": folder, "detector": path, "model": model, "recording": recording,
             "objects": (detector, features), "run": runs[0], "pushed": pushed}
+
+
+@pytest.fixture(scope="module")
+def good(tmp_path_factory):
+    """A valid detector file, a model file and a recording to monitor."""
+    return make_good(tmp_path_factory.mktemp("fail_closed"))
 
 
 # ------------------------------------------------------------------ crafting files
@@ -148,18 +152,23 @@ def test_one_nan_threshold_of_one_joint_is_refused(good, tmp_path, capsys):
     assert_refused(path, good, capsys, "thresholds_", "nan")
 
 
-@pytest.mark.parametrize("a, words", [([np.nan, np.nan], "finite coefficients"),
-                                      ([1.0, -1.5], "unstable filter"),
-                                      ([1.0, -1.0], "unstable filter"),
-                                      ([0.0, 0.5], "a[0] != 0")])
-def test_an_unusable_filter_is_refused(good, tmp_path, capsys, a, words):
+def filter_file(good, target, a):
+    """A copy of the good detector whose filters' denominators are ``a``."""
     entries = entries_of(good["detector"])
     schema = json.loads(entries["schema.json"])
     for node in array_nodes(schema, "filter_coefficients_"):
         out = io.BytesIO()
         np.save(out, np.array(a))
         entries[node["content"][1]["file"]] = out.getvalue()
-    path = write_entries(tmp_path / "filter.skops", entries)
+    return write_entries(target, entries)
+
+
+@pytest.mark.parametrize("a, words", [([np.nan, np.nan], "finite coefficients"),
+                                      ([1.0, -1.5], "unstable filter"),
+                                      ([1.0, -1.0], "unstable filter"),
+                                      ([0.0, 0.5], "a[0] != 0")])
+def test_an_unusable_filter_is_refused(good, tmp_path, capsys, a, words):
+    path = filter_file(good, tmp_path / "filter.skops", a)
     assert_refused(path, good, capsys, "filter_coefficients_", words)
 
 
@@ -175,14 +184,19 @@ def test_a_model_with_a_nan_coefficient_is_refused(good, tmp_path, capsys):
     assert_refused(path, good, capsys, "coef_", "nan", loader=load_model)
 
 
-def test_a_parameter_out_of_its_range_is_refused(good, tmp_path, capsys):
+def parameter_file(good, target):
+    """A copy of the good detector with ``min_duration = -3`` in its schema."""
     entries = entries_of(good["detector"])
     schema = json.loads(entries["schema.json"])
     for node in array_nodes(schema, "min_duration"):
         node["content"] = "-3"
     entries["schema.json"] = json.dumps(schema).encode()
-    path = write_entries(tmp_path / "param.skops", entries)
-    assert_refused(path, good, capsys, "min_duration")
+    return write_entries(target, entries)
+
+
+def test_a_parameter_out_of_its_range_is_refused(good, tmp_path, capsys):
+    assert_refused(parameter_file(good, tmp_path / "param.skops"), good, capsys,
+                   "min_duration")
 
 
 # ------------------------------------------------------------------ the archive
@@ -195,17 +209,16 @@ def test_overwritten_bytes_name_the_file_and_the_command(good, tmp_path, capsys)
     assert "gpcd calibrate" in message
 
 
-@pytest.mark.parametrize("case, words", [
-    ("no schema", "no schema.json"),
-    ("schema a list", "a JSON list"),
-    ("schema not JSON", "cannot be rebuilt"),
-    ("schema without protocol", "cannot be rebuilt"),
-    ("missing array", "is missing"),
-    ("header 134 GiB", "its header claims"),
-    ("truncated array", "its header claims"),
-    ("array of objects", "holds Python objects"),
-])
-def test_a_malformed_archive_is_one_line(good, tmp_path, capsys, case, words):
+#: The malformed archives: case -> words of the refusal.
+ARCHIVE_CASES = {"no schema": "no schema.json", "schema a list": "a JSON list",
+                 "schema not JSON": "cannot be rebuilt",
+                 "schema without protocol": "cannot be rebuilt", "missing array": "is missing",
+                 "header 134 GiB": "its header claims", "truncated array": "its header claims",
+                 "array of objects": "holds Python objects"}
+
+
+def malformed_archive(good, target, case):
+    """A copy of the good detector broken as ``case`` (:data:`ARCHIVE_CASES`)."""
     entries = entries_of(good["detector"])
     arrays = sorted(n for n in entries if n.endswith(".npy"))
     if case == "no schema":
@@ -232,19 +245,29 @@ def test_a_malformed_archive_is_one_line(good, tmp_path, capsys, case, words):
         out = io.BytesIO()
         np.save(out, np.array([None, 1], dtype=object), allow_pickle=True)
         entries[arrays[0]] = out.getvalue()
-    path = write_entries(tmp_path / "malformed.skops", entries)
-    assert_refused(path, good, capsys, words)
+    return write_entries(target, entries)
 
 
-def test_a_zip_bomb_is_refused_from_its_directory(good, tmp_path, capsys):
-    """4 GiB of zeros packed into 4 MiB: refused before a byte is unpacked."""
-    path = tmp_path / "bomb.skops"
+@pytest.mark.parametrize("case", list(ARCHIVE_CASES))
+def test_a_malformed_archive_is_one_line(good, tmp_path, capsys, case):
+    path = malformed_archive(good, tmp_path / "malformed.skops", case)
+    assert_refused(path, good, capsys, ARCHIVE_CASES[case])
+
+
+def zip_bomb(good, path):
+    """4 GiB of zeros packed into 4 MiB, next to the good detector's schema."""
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
         archive.writestr("schema.json", entries_of(good["detector"])["schema.json"])
         with archive.open("zeros.npy", "w", force_zip64=True) as member:
             block = bytes(1 << 24)
             for _ in range(256):
                 member.write(block)
+    return path
+
+
+def test_a_zip_bomb_is_refused_from_its_directory(good, tmp_path, capsys):
+    """Refused before a byte is unpacked."""
+    path = zip_bomb(good, tmp_path / "bomb.skops")
     assert path.stat().st_size < 5 << 20
     assert_refused(path, good, capsys, "unpacks to 4", "zip bomb")
 
@@ -283,24 +306,33 @@ def test_a_trusted_class_is_never_called_with_the_files_arguments(
     assert calls == []
 
 
-def test_a_truncated_or_huge_pinocchio_model_text_is_one_line(good, tmp_path, capsys):
+def pinocchio_files(folder):
+    """Model files whose pinocchio model text is cut in half or huge:
+    ``[(label, path, words)]``, after checking the uncut one loads."""
     from sklearn_gpcd.robots import load_robot
     from sklearn_gpcd.robots.robot import MAX_MODEL_TEXT
 
     robot = load_robot("ur10")
     path = save({"kind": MODEL_KIND, "regressor": LinearRegression().fit(np.eye(2), [0, 1]),
-                 "features": None, "training": {}, "robot": robot}, tmp_path / "robot.skops")
+                 "features": None, "training": {}, "robot": robot}, folder / "robot.skops")
     assert load_model(path).regressor.n_features_in_ == 2
     entries = entries_of(path)
     text = json.loads(entries["schema.json"])
     model_node = array_nodes(text, "model")[0]
     original = json.loads(model_node["content"])
+    out = []
     for label, changed, words in [
             ("truncated", original[: len(original) // 2], "does not load"),
             ("huge", original + " 0" * (MAX_MODEL_TEXT // 2), "more than the")]:
         model_node["content"] = json.dumps(changed)
         entries["schema.json"] = json.dumps(text).encode()
-        crafted = write_entries(tmp_path / f"{label}.skops", entries, zipfile.ZIP_DEFLATED)
+        out.append((label, write_entries(folder / f"{label}.skops", entries,
+                                         zipfile.ZIP_DEFLATED), words))
+    return out
+
+
+def test_a_truncated_or_huge_pinocchio_model_text_is_one_line(good, tmp_path, capsys):
+    for _, crafted, words in pinocchio_files(tmp_path):
         message = assert_refused(crafted, good, capsys, "pinocchio model text", words,
                                  loader=load_model)
         assert "gpcd train" in message

@@ -61,6 +61,10 @@ def _scaled(rec, field, factor, joints=None):
 #: Mutation families: (name, function of a recording, a word the message must hold).
 FAMILIES = [
     ("current_joint_x1000", lambda r: _scaled(r, "current", 1000.0, [2]), "current[2]"),
+    ("current_joint_x0.001", lambda r: _scaled(r, "current", 1e-3, [1]), "current[1]"),
+    ("currents_swapped", lambda r: r.replace(current=r.current[:, [0, 2, 1, 3, 4, 5]]),
+     "current["),
+    ("qd_x0.001", lambda r: _scaled(r, "qd", 1e-3), "qd"),
     ("currents_x57", lambda r: _scaled(r, "current", 57.3), "current["),
     ("currents_sign", lambda r: _scaled(r, "current", -1.0), "current["),
     ("q_x0.001", lambda r: _scaled(r, "q", 1e-3), "q["),
@@ -146,16 +150,15 @@ def test_a_current_beyond_the_training_range_scaled_is_an_error_at_rest():
     assert "opposite sign" in flipped.findings()[0].sentence
 
 
-#: Scales per column of the issue's families (currents x1000, x57.3, x-1; q x0.001,
-#: degrees; qd in degrees). Not covered: a current or velocity scaled DOWN (x0.001)
-#: where the model predicts little (a still base joint): it looks like a quiet joint.
-SCALES = {"current": [1000.0, 57.3, -1.0], "q": [1e-3, 180 / np.pi], "qd": [180 / np.pi],
-          "swap": [1.0]}
+#: Scales per column of the issue's families (currents x1000, x57.3, x-1, x0.001; q
+#: x0.001, degrees; qd in degrees, x0.001).
+SCALES = {"current": [1000.0, 57.3, -1.0, 1e-3], "q": [1e-3, 180 / np.pi],
+          "qd": [180 / np.pi, 1e-3], "swap": [1.0]}
 
 
 @settings(max_examples=12, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(field=st.sampled_from(["current", "q", "qd", "swap"]), pick=st.integers(0, 2),
+@given(field=st.sampled_from(["current", "q", "qd", "swap"]), pick=st.integers(0, 3),
        joint=st.integers(-1, 5))
 def test_property_mutated_recordings_never_pass_in_silence(work, field, pick, joint):
     """Over scaled or swapped columns of the simulated run: check_signals (what gpcd
@@ -226,3 +229,67 @@ def test_a_file_that_would_not_fit_is_refused_before_reading(tmp_path, monkeypat
         load_recording(path)
     monkeypatch.setattr(_text, "available_memory", lambda: 20 * size)
     assert load_recording(path).n_samples == rec.n_samples
+
+
+def test_the_detector_file_keeps_the_current_noise_of_its_recordings(work):
+    """The smallest median sample-to-sample current step of the recordings the model
+    knows: the sensor noise a real current does not fall below."""
+    from sklearn_gpcd.io import load_recording
+
+    noise = np.array(load_detector(work["detector"])[2]["signal_ranges"]["current_noise"])
+    free = [load_recording(work["folder"] / f"free{s}.csv") for s in range(3)]
+    steps = [np.median(np.abs(np.diff(r.current, axis=0)), axis=0) for r in free]
+    np.testing.assert_allclose(noise, np.min(steps, axis=0))
+    assert (noise > 0).all()
+
+
+def test_simulated_runs_the_model_never_saw_give_no_finding(work):
+    """False warnings: runs of other seeds (the same simulator) pass every check."""
+    calibrated = load_detector(work["detector"])
+    for seed in (7, 8, 9):
+        rec = make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=seed)
+        found = check_signals(rec, calibrated, accept=("range",), name=f"seed{seed}")
+        assert [f for f in found if f.kind != "range"] == [], found
+
+
+def _at_rest(n=3000, seed=0):
+    """An arm standing still at 100 Hz, gravity loads on the currents with sensor noise
+    (0.03 A), pushed twice by hand: the positions move by 20 encoder steps (1e-4 rad)
+    and back, the velocity follows; everything written with 4 decimals like a UR log."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    bump = np.exp(-0.5 * ((t[:, None] - np.array([8.0, 20.0])) / 0.3) ** 2).sum(1)
+    q = np.array([0.3, -1.9, -1.7, -1.5, 1.0, 0.4]) + 2e-3 * bump[:, None] * [1, 1, 1, 0, 0, 0]
+    qd = np.gradient(q, t, axis=0)
+    gravity = np.array([0.1, 6.5, 3.9, 0.3, -0.05, 0.0])
+    current = gravity + 0.03 * rng.standard_normal((n, 6)) + 2.0 * bump[:, None] * [1, 1, 0,
+                                                                                    0, 0, 0]
+    ranges = {"q": [[-3.0] * 6, [3.0] * 6], "qd": [[-2.0] * 6, [2.0] * 6],
+              "current": [[-7.0, -16.0, -8.0, -1.2, -0.9, -0.8], [6.0, 20.0, 9.0, 1.1, 0.9,
+                                                                  0.8]],
+              "current_noise": [0.03] * 6, "units": "A"}
+    rounded = [np.round(v, 4) for v in (q, qd, current)]
+    return t, rounded, np.tile(gravity, (n, 1)), ranges
+
+
+def _rest_findings(t, q, qd, current, predicted, ranges):
+    thresholds = [2.5, 3.0, 1.9, 0.41, 0.55, 0.39]
+    check = SignalCheck(6, ranges=ranges, thresholds=thresholds)
+    return [(f.kind, f.columns) for f in check.update(t, q, qd, current, predicted).findings()]
+
+
+def test_at_rest_a_scaled_down_or_swapped_column_is_named():
+    """Issue #47 point 5, at rest: velocity x0.001 (zero at 4 decimals while q moves 20
+    steps), one current x0.001 (below the sensor noise the model knows), two currents
+    swapped (each fits the other joint's gravity load): each named; the clean log
+    passes."""
+    t, (q, qd, current), predicted, ranges = _at_rest()
+    assert _rest_findings(t, q, qd, current, predicted, ranges) == []
+    slow = _rest_findings(t, q, np.round(qd * 1e-3, 4), current, predicted, ranges)
+    assert [c for kind, c in slow] == [["q[0]", "qd[0]"], ["q[1]", "qd[1]"], ["q[2]", "qd[2]"]]
+    quiet = current.copy()
+    quiet[:, 4] = np.round(quiet[:, 4] * 1e-3, 4)
+    assert ("current", ["current[4]"]) in _rest_findings(t, q, qd, quiet, predicted, ranges)
+    swapped = current[:, [0, 1, 3, 2, 4, 5]]
+    assert ("current", ["current[2]", "current[3]"]) in _rest_findings(t, q, qd, swapped,
+                                                                         predicted, ranges)

@@ -511,7 +511,7 @@ def finalize_recording(
     notes = [
         _dropped_note(n_rows, dropped, kind) if dropped_rows else None,
         gaps_text,
-        degrees_note(columns["q"]),
+        degrees_note(columns["q"], column_labels["q"]),
         units_note(columns["time"], columns["q"], columns["qd"], column_labels["q"]),
     ]
     notes = [note for note in notes if note]

@@ -28,6 +28,13 @@ Model-free checks (the readers' single
   scaled down). Unlike a correlation test, this needs no motion: a
   velocity that is not zero at rest integrates to a travel the positions
   never show.
+* the reverse at rest: a position cannot span more than the path its
+  velocity allows, :math:`\\max q_j - \\min q_j \\le \\int |\\dot q_j|\\,dt`.
+  A span beyond :data:`SPAN_FACTOR` times that path plus
+  :data:`FROZEN_STEPS` of the position's smallest steps is a velocity
+  scaled down or frozen (``qd`` x0.001 of a push at rest: the UR10e log
+  moves 11-26 encoder steps while ``qd`` is 0 at 4 decimals; the
+  recordings of the data set stay within 2 steps where ``qd`` is 0).
 
 Checks against what the model knows (:class:`SignalCheck` with the ranges
 :func:`signal_ranges` of the training and calibration recordings, stored in
@@ -47,8 +54,19 @@ the model and detector files; ``gpcd calibrate``, ``gpcd monitor`` and
   that errs stay within their thresholds). Ratios
   near 0 are not judged (the UR10e model errs that way at some poses of
   the jointwise runs); a current scaled down leaves the training range
-  (a warning); This holds at rest,
-  where gravity alone sets the current;
+  (a warning); this holds at rest, where gravity alone sets the current;
+* currents below the sensor noise: the step :math:`|i_j(t_{k+1}) -
+  i_j(t_k)|` under :math:`1/`:data:`NOISE_FACTOR` of ``current_noise`` (the
+  smallest median step of the recordings the model knows, per joint) on
+  most samples is a current scaled down (x0.001) or frozen, in motion and
+  at rest alike (an error; UR10e: 0.011-0.039 A per joint);
+* permuted currents: the clipped residual :math:`c_{ab} = \\overline{\\min(
+  |i_a - \\hat\\imath_b| / s_b, 3)}` of column ``a`` read as joint ``b``
+  (``s_b`` the detector's loosest threshold) is summed over the permutation
+  that minimizes it (every permutation up to 7 joints); when it beats the
+  columns as labelled by more than :data:`PERMUTATION_GAIN`, the moved
+  columns are named (an error). At rest gravity sets the prediction, so
+  two joints of different loads swapped are caught standing still;
 * joint positions beyond the robot's limits (an error), or outside the
   training range (a warning: the model extrapolates there, which a
   scaled or swapped ``q`` also does);
@@ -57,6 +75,7 @@ the model and detector files; ``gpcd calibrate``, ``gpcd monitor`` and
   another time unit (an error).
 """
 
+import itertools
 import warnings
 from typing import NamedTuple
 
@@ -115,12 +134,15 @@ def looks_like_degrees(q):
     return bool(np.mean(beyond) > DEGREES_FRACTION)
 
 
-def degrees_note(q):
+def degrees_note(q, labels=None):
     """Sentence for the warning when :func:`looks_like_degrees`, else None.
 
     Parameters
     ----------
     q : ndarray of shape (n_samples, n_joints)
+    labels : list of str or None, default=None
+        Column labels of ``q`` (default ``q[0]``, ``q[1]``, ...); the
+        sentence names the columns that reach beyond ``2 pi + 0.25`` rad.
 
     Returns
     -------
@@ -129,13 +151,16 @@ def degrees_note(q):
     Examples
     --------
     >>> import numpy as np
-    >>> degrees_note(np.array([[0.0, 90.0]] * 10))[:30]
-    'joint positions reach |q| = 90'
+    >>> degrees_note(np.array([[0.0, 90.0]] * 10))[:34]
+    'q[1] reaches |q| = 90 with more th'
     """
     if not looks_like_degrees(q):
         return None
-    peak = float(np.max(np.abs(q)))
-    return (f"joint positions reach |q| = {peak:.4g} with more than "
+    peaks = np.max(np.abs(q), axis=0)
+    beyond = np.flatnonzero(peaks > DEGREES_THRESHOLD)
+    names = [labels[j] if labels is not None else f"q[{j}]" for j in beyond]
+    verb = "reaches" if len(names) == 1 else "reach"
+    return (f"{', '.join(names)} {verb} |q| = {float(peaks.max()):.4g} with more than "
             f"{100 * DEGREES_FRACTION:.0f} % of the samples beyond 2*pi rad; the angles "
             "look like degrees (convert with numpy.deg2rad).")
 
@@ -248,6 +273,23 @@ LIMIT_SLACK = 0.1
 TIME_UNIT_FACTOR = 10.0
 #: The fields of :func:`signal_ranges`.
 RANGE_FIELDS = ("q", "qd", "current")
+#: A position that spans more than this many times the path its velocity allows
+#: (``int |qd| dt``), plus :data:`FROZEN_STEPS` position steps, moved without it.
+SPAN_FACTOR = 2.0
+#: Position steps (the smallest change of ``q`` in the recording) of slack on the span.
+FROZEN_STEPS = 10
+#: A current whose step ``|i(t_k+1) - i(t_k)|`` is below 1 / this of the smallest noise
+#: the model's data show (``current_noise``) on most samples is scaled down or frozen.
+NOISE_FACTOR = 10.0
+#: Share of the samples below that floor that makes the error.
+QUIET_SHARE = 0.5
+#: Residuals ``|i_a - i_hat_b| / threshold_b`` are clipped here (a collision counts little).
+RESIDUAL_CAP = 3.0
+#: Mean clipped residual (in thresholds, summed over joints) by which a permutation of the
+#: current columns must beat the columns as labelled to be reported.
+PERMUTATION_GAIN = 0.5
+#: Most joints whose permutations are all tried (7! = 5040); beyond, pairs are swapped.
+MAX_PERMUTED_JOINTS = 7
 
 
 class Finding(NamedTuple):
@@ -282,8 +324,11 @@ def signal_ranges(recordings, ranges=None):
     -------
     ranges : dict
         ``{"q": [[low_0, ...], [high_0, ...]], "qd": ..., "current": ...,
-        "units": "A"}``: plain lists, to store in a model or detector file.
-        Non-finite values are left out.
+        "current_noise": [...], "units": "A"}``: plain lists, to store in a
+        model or detector file. Non-finite values are left out.
+        ``current_noise`` is, per joint, the smallest over the recordings of
+        the median step ``|i(t_{k+1}) - i(t_k)|``: the sensor noise a real
+        current never falls below (:data:`NOISE_FACTOR`).
 
     Examples
     --------
@@ -307,7 +352,23 @@ def signal_ranges(recordings, ranges=None):
                 low = np.fmin(low, out[field][0])
                 high = np.fmax(high, out[field][1])
             out[field] = [[float(v) for v in low], [float(v) for v in high]]
+        noise = _median_step(rec.current)
+        if noise is not None:
+            known = out.get("current_noise")
+            out["current_noise"] = [float(v) for v in
+                                    (noise if known is None else np.fmin(noise, known))]
     return out
+
+
+def _median_step(current):
+    """Per-joint median of ``|i(t_k+1) - i(t_k)|`` over the finite steps, or None."""
+    steps = np.abs(np.diff(np.asarray(current, dtype=float), axis=0))
+    if len(steps) < MIN_SAMPLES:
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        median = np.nanmedian(np.where(np.isfinite(steps), steps, np.nan), axis=0)
+    return np.nan_to_num(median, nan=0.0)  # a joint without finite steps is not judged
 
 
 class SignalCheck:
@@ -381,6 +442,14 @@ class SignalCheck:
         self._peak = {f: zeros() for f in ("q", "current")}
         self._ratio = {"n": zeros(), "agree": zeros(), "opposite": zeros(), "log": zeros(),
                        "fed": 0}
+        # position span against the path its velocity allows; the position step
+        self._span = [np.full(n, np.inf), np.full(n, -np.inf)]
+        self._path = zeros()
+        self._q_step = np.full(n, np.inf)
+        # current steps below the known noise; clipped residuals per (column, joint)
+        self._last_current = None
+        self._quiet = [zeros(), 0]
+        self._residual = [np.zeros((n, n)), 0]
         return self
 
     # ------------------------------------------------------------ feeding
@@ -413,24 +482,63 @@ class SignalCheck:
         self.n_samples += len(time)
         self._velocity(time, q, qd)
         self._magnitudes(q, qd, current)
+        self._current_steps(current)
         if predicted is not None and self.ranges is not None:
             self._prediction(current, predicted)
+            self._residuals(current, predicted)
         return self
+
+    def _current_steps(self, current):
+        """Count the current steps below 1 / NOISE_FACTOR of the noise the model knows."""
+        noise = (self.ranges or {}).get("current_noise")
+        joined = current if self._last_current is None else np.r_[[self._last_current], current]
+        self._last_current = current[-1].copy()
+        if noise is None or len(joined) < 2:
+            return
+        floor = np.asarray(noise, dtype=float) / NOISE_FACTOR
+        self._quiet[0] += (np.abs(np.diff(joined, axis=0)) < floor).sum(0)
+        self._quiet[1] += len(joined) - 1
+
+    def _residuals(self, current, predicted):
+        """Clipped ``|i_a - i_hat_b| / s_b`` summed for every column ``a`` and joint ``b``.
+
+        ``s_b`` is the detector's loosest threshold of joint ``b`` (without one,
+        the span of the training currents): the cost of reading column ``a``
+        as joint ``b``'s current.
+        """
+        rows = np.isfinite(predicted).all(1)
+        if not rows.any():
+            return
+        if self.thresholds is not None:
+            scale = np.asarray(self.thresholds, dtype=float)
+        else:
+            low, high = (np.asarray(v, dtype=float) for v in self.ranges["current"])
+            scale = high - low
+        scale = np.where(np.isfinite(scale) & (scale > 0), scale, np.inf)
+        gap = np.abs(current[rows][:, :, None] - predicted[rows][:, None, :]) / scale
+        self._residual[0] += np.minimum(gap, RESIDUAL_CAP).sum(0)
+        self._residual[1] += int(rows.sum())
 
     def _velocity(self, time, q, qd):
         """Blocks of position change against integrated velocity; time steps."""
         if self._last is not None:
             time, q, qd = (np.r_[[last], now] for last, now in zip(self._last, (time, q, qd)))
         self._last = (time[-1], q[-1].copy(), qd[-1].copy())
+        self._span = [np.fmin(self._span[0], q.min(0)), np.fmax(self._span[1], q.max(0))]
         if len(time) < 2:
             return
         dt = np.diff(time)
+        moves = np.abs(np.diff(q, axis=0))
+        self._q_step = np.fmin(self._q_step, np.where(moves > 0, moves, np.inf).min(0))
         if self._step is None:
             self._step = float(self.sample_time or np.median(dt[dt > 0]) if (dt > 0).any()
                                else 0.0) or None
             if self._step is None:
                 return
         steady = (dt > 0) & (dt <= GAP_WARNING_FACTOR * self._step)
+        # the path |qd| allows (across a gap: the position's own step, nothing to judge)
+        speed = 0.5 * (np.abs(qd[1:]) + np.abs(qd[:-1])) * dt[:, None]
+        self._path += np.where(steady[:, None], speed, moves).sum(0)
         if steady.any():
             self._log_dt[0] += float(np.log(dt[steady]).sum())
             self._log_dt[1] += int(steady.sum())
@@ -509,10 +617,45 @@ class SignalCheck:
         findings : list of Finding
             Errors first, then warnings; empty when all is plausible.
         """
-        found = [self._time_finding(), *self._velocity_findings(), *self._current_findings(),
-                 *self._range_findings()]
+        found = [self._time_finding(), *self._velocity_findings(), *self._frozen_findings(),
+                 *self._current_findings(), *self._quiet_findings(),
+                 self._permutation_finding(), *self._range_findings()]
         found = [f for f in found if f is not None]
         return sorted(found, key=lambda f: f.severity != "error")
+
+    def statistics(self):
+        """How near each column check is to its verdict, for choosing and auditing limits.
+
+        Returns
+        -------
+        statistics : dict
+            ``"quiet_share"``: per joint, the share of current steps below
+            the noise floor (reported above :data:`QUIET_SHARE`);
+            ``"span_steps"``: per joint, the span of ``q`` beyond
+            :data:`SPAN_FACTOR` times its velocity's path, in position steps
+            (reported above :data:`FROZEN_STEPS`); ``"permutation_gain"``:
+            what the best permutation of the current columns gains
+            (reported above :data:`PERMUTATION_GAIN`). NaN where not judged.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> t = np.arange(100) * 0.01
+        >>> stats = SignalCheck(1).update(t, np.c_[t], np.c_[np.ones(100)],
+        ...                               np.zeros((100, 1))).statistics()
+        >>> stats["span_steps"]
+        [0.0]
+        """
+        quiet, n = self._quiet
+        span = self._span[1] - self._span[0]
+        step = np.where(np.isfinite(self._q_step) & (self._q_step > 0), self._q_step, np.nan)
+        with np.errstate(invalid="ignore"):
+            beyond = np.maximum(span - SPAN_FACTOR * self._path, 0.0) / step
+        beyond = np.where(np.isfinite(span) & (span == 0), 0.0, beyond)
+        gain = self._permutation()[1]
+        return {"quiet_share": [float(v) for v in (quiet / n if n else np.full(self.n_joints,
+                                                                                np.nan))],
+                "span_steps": [float(v) for v in beyond], "permutation_gain": gain}
 
     def _time_finding(self):
         total, n = self._log_dt
@@ -551,6 +694,63 @@ class SignalCheck:
                                f"{gain:.4g} times the velocity times the time step (1 "
                                f"expected); {cause}."))
         return out
+
+    def _frozen_findings(self):
+        """A position that moved further than its velocity allows (qd scaled down)."""
+        span = self._span[1] - self._span[0]
+        step = np.where(np.isfinite(self._q_step), self._q_step, 0.0)
+        out = []
+        for j in np.flatnonzero(np.isfinite(span) & (span > SPAN_FACTOR * self._path
+                                                     + FROZEN_STEPS * step) & (span > 0)):
+            cols = [self._label("q", j), self._label("qd", j)]
+            out.append(Finding("units", cols, "error",
+                               f"{cols[0]} spans {span[j]:.4g} rad ({span[j] / step[j]:.0f} of "
+                               f"its smallest steps) but {cols[1]} allows a path of "
+                               f"{self._path[j]:.3g} rad (the integral of |qd| dt): the "
+                               "velocity is scaled down (x0.001?) or frozen, or is not the "
+                               f"velocity of {cols[0]}."))
+        return out
+
+    def _quiet_findings(self):
+        """Currents that vary less than the sensor noise the model's data show."""
+        quiet, n = self._quiet
+        noise = (self.ranges or {}).get("current_noise")
+        if noise is None or n < MIN_SAMPLES:
+            return []
+        units = self.ranges.get("units", "A")
+        out = []
+        for j in np.flatnonzero(quiet > QUIET_SHARE * n):
+            col = self._label("current", j)
+            out.append(Finding("current", [col], "error",
+                               f"{col} changes by less than {noise[j] / NOISE_FACTOR:.3g} "
+                               f"{units} from one sample to the next on {100 * quiet[j] / n:.0f} "
+                               f"% of the samples, where the recordings the model knows "
+                               f"never fall below a median of {noise[j]:.3g} {units} (sensor "
+                               "noise): a current scaled down (x0.001?) or frozen, or "
+                               "another signal."))
+        return out
+
+    def _permutation(self):
+        """The best permutation of the current columns and what it gains (NaN: none)."""
+        total, n = self._residual
+        if n < MIN_SAMPLES:
+            return np.arange(self.n_joints), float("nan")
+        cost = total / n
+        best = _best_assignment(cost)
+        return best, float(np.trace(cost) - cost[np.arange(len(best)), best].sum())
+
+    def _permutation_finding(self):
+        """Current columns that match the model's prediction far better permuted."""
+        best, gain = self._permutation()
+        moved = np.flatnonzero(best != np.arange(len(best)))
+        if not gain > PERMUTATION_GAIN or not moved.size:
+            return None
+        cols = [self._label("current", j) for j in moved]
+        pairs = ", ".join(f"{self._label('current', j)} as joint {best[j]}" for j in moved)
+        return Finding("current", cols, "error",
+                       f"{', '.join(cols)} match the model's prediction far better permuted "
+                       f"({pairs}): the mean clipped residual falls by {gain:.2f} "
+                       "thresholds; current columns swapped?")
 
     def _current_findings(self):
         out = []
@@ -604,6 +804,22 @@ class SignalCheck:
                                    "model extrapolates there (or the column is scaled or "
                                    "swapped)."))
         return out
+
+
+def _best_assignment(cost):
+    """The permutation ``p`` minimizing ``sum_a cost[a, p[a]]``: every permutation up to
+    :data:`MAX_PERMUTED_JOINTS` joints, else the best single swap of two columns."""
+    n = len(cost)
+    if n <= MAX_PERMUTED_JOINTS:
+        perms = np.array(list(itertools.permutations(range(n))))
+        return perms[np.argmin(cost[np.arange(n), perms].sum(1))]
+    best, gain = np.arange(n), 0.0
+    for a, b in itertools.combinations(range(n), 2):
+        change = cost[a, b] + cost[b, a] - cost[a, a] - cost[b, b]
+        if change < gain:
+            best, gain = np.arange(n), change
+            best[[a, b]] = [b, a]
+    return best
 
 
 def units_note(time, q, qd, q_labels):

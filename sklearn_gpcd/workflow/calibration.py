@@ -37,7 +37,8 @@ __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "MIN_CALIBRATION_SECONDS", "MIN_REG
            "MOTION_ENVELOPE_SPEED",
            "SELECT_GRID", "CalibratedDetector", "CalibrationWarning",
            "band_label", "band_settings", "calibrate_detector", "calibration_coverage",
-           "calibration_report", "check_calibration_options", "check_signals", "resolve_select",
+           "calibration_report", "check_calibration_options", "check_signals",
+           "fed_signal_check", "resolve_select",
            "load_detector", "recording_keys", "save_detector", "signal_check",
            "split_recordings", "untaught_detector"]
 
@@ -1141,6 +1142,65 @@ def signal_check(calibrated, robot=None):
                        thresholds=np.max(thresholds, axis=0) if thresholds else None)
 
 
+def fed_signal_check(recording, calibrated, *, name=None):
+    """:func:`signal_check` fed with ``recording`` and the model's prediction of it.
+
+    The prediction is made on at most :data:`CHECK_PREDICTED_ROWS` rows
+    (none for a dynamic model that reads the currents); the recording is fed
+    in chunks of :data:`CHECK_CHUNK_ROWS`.
+
+    Parameters
+    ----------
+    recording : Recording
+    calibrated : CalibratedDetector
+    name : str, default=None
+        The file named in the error on a joint count the detector lacks.
+
+    Returns
+    -------
+    check : SignalCheck
+        Read its :meth:`~sklearn_gpcd.io.SignalCheck.findings` or
+        :meth:`~sklearn_gpcd.io.SignalCheck.statistics`.
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.workflow import calibrate_detector, train_model
+    >>> from sklearn_gpcd.io import Recording
+    >>> import numpy as np
+    >>> time = np.arange(600) / 100
+    >>> def run(phase):
+    ...     s = np.c_[np.sin(time + phase)]
+    ...     return Recording(time=time, q=s, qd=np.c_[np.cos(time + phase)], current=2 + s,
+    ...                      target_current=2 + s)
+    >>> model = train_model([run(0.0)], model="sp_c", n_support=30)
+    >>> calibrated = calibrate_detector(model, [run(1.0), run(2.0)], select=False)
+    >>> fed_signal_check(run(2.0), calibrated).statistics()["span_steps"]
+    [0.0]
+    """
+    detector, features, _ = calibrated
+    detector = untaught_detector(detector)
+    source = name or recording.metadata.get("source") or recording.name
+    if recording.n_joints != features.n_joints_:
+        raise ValueError(f"{source}: {recording.n_joints} joints but the detector has "
+                         f"{features.n_joints_}")
+    check = signal_check(calibrated, robot=recording.metadata.get("robot"))
+    step = -(-recording.n_samples // CHECK_PREDICTED_ROWS)
+    inputs = features.transform(recording)[::step]
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from ..detection import reads_currents
+
+    predicted = None  # a dynamic model (the momentum observer) is not compared
+    if not reads_currents(detector.regressor_):
+        predicted = np.full((recording.n_samples, recording.n_joints), np.nan)
+        predicted[::step] = np.reshape(detector.regressor_.predict(inputs),
+                                       (-1, recording.n_joints))
+    for start in range(0, recording.n_samples, CHECK_CHUNK_ROWS):
+        rows = slice(start, start + CHECK_CHUNK_ROWS)
+        check.update(recording.time[rows], recording.q[rows], recording.qd[rows],
+                     recording.current[rows], None if predicted is None else predicted[rows])
+    return check
+
+
 def check_signals(recording, calibrated, *, accept=(), name=None):
     """Refuse or warn about a recording whose signals a detector cannot trust.
 
@@ -1190,27 +1250,8 @@ def check_signals(recording, calibrated, *, accept=(), name=None):
     ...
     ValueError: today.csv: current[0] has the opposite sign of the model's prediction...
     """
-    detector, features, _ = calibrated
-    detector = untaught_detector(detector)
     source = name or recording.metadata.get("source") or recording.name
-    if recording.n_joints != features.n_joints_:
-        raise ValueError(f"{source}: {recording.n_joints} joints but the detector has "
-                         f"{features.n_joints_}")
-    check = signal_check(calibrated, robot=recording.metadata.get("robot"))
-    step = -(-recording.n_samples // CHECK_PREDICTED_ROWS)
-    inputs = features.transform(recording)[::step]
-    # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..detection import reads_currents
-
-    predicted = None  # a dynamic model (the momentum observer) is not compared
-    if not reads_currents(detector.regressor_):
-        predicted = np.full((recording.n_samples, recording.n_joints), np.nan)
-        predicted[::step] = np.reshape(detector.regressor_.predict(inputs),
-                                       (-1, recording.n_joints))
-    for start in range(0, recording.n_samples, CHECK_CHUNK_ROWS):
-        rows = slice(start, start + CHECK_CHUNK_ROWS)
-        check.update(recording.time[rows], recording.q[rows], recording.qd[rows],
-                     recording.current[rows], None if predicted is None else predicted[rows])
+    check = fed_signal_check(recording, calibrated, name=source)
     findings = check.findings()
     for finding in findings:
         if finding.kind in accept:
