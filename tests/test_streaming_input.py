@@ -165,3 +165,30 @@ def test_streamed_calibration_equals_the_batch_one(work, tmp_path, bands):
     assert np.array_equal(streamed.detector.thresholds_, batch.detector.thresholds_)
     assert sorted(p.name for p in (tmp_path / "series" / "band0").iterdir())[:2] == \
         ["0_g.npy", "0_m.npy"]
+
+
+def test_calibrate_streams_a_big_file_with_the_same_detector(work, monkeypatch, capsys):
+    """gpcd calibrate on files above STREAM_BYTES: read in chunks, calibrated one piece
+    at a time; the same summary and thresholds as the whole read (--split, select)."""
+    from sklearn_gpcd.workflow import load_detector
+
+    outputs = {}
+    for mode in ("whole", "streamed"):
+        if mode == "streamed":
+            monkeypatch.setattr(chunks_module, "STREAM_BYTES", 10_000)
+            monkeypatch.setattr(chunks_module, "CHUNK_BYTES", 60_000)
+        outputs[mode] = work["folder"] / f"{mode}.skops"
+        assert main(["calibrate", str(work["model"]), *map(str, work["free"][:2]),
+                     "--split", "3", "-q", "-o", str(outputs[mode])]) == 0
+        monkeypatch.undo()
+    whole, chunked = (load_detector(outputs[m]) for m in ("whole", "streamed"))
+    assert np.array_equal(chunked.detector.thresholds_, whole.detector.thresholds_)
+    assert chunked.calibration == whole.calibration
+    capsys.readouterr()
+    monkeypatch.setattr(chunks_module, "STREAM_BYTES", 10_000)
+    monkeypatch.setattr("sklearn_gpcd.workflow.streamed.MAX_PIECE_ROWS", 1000)
+    assert main(["calibrate", str(work["model"]), *map(str, work["free"][:2]), "-q",
+                 "-o", str(work["folder"] / "no.skops")]) == 2
+    err = capsys.readouterr().err
+    assert "free0.csv: about" in err and "cut the log into pieces with --split 2" in err
+    assert not (work["folder"] / "no.skops").exists()

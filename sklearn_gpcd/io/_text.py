@@ -328,6 +328,28 @@ class Span:
 READ_SPAN = ContextVar("READ_SPAN", default=None)
 
 
+#: Most columns a text recording may have (UR RTDE logs every output: a few hundred).
+MAX_COLUMNS = 10_000
+
+
+def check_width(source, fields):
+    """Refuse a first line of more than :data:`MAX_COLUMNS` fields, naming the file.
+
+    Examples
+    --------
+    >>> check_width("wide.csv", ["x"] * 20_000)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: wide.csv: the first line has 20000 columns, more than the 10000 ...
+    """
+    if len(fields) > MAX_COLUMNS:
+        raise ValueError(
+            f"{source}: the first line has {len(fields)} columns, more than the "
+            f"{MAX_COLUMNS} a robot log has (a wrong delimiter or files pasted side by "
+            "side?); keep only the columns the model needs (time, q, qd, current and the "
+            "controller signals, e.g. with cut -d, -f) and give the file again")
+
+
 def read_lines(path):
     """Numbered non-blank, non-comment lines of a text file (or of :data:`READ_SPAN`).
 
@@ -392,6 +414,7 @@ def read_text_table(path, header="infer", delimiter=None):
     elif delimiter == " ":
         delimiter = None
     first_fields = split_fields(first_line, delimiter)
+    check_width(source, first_fields)
     if header == "infer":
         n_text = sum(not is_number(f) for f in first_fields)
         has_header = n_text > len(first_fields) / 2

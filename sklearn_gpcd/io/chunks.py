@@ -27,7 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ._text import READ_SPAN, Span, check_file, is_number, sniff_delimiter, split_fields, text_codec
+from ._text import (
+    MAX_COLUMNS,
+    READ_SPAN,
+    Span,
+    check_file,
+    check_width,
+    is_number,
+    sniff_delimiter,
+    split_fields,
+    text_codec,
+)
 from ._validation import RecordingWarning
 from .load import check_problems, detect_format, load_recording
 
@@ -35,8 +45,6 @@ from .load import check_problems, detect_format, load_recording
 CHUNK_BYTES = 16 * 2**20
 #: Files larger than this are streamed by ``gpcd calibrate`` and ``gpcd monitor``.
 STREAM_BYTES = 64 * 2**20
-#: Most columns a text recording may have (UR RTDE logs every output: a few hundred).
-MAX_COLUMNS = 10_000
 #: Longest first (header) line read [bytes].
 MAX_LINE_BYTES = 2**20
 #: The formats read in chunks; the others are read whole.
@@ -66,12 +74,7 @@ def _first_line(path, limit=MAX_LINE_BYTES):
 
 def _check_width(path, line):
     fields = split_fields(line, sniff_delimiter(line))
-    if len(fields) > MAX_COLUMNS:
-        raise ValueError(
-            f"{path}: the first line has {len(fields)} columns, more than the "
-            f"{MAX_COLUMNS} a robot log has (a wrong delimiter or files pasted side by "
-            "side?); keep only the columns the model needs (time, q, qd, current and the "
-            "controller signals, e.g. with cut -d, -f) and give the file again")
+    check_width(path, fields)
     return fields
 
 
@@ -127,7 +130,8 @@ def iter_recording_chunks(path, format="auto", column_map=None, *, accept=None,
     ------
     chunk : Recording
         Consecutive pieces of the recording, time strictly increasing across
-        them; ``metadata["chunk"]`` counts from 0.
+        them; ``metadata["chunk"]`` counts from 0, ``metadata["text_bytes"]``
+        is the size of its text.
 
     Raises
     ------
@@ -187,7 +191,7 @@ def iter_recording_chunks(path, format="auto", column_map=None, *, accept=None,
                 continue
             rec = rec.slice(first)
         last = float(rec.time[-1])
-        rec.metadata["chunk"] = index
+        rec.metadata.update(chunk=index, text_bytes=span.stop - span.start)
         yield rec
 
 
