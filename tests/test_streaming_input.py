@@ -124,10 +124,12 @@ def test_monitor_streams_a_big_file_with_the_same_events(work, monkeypatch, caps
 
 
 @pytest.mark.parametrize("bands", [False, True])
-def test_streamed_calibration_equals_the_batch_one(work, tmp_path, bands):
-    """calibrate_across_recordings(folder=...): one recording at a time, the series in
-    files, the levels from the peaks; every threshold, margin, candidate and nested
-    false alarm equal to the batch computation's (to the last bit)."""
+def test_streamed_calibration_equals_the_batch_one(work, tmp_path, bands, monkeypatch):
+    """calibrate_across_recordings(folder=...): one recording at a time, predicted a
+    block of rows at a time, the series in files, the levels from the peaks; every
+    threshold, margin, candidate and nested false alarm equal to the batch
+    computation's (to the last bit)."""
+    monkeypatch.setattr("sklearn_gpcd.detection.calibration.PREDICT_ROWS", 700)
     from sklearn.base import clone
     from sklearn.frozen import FrozenEstimator
 
@@ -192,3 +194,29 @@ def test_calibrate_streams_a_big_file_with_the_same_detector(work, monkeypatch, 
     err = capsys.readouterr().err
     assert "free0.csv: about" in err and "cut the log into pieces with --split 2" in err
     assert not (work["folder"] / "no.skops").exists()
+
+
+def test_the_big_logs_benchmark_writes_tiles_that_read_back_clean(tmp_path):
+    """benchmarks/big_logs.py: its tiled log joins without a jump (no row dropped, time
+    regular), its wide log is refused at once, and its measurement reads a child's peak."""
+    import importlib.util
+    import sys
+    import warnings
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "big_logs.py"
+    spec = importlib.util.spec_from_file_location("big_logs", script)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    names, rows = bench.tile()
+    path = bench.write_log(tmp_path / "log.csv", len(rows) + 5000, names, rows)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing dropped, no gap: the tiles join
+        chunks = list(iter_recording_chunks(path, chunk_bytes=2_000_000))
+    time = np.concatenate([c.time for c in chunks])
+    assert len(time) == len(rows) + 5000 and np.allclose(np.diff(time), 1 / bench.RATE)
+    wide = bench.wide_log(tmp_path / "wide.csv", n_rows=2)
+    with pytest.raises(ValueError, match="wide.csv: line 1 is longer than 1 MiB"):
+        next(iter_recording_chunks(wide))
+    rc, peak, seconds, out, err = bench.measured([sys.executable, "-c", "print('hi')"])
+    assert rc == 0 and peak > 1e6 and out.strip() == "hi"

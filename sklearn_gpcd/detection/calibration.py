@@ -36,6 +36,7 @@ from ._thresholds import (
     recording_peaks,
     shared_margin,
 )
+from .detector import reads_currents
 from .rules import AlarmRule
 
 __all__ = [
@@ -589,6 +590,11 @@ def _held_out_alarm(series, keys, r, rule):
 
 
 # ------------------------------------------------------------------ streamed
+#: Rows predicted at a time when the recordings are streamed (``folder``): the
+#: cross-kernel of a GP holds rows x support values per joint.
+PREDICT_ROWS = 20_000
+
+
 def _peaks(series, key):
     """Peaks of recording ``key`` (kept in memory by a :class:`_SeriesFiles`)."""
     return series.peaks[key] if isinstance(series, _SeriesFiles) else series[key][2]
@@ -642,7 +648,8 @@ def _streamed_series(base, rules, candidates, blocks, times, folder):
         raise ValueError("normalize='std' is not streamed: calibrate on shorter recordings")
     keys = list(blocks)
     first = blocks[keys[0]]
-    residuals = base.fit_residuals(first, time=times[keys[0]])
+    rows = slice(0, PREDICT_ROWS)  # fit (a frozen model stays as it is) on a few rows
+    base.fit_residuals(first[rows], time=np.asarray(times[keys[0]])[rows])
     if base.sample_time == "auto":  # the median step of all recordings, as one fit has it
         steps = np.concatenate([np.diff(np.asarray(times[k], dtype=float)) for k in keys])
         base.sample_time_ = float(np.median(steps[steps > 0]))
@@ -650,13 +657,20 @@ def _streamed_series(base, rules, candidates, blocks, times, folder):
     stores = [_SeriesFiles(Path(folder) / f"band{b}", len(r.regime_names_))
               for b, r in enumerate(band_rules)]
     for key in keys:
-        if residuals is None:
-            residuals = base.residuals(blocks[key])
+        u, motion = _blocked_residuals(base, first if key == keys[0] else blocks[key])
         for r, store in zip(band_rules, stores):
-            store.add(key, *_excursion(r, *r.signal(residuals.residual,
-                                                    motion=residuals.motion)[:2]))
-        residuals = None
+            store.add(key, *_excursion(r, *r.signal(u, motion=motion)[:2]))
+        first = None
     return band_rules, stores
+
+
+def _blocked_residuals(base, block):
+    """``(residual, motion)`` of one recording, predicted :data:`PREDICT_ROWS` rows
+    at a time (a model that reads the currents, a sequence, all at once)."""
+    step = len(block) if reads_currents(base.regressor_) else PREDICT_ROWS
+    parts = [base.residuals(block[i:i + step]) for i in range(0, len(block), step)]
+    motion = None if parts[0].motion is None else np.concatenate([p.motion for p in parts])
+    return np.concatenate([p.residual for p in parts]), motion
 
 
 def _rule_from_peaks(rule, series, keys, timing):

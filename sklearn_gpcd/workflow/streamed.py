@@ -37,9 +37,9 @@ from .calibration import (
     recording_keys,
 )
 
-#: Most rows of one recording or piece calibrated at a time (about 1.2 kB of
+#: Most rows of one recording or piece calibrated at a time (about 1.5 kB of
 #: memory each at the peak: its signals, causal inputs, residual and series).
-MAX_PIECE_ROWS = 400_000
+MAX_PIECE_ROWS = 300_000
 #: The options of :func:`~sklearn_gpcd.workflow.calibrate_detector`, its defaults.
 CALIBRATION_DEFAULTS = dict(regimes=True, rest_reference=None, settle_time=None,
                             select="auto", bands=(), band_candidates=(), braking=None,
@@ -248,12 +248,11 @@ def calibrate_detector_streamed(trained, paths, folder, *, reader=None, split=No
     >>> import numpy as np, tempfile, pathlib
     >>> from sklearn_gpcd.io import Recording, write_rtde_csv
     >>> from sklearn_gpcd.workflow import train_model
-    >>> rng = np.random.default_rng(0)
+    >>> noise = np.random.default_rng(0).normal(scale=0.05, size=(3000, 1))
     >>> t = np.arange(3000) * 0.01
-    >>> def rec(phase):
-    ...     q = np.sin(t + phase)[:, None]
-    ...     return Recording(time=t, q=q, qd=np.cos(t + phase)[:, None],
-    ...                      current=2 * q + 0.05 * rng.normal(size=q.shape),
+    >>> def rec(phase):  # one joint swinging, its current twice its angle
+    ...     q = np.c_[np.sin(t + phase)]
+    ...     return Recording(time=t, q=q, qd=np.c_[np.cos(t + phase)], current=2 * q + noise,
     ...                      target_current=2 * q)
     >>> trained = train_model([rec(0.0)], model="sp_c", n_support=50)
     >>> root = pathlib.Path(tempfile.mkdtemp())
