@@ -95,6 +95,8 @@ def test_a_very_wide_header_is_refused_before_reading(tmp_path, work):
     with pytest.raises(ValueError, match=r"wide.csv: the first line has 20002 columns, more "
                        r"than the 10000 .* keep only the columns the model needs"):
         next(iter_recording_chunks(path))
+    with pytest.raises(ValueError, match=r"wide.csv: the first line has 20002 columns"):
+        load_recording(path)  # the whole read too
     line = tmp_path / "one_line.csv"
     line.write_bytes(b"timestamp,actual_q_0," + b"1," * 2**20)
     with pytest.raises(ValueError, match=r"one_line.csv: line 1 is longer than 1 MiB"):
