@@ -160,9 +160,9 @@ def band_arg(value):
     return {"filter_cutoff": cutoff, "filter_order": order, "min_duration": debounce}
 
 
-def read_recordings(paths, args, what="recordings", progress=True):
-    """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``,
-    ``--units-confirmed``, ``--allow-short`` and ``--max-joint-speed``."""
+def reader_options(args):
+    """What ``--units-confirmed``, ``--allow-short``, ``--time-scale``,
+    ``--max-joint-speed`` and ``--joints`` of ``--robot`` ask of the readers."""
     kwargs = {"accept": confirmed_kinds(args) + ["short"] * bool(getattr(args, "allow_short",
                                                                           False))}
     if getattr(args, "time_scale", None) is not None:
@@ -171,6 +171,13 @@ def read_recordings(paths, args, what="recordings", progress=True):
         kwargs["max_joint_speed"] = args.max_joint_speed
     if select_joints(args) is not None:
         kwargs["n_joints"] = args.robot.n_joints
+    return kwargs
+
+
+def read_recordings(paths, args, what="recordings", progress=True):
+    """Load ``paths`` with ``--column-map``, ``--joints`` of ``--robot``, ``--time-scale``,
+    ``--units-confirmed``, ``--allow-short`` and ``--max-joint-speed``."""
+    kwargs = reader_options(args)
     shown = progress and not getattr(args, "quiet", False)
     try:
         return load_recordings(paths, column_map=getattr(args, "column_map", None),

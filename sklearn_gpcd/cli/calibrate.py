@@ -4,11 +4,15 @@ recordings, a thin layer over :func:`sklearn_gpcd.workflow.calibrate_detector`
 :func:`~sklearn_gpcd.workflow.save_detector` for ``gpcd monitor``."""
 
 import argparse
+import math
+import tempfile
 import time
 from pathlib import Path
 
+from ..io.chunks import STREAM_BYTES, streamed
 from ..io.load import recording_paths
-from ..workflow.calibration import SELECT_GRID, check_recordings
+from ..workflow.calibration import SELECT_GRID, check_recordings, resolve_select
+from ..workflow.streamed import calibrate_detector_streamed, check_fits_streamed
 from ..workflow import (
     calibrate_detector,
     calibration_report,
@@ -28,6 +32,7 @@ from ._args import (
     positive_float,
     confirmed_kinds,
     read_recordings,
+    reader_options,
     robot_for,
 )
 
@@ -141,6 +146,30 @@ def _optional_robot(args, recordings):
         return None
 
 
+def _calibrate_streamed(args, trained, paths, options):
+    """Files larger than :data:`~sklearn_gpcd.io.chunks.STREAM_BYTES`: read in
+    chunks into a temporary work folder (``TMPDIR``), one piece in memory at a
+    time (:mod:`sklearn_gpcd.workflow.streamed`); what would not fit is refused
+    from each file's first chunk, before the work."""
+    if options["motion_envelope"] is not None:
+        raise ValueError(f"--motion-envelope is fitted on all the residual at once; "
+                         f"{' '.join(map(str, args.recordings))} holds files larger than "
+                         f"{STREAM_BYTES // 2**20} MiB: drop --motion-envelope for long logs")
+    select = resolve_select(options["select"], **{k: options[k] for k in (
+        "regimes", "rest_reference", "settle_time", "bands", "band_candidates")})
+    n_bands = len(options["bands"]) + (
+        len(options["band_candidates"]) or (math.prod(map(len, SELECT_GRID.values())) if select else 1))
+    reader = dict(reader_options(args), column_map=args.column_map)
+    with tempfile.TemporaryDirectory(prefix="gpcd-calibrate-") as work:
+        firsts = check_fits_streamed(paths, args.split, Path(work), n_bands, reader)
+        bar = ProgressBar("reading calibration recordings", len(paths),
+                          enabled=not args.quiet)
+        return calibrate_detector_streamed(
+            trained, paths, work, reader=reader, split=args.split,
+            robot=_optional_robot(args, firsts), accept=confirmed_kinds(args),
+            on_read=bar.update, **options)
+
+
 def run(args):
     """``gpcd calibrate``: thresholds across the recordings, saved with the model's features."""
     start = time.perf_counter()
@@ -159,16 +188,19 @@ def run(args):
     check_calibration_options(**options)
     options["motion_envelope"] = args.motion_envelope or None  # 0: none
     trained = load_model(args.model, trust_pickle=args.trust_pickle)
-    recordings = read_recordings(args.recordings, args, "calibration recordings")
-    if trained.features is not None:
-        check_recordings(recordings, f"the model {args.model}",
-                         n_joints=trained.features.n_joints_,
-                         units=trained.training.get("units"))
-    robot = _optional_robot(args, recordings)
-    calibrated = calibrate_detector(
-        trained, recordings, keys=recording_keys(recordings), split=args.split, robot=robot,
-        progress=lambda label, total: ProgressBar(label, total, enabled=not args.quiet),
-        accept=confirmed_kinds(args), **options)
+    if streamed(paths):
+        calibrated = _calibrate_streamed(args, trained, paths, options)
+    else:
+        recordings = read_recordings(args.recordings, args, "calibration recordings")
+        if trained.features is not None:
+            check_recordings(recordings, f"the model {args.model}",
+                             n_joints=trained.features.n_joints_,
+                             units=trained.training.get("units"))
+        robot = _optional_robot(args, recordings)
+        calibrated = calibrate_detector(
+            trained, recordings, keys=recording_keys(recordings), split=args.split,
+            robot=robot, accept=confirmed_kinds(args), **options,
+            progress=lambda label, total: ProgressBar(label, total, enabled=not args.quiet))
     save_detector(calibrated, args.output)
     print(calibration_report(calibrated.calibration))
     print(f"  {time.perf_counter() - start:.1f} s; wrote {args.output}, "

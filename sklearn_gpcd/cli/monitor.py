@@ -15,9 +15,14 @@ band alarms, and the report names the bands.
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 from .._atomic import atomic_write
+from ..io import RecordingWarning, iter_recording_chunks
+from ..io.chunks import STREAM_BYTES, streamed
+from ..io.load import recording_paths
 from ..monitoring.stops import StopSignal, hold_stop_signals, stop_signals
 from ..monitoring import MonitorSession
 from ..workflow.calibration import (check_recordings, check_signals, detector_robot,
@@ -33,6 +38,7 @@ from ._args import (
     positive_int,
     add_check_options,
     read_recordings,
+    reader_options,
 )
 
 #: The positional list that recordings left over after the options join.
@@ -163,6 +169,9 @@ def _monitor(args, session, plots, live, calibrated):
         return
     paths = [args.replay] if args.replay is not None else args.recordings
     args.robot = None
+    if streamed(recording_paths(paths)):
+        _monitor_streamed(args, session, paths, calibrated)
+        return
     recordings = read_recordings(paths, args, "recordings",
                                  progress=not (args.quiet or live))
     check_recordings(recordings, f"the detector {args.detector}",
@@ -175,6 +184,33 @@ def _monitor(args, session, plots, live, calibrated):
                               speed=args.speed if args.replay is not None else None)
         if args.plot is not None:
             plots.append(session.plot(key, Path(args.plot)))
+
+
+def _monitor_streamed(args, session, paths, calibrated):
+    """Files larger than :data:`~sklearn_gpcd.io.chunks.STREAM_BYTES`: read in
+    chunks twice, the signal checks of every file first (one refusal, no half
+    run), then the run; memory is that of a chunk, whatever the files' length."""
+    if args.plot is not None:
+        raise ValueError(f"--plot keeps every sample of a recording in memory; "
+                         f"{' '.join(map(str, paths))} holds files larger than "
+                         f"{STREAM_BYTES // 2**20} MiB: drop --plot, or cut the file into "
+                         "shorter recordings (e.g. split -l)")
+    sources = recording_paths(paths)
+    if not sources:
+        raise ValueError(f"no recordings found in {' '.join(map(str, paths))}")
+    options = dict(reader_options(args), column_map=args.column_map)
+    detector = f"the detector {args.detector}"
+    for path in sources:
+        for chunk in iter_recording_chunks(path, **options):
+            check_recordings([chunk], detector, units=calibrated.calibration.get("units"))
+            check_signals(chunk, calibrated, accept=confirmed_kinds(args), name=str(path))
+    keys = recording_keys([SimpleNamespace(name=Path(p).name) for p in sources])
+    for key, path in zip(keys, sources):
+        with warnings.catch_warnings():  # the readers' warnings were said in the checks
+            warnings.simplefilter("ignore", RecordingWarning)
+            session.run_recording(iter_recording_chunks(path, **options), key,
+                                  duration=args.duration,
+                                  speed=args.speed if args.replay is not None else None)
 
 
 def _end_reason(exc):

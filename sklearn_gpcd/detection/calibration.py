@@ -16,6 +16,8 @@ real-robot benchmark (:func:`calibrate_across_recordings` does all four):
 """
 
 import copy
+from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 from sklearn.base import clone
@@ -26,12 +28,15 @@ from ..metrics import alarm_onsets
 from ._envelope import envelope_features, fit_envelope, over_envelope, window_peaks
 from ._regimes import MOVING
 from ._thresholds import (
+    _LEVEL_MARGIN,
     MARGIN_RULES,
+    fill_absent_regimes,
     loro_factors,
     peak_levels,
     recording_peaks,
     shared_margin,
 )
+from .detector import reads_currents
 from .rules import AlarmRule
 
 __all__ = [
@@ -248,7 +253,8 @@ def _folds(alarms, times):
     return out
 
 
-def calibrate_across_recordings(detector, blocks, times, rule="global", param_grid=None):
+def calibrate_across_recordings(detector, blocks, times, rule="global", param_grid=None, *,
+                                folder=None):
     """Fit a detector with a leave-one-recording-out margin; count nested false alarms.
 
     Each alarm rule (band) of ``detector`` is calibrated by the rule above on
@@ -294,6 +300,15 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         parameter names, as for :class:`sklearn.model_selection.ParameterGrid`),
         e.g. ``{"regimes__settle_time": [0.5, 1, 2], "filter_cutoff": [8, 10]}``.
         None calibrates the rules as given.
+    folder : str or Path, default=None
+        Stream the recordings: ``blocks`` (any mapping, e.g. one that reads
+        each block from a file when asked) is read one recording at a time,
+        each band's :func:`regime_excursions` go to files in this folder and
+        the fitted rules take the levels from the recordings' peaks instead
+        of one pass over all the residuals (:func:`_rule_from_peaks`: the
+        same maxima, the same thresholds). Memory is that of one recording
+        and its series. Not for a motion envelope, nor ``normalize="std"``.
+        ``sample_time="auto"`` takes the median step of all recordings.
 
     Returns
     -------
@@ -353,15 +368,23 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     rules = [r.set_params(margin=1.0) for r in base.alarm_rules()]
     candidates = _candidates(param_grid, rules[-1])
     base.set_params(rules=rules)
-    Z = np.concatenate([blocks[k] for k in keys])
-    groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
-    time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
-    residuals = base.fit_residuals(Z, groups=groups, time=time)
-    u = _recording_residuals(base, keys, groups, residuals)
-    timing = (base.sample_time_, base.sigma_v)  # what the rules' signal stages need
-    fixed = [_band_run(r.prepare(*timing), u, times, rule) for r in rules[:-1]]
-    runs = [_band_run(clone(rules[-1]).set_params(**params).prepare(*timing), u, times, rule)
-            for params in candidates]
+    if folder is None:
+        Z = np.concatenate([blocks[k] for k in keys])
+        groups = np.repeat(np.arange(len(keys)), [len(blocks[k]) for k in keys])
+        time = np.concatenate([np.asarray(times[k], dtype=float) for k in keys])
+        residuals = base.fit_residuals(Z, groups=groups, time=time)
+        u = _recording_residuals(base, keys, groups, residuals)
+        timing = (base.sample_time_, base.sigma_v)  # what the rules' signal stages need
+        band_rules = _band_rules(rules, candidates, timing)
+        all_series = [_band_series(r, u) for r in band_rules]
+    else:
+        band_rules, all_series = _streamed_series(base, rules, candidates, blocks, times,
+                                                  folder)
+    n_fixed = len(rules) - 1
+    fixed = [_band_run(r, series, times, rule)
+             for r, series in zip(band_rules[:n_fixed], all_series[:n_fixed])]
+    runs = [_band_run(r, series, times, rule)
+            for r, series in zip(band_rules[n_fixed:], all_series[n_fixed:])]
     fixed_series = [run.series for run in fixed]
 
     def union_onsets(subset):
@@ -400,7 +423,12 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         for run in bands]
     single = detector.rules is None or isinstance(detector.rules, AlarmRule)
     fitted = copy.copy(base).set_params(rules=chosen[0] if single else chosen)
-    fitted.calibrate(residuals)
+    if folder is None:
+        fitted.calibrate(residuals)
+    else:
+        timing = (base.sample_time_, base.sigma_v)
+        fitted.adopt_rules([_rule_from_peaks(r, run.series, keys, timing)
+                           for r, run in zip(fitted.alarm_rules(), bands)])
     hours = float(sum((times[k][-1] - times[k][0]) for k in keys) / 3600.0)
     folds = _folds(alarms, times) if alarms else {}
     n_false = sum(len(f["onsets"]) for f in folds.values())
@@ -452,15 +480,24 @@ def _recording_residuals(detector, keys, groups, residuals):
             for key, rows in ((k, groups == g) for g, k in enumerate(keys))}
 
 
-def _band_run(rule, residuals, times, margin_rule):
-    """One band at its settings: series, LORO margin, levels and its own nested folds."""
+def _band_rules(rules, candidates, timing):
+    """The fixed bands, then the last rule at each candidate setting, prepared."""
+    return ([r.prepare(*timing) for r in rules[:-1]]
+            + [clone(rules[-1]).set_params(**params).prepare(*timing) for params in candidates])
+
+
+def _band_series(rule, residuals):
+    """:func:`regime_excursions` of one band on each recording's ``(u, motion)``."""
     if rule.regimes is not None and rule.regimes.motion_envelope is not None:
-        series = _enveloped_series(rule, residuals)
-    else:
-        series = {key: _excursion(rule, *rule.signal(u, motion=motion)[:2])
-                  for key, (u, motion) in residuals.items()}
+        return _enveloped_series(rule, residuals)
+    return {key: _excursion(rule, *rule.signal(u, motion=motion)[:2])
+            for key, (u, motion) in residuals.items()}
+
+
+def _band_run(rule, series, times, margin_rule):
+    """One band at its settings: series, LORO margin, levels and its own nested folds."""
     keys = list(series)
-    peaks = {k: v[2] for k, v in series.items()}
+    peaks = {k: _peaks(series, k) for k in keys}
     folds = nested_false_alarms(series, times, margin_rule) if len(keys) >= 3 else {}
     return Bunch(rule=rule, series=series, margin=_fold_margin(series, keys, margin_rule),
                  levels=regime_levels(peaks, keys), folds=folds,
@@ -515,8 +552,8 @@ def _fold_margin(series, keys, rule):
     factors = []
     for r in keys:
         fold = _left_out(series, r)
-        others = peak_levels(np.stack([fold[k][2] for k in keys if k != r]))
-        factors.append(fold[r][2] / others)
+        others = peak_levels(np.stack([_peaks(fold, k) for k in keys if k != r]))
+        factors.append(_peaks(fold, r) / others)
     return shared_margin(factors, rule)
 
 
@@ -530,7 +567,7 @@ def _held_out_union(bands, keys, r, rule):
 def _loro_thresholds(series, keys, rule):
     """Thresholds at a unit scale calibrated on the recordings ``keys``: their
     leave-one-recording-out margin times their levels."""
-    peaks = {k: series[k][2] for k in keys}
+    peaks = {k: _peaks(series, k) for k in keys}
     return loro_margin(peaks, keys, rule) * regime_levels(peaks, keys)
 
 
@@ -538,7 +575,7 @@ def _selection_score(series, keys, rule):
     """Time-weighted mean log threshold on the recordings ``keys`` (see
     :func:`calibrate_across_recordings`)."""
     thresholds = _loro_thresholds(series, keys, rule)
-    counts = sum(np.bincount(series[k][1], minlength=thresholds.shape[0]) for k in keys)
+    counts = sum(_counts(series, k, thresholds.shape[0]) for k in keys)
     log = np.log(np.maximum(thresholds, np.finfo(float).tiny)).mean(axis=1)
     return float(counts / counts.sum() @ log)
 
@@ -550,3 +587,111 @@ def _held_out_alarm(series, keys, r, rule):
     thresholds = _loro_thresholds(series, [k for k in keys if k != r], rule)
     debounced, regimes, _ = series[r]
     return (debounced > thresholds[regimes]).any(axis=1)
+
+
+# ------------------------------------------------------------------ streamed
+#: Rows predicted at a time when the recordings are streamed (``folder``): the
+#: cross-kernel of a GP holds rows x support values per joint.
+PREDICT_ROWS = 20_000
+
+
+def _peaks(series, key):
+    """Peaks of recording ``key`` (kept in memory by a :class:`_SeriesFiles`)."""
+    return series.peaks[key] if isinstance(series, _SeriesFiles) else series[key][2]
+
+
+def _counts(series, key, n_rows):
+    """Samples per regime code of recording ``key``."""
+    if isinstance(series, _SeriesFiles):
+        return series.counts[key]
+    return np.bincount(series[key][1], minlength=n_rows)
+
+
+class _SeriesFiles(Mapping):
+    """:func:`regime_excursions`-like series kept in ``.npy`` files of ``folder``:
+    ``series[key]`` reads one recording's ``(debounced, regime, peaks)``; the
+    peaks and the samples per regime stay in memory."""
+
+    def __init__(self, folder, n_rows):
+        self.folder, self.n_rows = Path(folder), n_rows
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.peaks, self.counts, self._files = {}, {}, {}
+
+    def add(self, key, debounced, regime, peaks):
+        stem = self.folder / f"{len(self._files)}"
+        np.save(f"{stem}_m.npy", debounced)
+        np.save(f"{stem}_g.npy", regime)
+        self._files[key] = stem
+        self.peaks[key] = peaks
+        self.counts[key] = np.bincount(regime, minlength=self.n_rows)
+
+    def __getitem__(self, key):
+        stem = self._files[key]
+        return np.load(f"{stem}_m.npy"), np.load(f"{stem}_g.npy"), self.peaks[key]
+
+    def __iter__(self):
+        return iter(self._files)
+
+    def __len__(self):
+        return len(self._files)
+
+
+def _streamed_series(base, rules, candidates, blocks, times, folder):
+    """Fit ``base`` on the first recording, then each recording's residual once
+    and every band's series of it into files: ``(band_rules, series)``."""
+    for r in rules:
+        if r.regimes is not None and r.regimes.motion_envelope is not None:
+            raise ValueError("a motion envelope is fitted on all the residual at once: "
+                             "calibrate it on recordings that fit in memory (drop "
+                             "--motion-envelope for long logs)")
+    if base.normalize == "std":
+        raise ValueError("normalize='std' is not streamed: calibrate on shorter recordings")
+    keys = list(blocks)
+    first = blocks[keys[0]]
+    rows = slice(0, PREDICT_ROWS)  # fit (a frozen model stays as it is) on a few rows
+    base.fit_residuals(first[rows], time=np.asarray(times[keys[0]])[rows])
+    if base.sample_time == "auto":  # the median step of all recordings, as one fit has it
+        steps = np.concatenate([np.diff(np.asarray(times[k], dtype=float)) for k in keys])
+        base.sample_time_ = float(np.median(steps[steps > 0]))
+    band_rules = _band_rules(rules, candidates, (base.sample_time_, base.sigma_v))
+    stores = [_SeriesFiles(Path(folder) / f"band{b}", len(r.regime_names_))
+              for b, r in enumerate(band_rules)]
+    for key in keys:
+        u, motion = _blocked_residuals(base, first if key == keys[0] else blocks[key])
+        for r, store in zip(band_rules, stores):
+            store.add(key, *_excursion(r, *r.signal(u, motion=motion)[:2]))
+        first = None
+    return band_rules, stores
+
+
+def _blocked_residuals(base, block):
+    """``(residual, motion)`` of one recording, predicted :data:`PREDICT_ROWS` rows
+    at a time (a model that reads the currents, a sequence, all at once)."""
+    step = len(block) if reads_currents(base.regressor_) else PREDICT_ROWS
+    parts = [base.residuals(block[i:i + step]) for i in range(0, len(block), step)]
+    motion = None if parts[0].motion is None else np.concatenate([p.motion for p in parts])
+    return np.concatenate([p.residual for p in parts]), motion
+
+
+def _rule_from_peaks(rule, series, keys, timing):
+    """``rule`` fitted as :meth:`AlarmRule.calibrate` fits a ``per_joint`` rule at
+    ``false_alarm_rate=0`` with its margin, from the recordings' peaks: the
+    level of (regime ``g``, joint ``l``) is the largest debounced excursion,
+    lifted by the same relative 1e-9 (``false_alarm_level``); a regime absent
+    from the data takes the largest level of the others."""
+    rule.prepare(*timing)
+    rule.envelope_ = None
+    n_rows = len(rule.regime_names_)
+    top = np.stack([_peaks(series, k) for k in keys]).max(axis=0)
+    levels = np.maximum(top * (1.0 + _LEVEL_MARGIN), np.finfo(float).tiny)
+    if rule.regimes is None:
+        levels = levels[0]
+    else:
+        present = sum(_counts(series, k, n_rows) for k in keys) > 0
+        levels = fill_absent_regimes(levels, present)
+    margin = np.asarray(rule.margin, dtype=float)
+    rule.scale_ = margin * levels
+    rule.margin_ = np.broadcast_to(margin, np.shape(rule.scale_)).copy()
+    rule.offset_ = -1.0
+    rule.thresholds_ = 1.0 * rule.scale_
+    return rule

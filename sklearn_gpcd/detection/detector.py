@@ -349,11 +349,44 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         rules = self.alarm_rules()
         self._check_motion(rules)
         u = self._normalized(residuals.residual, residuals.std)
-        self.rules_ = [rule.calibrate(u, residuals.starts, residuals.motion,
-                                      sample_time=self.sample_time_, sigma_v=self.sigma_v,
-                                      std=residuals.std, normalized=self.normalize == "std",
-                                      recordings=residuals.recordings)
-                       for rule in rules]
+        return self.adopt_rules([
+            rule.calibrate(u, residuals.starts, residuals.motion, sample_time=self.sample_time_,
+                           sigma_v=self.sigma_v, std=residuals.std,
+                           normalized=self.normalize == "std", recordings=residuals.recordings)
+            for rule in rules])
+
+    def adopt_rules(self, rules):
+        """Take calibrated alarm rules as the detector's (``rules_``).
+
+        What :meth:`calibrate` ends with; a calibration that fits the rules
+        another way (from recordings' peaks, one recording at a time:
+        :func:`~sklearn_gpcd.detection.calibrate_across_recordings` with
+        ``folder``) hands them over here. ``regressor_`` and
+        ``sample_time_`` must be set.
+
+        Parameters
+        ----------
+        rules : list of AlarmRule
+            Calibrated (``thresholds_`` and the rest set), one per band.
+
+        Returns
+        -------
+        self : CollisionDetector
+            With ``rules_``, and the first rule's thresholds as its own.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sklearn.linear_model import LinearRegression
+        >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
+        >>> qd = np.random.default_rng(0).normal(size=(200, 1))
+        >>> det = CollisionDetector(LinearRegression(), sample_time=0.01,
+        ...                         rules=AlarmRule("per_joint", false_alarm_rate=0.0))
+        >>> det = det.fit(stack_currents(qd, 2 * qd[:, 0]))
+        >>> det.adopt_rules(det.rules_).thresholds_ is det.rules_[0].thresholds_
+        True
+        """
+        self.rules_ = list(rules)
         first = self.rules_[0]
         for name in ("filter_coefficients_", "regime_names_", "scale_", "margin_",
                      "thresholds_"):

@@ -3,6 +3,7 @@
 ==========================  ==================================================
 :func:`load_recording`      any format, detected from suffix and content
 :func:`load_recordings`     many files, folders or glob patterns
+:func:`iter_recording_chunks` one long text recording, chunk by chunk
 :func:`read_rtde_csv`       UR RTDE CSV (ur_rtde / UR ``record.py``)
 :func:`write_rtde_csv`      the same format, exact float round trip
 :func:`read_csv`            any delimited text through a column map or preset
@@ -48,6 +49,7 @@ from ._rtde_live import (
     StreamPaused,
 )
 from ._validation import RecordingWarning
+from .chunks import iter_recording_chunks
 from .columns import COLUMN_PRESETS, ColumnPreset
 from .load import detect_format, load_recording, load_recordings
 from .npz import read_npz
@@ -72,6 +74,7 @@ __all__ = [
     "SignalCheck",
     "degrees_note",
     "detect_format",
+    "iter_recording_chunks",
     "load_recording",
     "load_recordings",
     "read_csv",

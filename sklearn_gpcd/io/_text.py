@@ -11,6 +11,7 @@ non-number in a column the caller asks for, and a copy of the header line
 with a reason, never silently discarded.
 """
 
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -300,8 +301,57 @@ def _bytes(n):
         n /= 1000
 
 
+@dataclass(frozen=True)
+class Span:
+    """Bytes ``start:stop`` of a text file, read as if they followed ``head``.
+
+    Attributes
+    ----------
+    start, stop : int
+        Byte offsets of the data lines (``stop`` at a line end or the end of
+        the file).
+    first_line : int
+        1-based line number of the line at ``start``.
+    head : tuple of (int, str)
+        Numbered lines put first (the header line, when the file has one).
+    """
+
+    start: int
+    stop: int
+    first_line: int
+    head: tuple = ()
+
+
+#: The :class:`Span` :func:`read_lines` reads instead of the whole file (set
+#: by :func:`sklearn_gpcd.io.iter_recording_chunks` around each chunk, so that
+#: every text reader reads chunks unchanged); None: the whole file.
+READ_SPAN = ContextVar("READ_SPAN", default=None)
+
+
+#: Most columns a text recording may have (UR RTDE logs every output: a few hundred).
+MAX_COLUMNS = 10_000
+
+
+def check_width(source, fields):
+    """Refuse a first line of more than :data:`MAX_COLUMNS` fields, naming the file.
+
+    Examples
+    --------
+    >>> check_width("wide.csv", ["x"] * 20_000)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: wide.csv: the first line has 20000 columns, more than the 10000 ...
+    """
+    if len(fields) > MAX_COLUMNS:
+        raise ValueError(
+            f"{source}: the first line has {len(fields)} columns, more than the "
+            f"{MAX_COLUMNS} a robot log has (a wrong delimiter or files pasted side by "
+            "side?); keep only the columns the model needs (time, q, qd, current and the "
+            "controller signals, e.g. with cut -d, -f) and give the file again")
+
+
 def read_lines(path):
-    """Numbered non-blank, non-comment lines of a text file.
+    """Numbered non-blank, non-comment lines of a text file (or of :data:`READ_SPAN`).
 
     Parameters
     ----------
@@ -321,10 +371,16 @@ def read_lines(path):
     """
     path = Path(path)
     check_file(path)
-    check_fits(path)
-    text = decode_text(path.read_bytes(), path)
-    numbered = []
-    for number, line in enumerate(text.split("\n"), start=1):
+    span = READ_SPAN.get()
+    if span is None:
+        check_fits(path)
+        text, first, numbered = decode_text(path.read_bytes(), path), 1, []
+    else:  # one chunk of a streamed file (sklearn_gpcd.io.iter_recording_chunks)
+        with open(path, "rb") as handle:
+            handle.seek(span.start)
+            text = decode_text(handle.read(span.stop - span.start), path)
+        first, numbered = span.first_line, list(span.head)
+    for number, line in enumerate(text.split("\n"), start=first):
         line = line.strip()
         if line and not line.startswith("#"):
             numbered.append((number, line))
@@ -358,6 +414,7 @@ def read_text_table(path, header="infer", delimiter=None):
     elif delimiter == " ":
         delimiter = None
     first_fields = split_fields(first_line, delimiter)
+    check_width(source, first_fields)
     if header == "infer":
         n_text = sum(not is_number(f) for f in first_fields)
         has_header = n_text > len(first_fields) / 2

@@ -278,13 +278,8 @@ def load_recordings(paths, format="auto", column_map=None, *, accept=None, progr
             if accept is not None:  # said by the error, if there is one
                 warnings.simplefilter("always")
             rec = load_recording(path, format=format, column_map=column_map, **kwargs)
-        for kind, note in recording_problems(rec) if accept is not None else ():
-            if kind not in accept:
-                scale = re.search(r"time_scale=(\S+?)\)", note)
-                fix = f"--time-scale {scale[1]} (time_scale=), " if scale else ""
-                flag = "--allow-short" if kind == "short" else "--units-confirmed"
-                raise ValueError(f"{path}: {note} Fix it ({fix}or convert the file), or accept "
-                                 f"it as it is: {flag} (accept=[{kind!r}] in Python)")
+        if accept is not None:
+            check_problems(path, rec, accept)
         for caught_warning in caught or ():
             if str(caught_warning.message) not in said:  # a guessed layout: once
                 said.add(str(caught_warning.message))
@@ -293,3 +288,15 @@ def load_recordings(paths, format="auto", column_map=None, *, accept=None, progr
         if bar is not None:
             bar.update()
     return recordings
+
+
+def check_problems(path, recording, accept):
+    """Raise the first problem :func:`recording_problems` finds whose kind is
+    not in ``accept``, naming ``path`` and the option that accepts it."""
+    for kind, note in recording_problems(recording):
+        if kind not in accept:
+            scale = re.search(r"time_scale=(\S+?)\)", note)
+            fix = f"--time-scale {scale[1]} (time_scale=), " if scale else ""
+            flag = "--allow-short" if kind == "short" else "--units-confirmed"
+            raise ValueError(f"{path}: {note} Fix it ({fix}or convert the file), or accept "
+                             f"it as it is: {flag} (accept=[{kind!r}] in Python)")

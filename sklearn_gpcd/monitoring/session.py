@@ -6,6 +6,7 @@ import shlex
 import subprocess
 import time
 import warnings
+from itertools import chain
 
 import numpy as np
 
@@ -622,7 +623,10 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
 
         Parameters
         ----------
-        recording : Recording
+        recording : Recording or iterable of Recording
+            One recording, or its chunks in time order
+            (:func:`~sklearn_gpcd.io.iter_recording_chunks`: memory bounded by
+            a chunk).
         name : str
         speed : float, default=None
             None: offline, as fast as possible, no live fault handling; a
@@ -640,15 +644,18 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         ValueError
             When the recording has another number of joints than the detector.
         """
-        if recording.n_joints != self.monitor.n_joints:
-            raise ValueError(f"{recording.name}: {recording.n_joints} joints but the detector "
+        chunks = iter([recording] if hasattr(recording, "n_joints") else recording)
+        first = next(chunks)
+        if first.n_joints != self.monitor.n_joints:
+            raise ValueError(f"{first.name}: {first.n_joints} joints but the detector "
                              f"has {self.monitor.n_joints}")
         self.start(name)
-        self.units = recording.units
+        self.units = first.units
+        samples = chain.from_iterable(map(recording_samples, chain([first], chunks)))
         if speed is None:
-            for t, fields in recording_samples(recording):
+            for t, fields in samples:
                 self.tick(t, fields)
         else:
-            for received, t, fields in paced(recording_samples(recording), speed, duration):
+            for received, t, fields in paced(samples, speed, duration):
                 self.tick(t, fields, received)
         return self.finish()

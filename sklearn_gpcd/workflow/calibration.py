@@ -213,21 +213,35 @@ def split_recordings(keys, recordings, seconds):
     """
     out_keys, pieces = [], []
     for key, rec in zip(keys, recordings):
-        n_pieces = int(rec.duration // seconds) if rec.duration >= 2 * seconds else 1
-        if n_pieces == 1:
-            out_keys.append(key)
-            pieces.append(rec)
-            continue
-        bounds = np.linspace(0, rec.n_samples, n_pieces + 1).round().astype(int)
-        for i, (start, stop) in enumerate(zip(bounds[:-1], bounds[1:]), start=1):
-            out_keys.append(f"{key}#{i}")
-            pieces.append(rec.slice(start, stop))
-    if len(pieces) < 2:
-        longest = max(rec.duration for rec in recordings)
-        raise ValueError(f"--split {seconds:g} leaves {len(pieces)} piece: the longest "
+        for piece_key, (start, stop) in piece_bounds(key, rec.n_samples, rec.duration, seconds):
+            out_keys.append(piece_key)
+            pieces.append(rec if piece_key == key else rec.slice(start, stop))
+    _check_pieces(len(pieces), max(rec.duration for rec in recordings), seconds)
+    return out_keys, pieces
+
+
+def piece_bounds(key, n_samples, duration, seconds):
+    """``[(key, (start, stop)), ...]``: the pieces :func:`split_recordings` cuts
+    one recording into (its ``key`` alone when it stays whole).
+
+    Examples
+    --------
+    >>> piece_bounds("a.csv", 1000, 9.99, 3.0)
+    [('a.csv#1', (0, 333)), ('a.csv#2', (333, 667)), ('a.csv#3', (667, 1000))]
+    """
+    n_pieces = int(duration // seconds) if duration >= 2 * seconds else 1
+    if n_pieces == 1:
+        return [(key, (0, n_samples))]
+    bounds = np.linspace(0, n_samples, n_pieces + 1).round().astype(int).tolist()
+    return [(f"{key}#{i}", (start, stop))
+            for i, (start, stop) in enumerate(zip(bounds[:-1], bounds[1:]), start=1)]
+
+
+def _check_pieces(n_pieces, longest, seconds):
+    if n_pieces < 2:
+        raise ValueError(f"--split {seconds:g} leaves {n_pieces} piece: the longest "
                          f"recording lasts {longest:.1f} s; use a split of at most "
                          f"{longest / 2:.1f} s")
-    return out_keys, pieces
 
 
 def band_settings(rule):
@@ -369,41 +383,15 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     (3, 1)
     """
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from sklearn.base import clone
-    from sklearn.frozen import FrozenEstimator
+    from ..detection import stack_currents
 
-    # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..detection import (
-        AlarmRule,
-        CollisionDetector,
-        Regimes,
-        calibrate_across_recordings,
-        stack_currents,
-    )
-
-    bands, band_candidates = list(bands or ()), list(band_candidates or ())
-    select = resolve_select(select, regimes=regimes, rest_reference=rest_reference,
-                            settle_time=settle_time, bands=bands,
-                            band_candidates=band_candidates)
-    check_calibration_options(regimes=regimes, rest_reference=rest_reference,
-                              settle_time=settle_time, select=select, bands=bands,
-                              band_candidates=band_candidates, braking=braking)
     keys = recording_keys(recordings) if keys is None else list(keys)
     n_files = len(recordings)
-    if n_files < 2 and split is None:
-        raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
-                         f"give at least 2 collision-free recordings, got {n_files} "
-                         "(or cut a long one into pieces with --split SECONDS)")
-    if len(units := {rec.units for rec in recordings}) > 1:
-        raise ValueError(f"the calibration recordings log currents in {' and '.join(units)}; "
-                         "give recordings in one unit (the column map's \"units\")")
-    model, features = trained.regressor, trained.features
-    if features is None:
-        raise ValueError("the model file holds no input features (written by an earlier "
-                         "gpcd train): train the model again with gpcd train")
+    _check_files(n_files, split, {rec.units for rec in recordings})
+    _check_model(trained)
+    features = trained.features
     check_recordings(recordings, "the model", n_joints=features.n_joints_,
                      units=trained.training.get("units"))
-    _check_model_inputs(model, features)
     if split is not None:
         keys, recordings = split_recordings(keys, recordings, split)
     bar = progress("causal inputs", len(recordings)) if progress is not None else None
@@ -413,6 +401,59 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
         times[key] = rec.time
         if bar is not None:
             bar.update()
+    ranges = signal_ranges(recordings, trained.training.get("signal_ranges"))
+    return _calibrate_blocks(
+        trained, blocks, times, dict(zip(keys, recordings)), ranges,
+        units=recordings[0].units, n_files=n_files,
+        split=split, robot=robot, accept=accept, options=dict(
+            regimes=regimes, rest_reference=rest_reference, settle_time=settle_time,
+            select=select, bands=bands, band_candidates=band_candidates, braking=braking,
+            motion_envelope=motion_envelope))
+
+
+def _check_files(n_files, split, units):
+    if n_files < 2 and split is None:
+        raise ValueError("thresholds are chosen across recordings (leave-one-recording-out): "
+                         f"give at least 2 collision-free recordings, got {n_files} "
+                         "(or cut a long one into pieces with --split SECONDS)")
+    if len(units) > 1:
+        raise ValueError(f"the calibration recordings log currents in {' and '.join(units)}; "
+                         "give recordings in one unit (the column map's \"units\")")
+
+
+def _check_model(trained):
+    if trained.features is None:
+        raise ValueError("the model file holds no input features (written by an earlier "
+                         "gpcd train): train the model again with gpcd train")
+    _check_model_inputs(trained.regressor, trained.features)
+
+
+def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files, split, robot,
+                      accept, options, folder=None):
+    """:func:`calibrate_detector` from the detector inputs ``blocks`` of each
+    recording (or piece), their ``times``, the recordings themselves
+    (``pieces``, a mapping: read again for the signal checks) and their
+    signal ``ranges``, the ``units`` of their currents; ``folder`` streams (see
+    :func:`~sklearn_gpcd.detection.calibrate_across_recordings`)."""
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from sklearn.base import clone
+    from sklearn.frozen import FrozenEstimator
+
+    # deferred: gpcd starts without scikit-learn (test_architecture.py)
+    from ..detection import AlarmRule, CollisionDetector, Regimes, calibrate_across_recordings
+
+    regimes, rest_reference, settle_time, braking, motion_envelope = (
+        options[k] for k in ("regimes", "rest_reference", "settle_time", "braking",
+                             "motion_envelope"))
+    bands = list(options["bands"] or ())
+    band_candidates = list(options["band_candidates"] or ())
+    select = resolve_select(options["select"], regimes=regimes, rest_reference=rest_reference,
+                            settle_time=settle_time, bands=bands,
+                            band_candidates=band_candidates)
+    check_calibration_options(regimes=regimes, rest_reference=rest_reference,
+                              settle_time=settle_time, select=select, bands=bands,
+                              band_candidates=band_candidates, braking=braking)
+    model, features, keys = trained.regressor, trained.features, list(blocks)
     tau = DEFAULT_REST_REFERENCE if rest_reference is None else rest_reference
     regime_params = {} if settle_time is None else {"settle_time": settle_time}
     main = AlarmRule(**DETECTOR_RULE, regimes=Regimes(
@@ -430,7 +471,8 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
                                  sample_time="auto", rules=rules,
                                  sigma_v=trained.training.get("sigma_v"))
-    result = calibrate_across_recordings(template, blocks, times, param_grid=grid)
+    result = calibrate_across_recordings(template, blocks, times, param_grid=grid,
+                                         folder=folder)
     several = bool(bands or band_candidates)
     coverage = calibration_coverage(result, times, split=split is not None)
     without_data = _fill_regimes_without_data(result.detector, coverage)
@@ -438,18 +480,18 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
                        n_files=n_files, select=select, several=several,
                        chosen_band=bool(band_candidates))
     summary["regimes_without_data"] = without_data
-    summary["units"] = units.pop()  # of thresholds_A: "Nm" for torque logs
+    summary["units"] = units  # of thresholds_A: "Nm" for torque logs
     if summary["units"] != "A":
         summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
         for entry in summary.get("bands", []):
             entry.pop("thresholds_Nm", None)
     summary["coverage"] = coverage
-    summary["signal_ranges"] = signal_ranges(recordings, trained.training.get("signal_ranges"))
+    summary["signal_ranges"] = ranges
     _warn_coverage(summary)
     _warn_quality(summary)
     calibrated = CalibratedDetector(result.detector, features, summary)
-    for key, rec in zip(keys, recordings):  # signals the thresholds were set on
-        check_signals(rec, calibrated, accept=accept, name=key)
+    for key in keys:  # signals the thresholds were set on
+        check_signals(pieces[key], calibrated, accept=accept, name=key)
     return calibrated
 
 
@@ -538,7 +580,7 @@ def _warn_coverage(summary):
             f"the calibration data lasts {seconds:.0f} s: with {count} false alarm(s) seen, "
             f"it bounds the false-alarm rate only by {bound:.0f} per hour (95 %); record at "
             f"least {MIN_CALIBRATION_SECONDS / 60:g} min of collision-free motion, in several "
-            "recordings, and run gpcd calibrate on them", CalibrationWarning, stacklevel=3)
+            "recordings, and run gpcd calibrate on them", CalibrationWarning, stacklevel=4)
     several = summary["n_files"] > 1
     for name, cov in summary["coverage"].items():
         if name in summary.get("regimes_without_data", ()) or cov["seconds"] == 0.0:
@@ -558,7 +600,7 @@ def _warn_coverage(summary):
         else:
             continue
         warnings.warn(f"{problem}; add collision-free recordings with {_REGIME_ADVICE[name]} "
-                      "to gpcd calibrate", CalibrationWarning, stacklevel=3)
+                      "to gpcd calibrate", CalibrationWarning, stacklevel=4)
 
 
 def _warn_quality(summary):
@@ -582,7 +624,7 @@ def _warn_quality(summary):
         f"expected false alarm): {', '.join(figures)}; a recording unlike the others sets "
         "them: add collision-free recordings of the motions the robot will make, or train "
         "the model on more varied motion with gpcd train, and run gpcd calibrate again",
-        CalibrationWarning, stacklevel=3)
+        CalibrationWarning, stacklevel=4)
 
 
 #: What to record for each regime, in the coverage warnings.
