@@ -21,12 +21,12 @@ from .align import align_recordings
 from .effects import effect_library
 from .identifiability import identifiability, needs, variance_inflation
 from .locate import residual_breakdown
-from .stability import MIN_INCLUSION, N_RESAMPLES, stability
+from .stability import ADD_INCLUSION, MIN_INCLUSION, N_RESAMPLES, stability
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
 from .selection import EXCITATION, MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, \
     build_candidates, expand_composites, fold_index, fold_statistics, forward_selection, \
-    plausibility_check
+    given_others, plausibility_check
 from ..dynamics.friction import stribeck_peak
 
 #: Times the selection is rerun after effects were dropped by the joint fit.
@@ -492,7 +492,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                 break
             banned.update({r["name"]: r["reason"] for r in dropped})
         self._stable(signals, candidates, design, residual, (mask, guarded_mask), check,
-                     [step.candidate for step in selected])
+                     [step.candidate for step in selected],
+                     (stats, stats if guarded is None else guarded))
         selection_done = _time.perf_counter()
         self.effects_ = self.model_.effects
         kept = {f.effect.name for f in self.effects_}
@@ -532,24 +533,27 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         }
         return self
 
-    def _stable(self, signals, candidates, design, residual, masks, check, picked):
-        """Keep the effects a block bootstrap of the selection names often enough.
+    def _stable(self, signals, candidates, design, residual, masks, check, picked,
+                stats):
+        """Keep and add the effects a block bootstrap of the selection names often enough.
 
-        :func:`~sklearn_gpcd.diagnosis.stability.stability` reruns the
-        selection on ``N_RESAMPLES`` block-bootstrap resamples; an effect
-        named on all data but in fewer than ``MIN_INCLUSION`` of them is
-        dropped (recorded in ``rejected_effects_``) and the rest refitted.
+        :func:`~sklearn_gpcd.diagnosis.stability.stability` runs the
+        per-resample selection on ``N_RESAMPLES`` block-bootstrap resamples;
+        an effect named on all data but in fewer than ``MIN_INCLUSION`` of
+        them is dropped (recorded in ``rejected_effects_``), one the all-data
+        selection missed but the resamples name in at least
+        ``ADD_INCLUSION`` of them is added (in the variant they picked most
+        often), and the set is refitted jointly (:meth:`_final_fit`: the same
+        plausibility, share and Wald checks).
         """
         self.stability_ = stability(
             candidates, design, residual, masks, signals, signals.current, self.nominal_,
             self.model_.effects, self.history_,
             {"n_splits": self.n_splits, "min_gain": self.min_gain, "min_t": self.min_t,
-             "max_effects": self.max_effects, "min_share": self.min_share, "check": check,
+             "min_share": self.min_share, "check": check,
              "n_resamples": N_RESAMPLES}, picked)
         steps, effects = self._kept_steps, self.model_.effects
         inclusion = [self.stability_[(f.name, f.target)]["inclusion"] for f in effects]
-        if all(p >= MIN_INCLUSION for p in inclusion):
-            return
         for f, p in zip(effects, inclusion):
             if p < MIN_INCLUSION:
                 self.rejected_effects_.append({
@@ -558,8 +562,18 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                     "reason": f"named in {100 * p:.0f} % of {N_RESAMPLES} block-bootstrap "
                               f"resamples (needs {100 * MIN_INCLUSION:.0f} %)",
                     "implausible": False})
-        kept = [s for s, p in zip(steps, inclusion) if p >= MIN_INCLUSION]
-        self.model_ = self._final_fit(signals, kept, masks[0], masks[1], candidates)
+        kept = [getattr(s, "candidate", s) for s, p in zip(steps, inclusion)
+                if p >= MIN_INCLUSION]
+        families = {c.family for c in kept} | {(f.name, f.target) for f in effects}
+        added = [row["candidate"] for family, row in self.stability_.items()
+                 if family not in families and row["inclusion"] >= ADD_INCLUSION
+                 and row["candidate"] is not None]
+        if not added and len(kept) == len(steps):
+            return
+        chosen = kept + sorted(added, key=lambda c: c.order)
+        on = stats[1] if any(c.effect.rest_guard for c in chosen) else stats[0]
+        evidence = given_others(on, chosen) if chosen else []
+        self.model_ = self._final_fit(signals, evidence, masks[0], masks[1], candidates)
 
     def _identifiability(self, candidates, stats, after, mask):
         """The identifiability table of the candidates given the named effects."""
@@ -640,12 +654,14 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             label = selected[k].candidate.label if hasattr(selected[k], "candidate") else \
                 fitted.name
             shape = fitted.settings.get("shape", "gaussian")
-            self.rejected_effects_.append({"name": label, "effect": fitted.name,
-                                           "joints": [int(j) for j in fitted.joints],
-                                           "reason": reason + (f" ({shape} shape)" if
-                                                               fitted.name == "friction_softening"
-                                                               else ""),
-                                           "implausible": k in implausible})
+            if fitted.name == "friction_softening":
+                reason += f" ({shape} shape)"
+            if all(r["name"] != label or r["reason"] != reason
+                   for r in self.rejected_effects_):  # not the verdict of an earlier fit
+                self.rejected_effects_.append({
+                    "name": label, "effect": fitted.name,
+                    "joints": [int(j) for j in fitted.joints], "reason": reason,
+                    "implausible": k in implausible})
             fallback = _gaussian_softening(selected[k], fitted, candidates) \
                 if k in implausible else None
             if fallback is None:

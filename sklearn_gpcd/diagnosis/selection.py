@@ -399,6 +399,22 @@ def _solve(A, b):
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
+def _solve_many(A, b):
+    """:func:`_solve` of a stack of systems ``A[f] x = b[f]``, one LAPACK call when regular."""
+    if A.shape[-1] == 0:
+        return np.zeros(b.shape)
+    k = A.shape[-1]
+    scale = np.trace(A, axis1=-2, axis2=-1) / k
+    ridged = A + (1e-12 * scale)[:, None, None] * np.eye(k)
+    try:
+        theta = np.linalg.solve(ridged, b[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        theta = None
+    if theta is None or not np.all(np.isfinite(theta)):
+        theta = np.stack([_solve(a, v) for a, v in zip(A, b)])
+    return theta
+
+
 def cv_losses(stats, columns, weights):
     """Held-out nMSE per fold and joint of the model with ``columns``.
 
@@ -415,35 +431,43 @@ def cv_losses(stats, columns, weights):
     losses : ndarray of shape (n_folds, n_joints)
         Held-out SSE / (rows * variance of the current).
     """
-    F, J = stats.rss.shape
     gram_all, cross_all = stats.totals()[:2]
     c = np.asarray(columns, dtype=int)
-    losses = np.empty((F, J))
     sub_gram = stats.gram[:, :, c[:, None], c[None, :]]  # (F, J, k, k)
     sub_cross = stats.cross[:, :, c]
     all_gram = gram_all[:, c[:, None], c[None, :]]
     all_cross = cross_all[:, c]
-    for f in range(F):
-        A = np.einsum("j,jab->ab", weights, all_gram - sub_gram[f])
-        b = weights @ (all_cross - sub_cross[f])
-        theta = _solve(A, b)
-        sse = (stats.rss[f] - 2.0 * sub_cross[f] @ theta
-               + np.einsum("a,jab,b->j", theta, sub_gram[f], theta))
-        losses[f] = np.maximum(sse, 0.0) / np.maximum(stats.counts[f] * stats.variance, 1e-300)
+    A = np.einsum("j,fjab->fab", weights, all_gram[None] - sub_gram)
+    b = np.einsum("j,fja->fa", weights, all_cross[None] - sub_cross)
+    theta = _solve_many(A, b)  # (F, k): fitted without fold f
+    sse = (stats.rss - 2.0 * np.einsum("fja,fa->fj", sub_cross, theta)
+           + np.einsum("fa,fjab,fb->fj", theta, sub_gram, theta))
+    losses = np.maximum(sse, 0.0) / np.maximum(stats.counts * stats.variance, 1e-300)
     # a joint that never moves (no rows, NaN variance) has nothing to explain
     return np.where(np.isfinite(losses), losses, 0.0)
 
 
 def in_sample_mse(stats, columns, weights, return_theta=False):
-    """Per-joint training MSE of the model fitted on all folds (and its coefficients)."""
-    gram, cross, rss, counts = stats.totals()
+    """Per-joint training MSE of the model fitted on all folds (and its coefficients).
+
+    Memoised per columns and weights (a base set is scored against every candidate).
+    """
     c = np.asarray(columns, dtype=int)
+    key = ("in_sample", c.tobytes(), np.asarray(weights, dtype=float).tobytes())
+    if key not in stats._cache:
+        stats._cache[key] = _in_sample_fit(stats, c, weights)
+    mse, theta = stats._cache[key]
+    return (mse, theta) if return_theta else mse
+
+
+def _in_sample_fit(stats, c, weights):
+    """(per-joint MSE, coefficients) of the columns ``c`` fitted on all folds."""
+    gram, cross, rss, counts = stats.totals()
     A = np.einsum("j,jab->ab", weights, gram[:, c[:, None], c[None, :]])
     theta = _solve(A, weights @ cross[:, c])
     sse = rss - 2.0 * cross[:, c] @ theta + np.einsum(
         "a,jab,b->j", theta, gram[:, c[:, None], c[None, :]], theta)
-    mse = np.maximum(sse, 0.0) / np.maximum(counts, 1)
-    return (mse, theta) if return_theta else mse
+    return np.maximum(sse, 0.0) / np.maximum(counts, 1), theta
 
 
 @dataclass
@@ -691,11 +715,11 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
         guarded_now = _uses_guard(selected)
         pool = [c for c in candidates if id(c) not in banned
                 and not {c.family, *(p.family for p in c.parts)} & families]
-        steps = _score(guarded_stats if guarded_now else stats, pool, base, selected)
+        steps = score_additions(guarded_stats if guarded_now else stats, pool, base, selected)
         pick = None
         if not guarded_now and any(c.effect.rest_guard for c in pool):
             # guard effects compete with the others on the same (guarded) rows
-            on_guarded = _score(guarded_stats, pool, base, selected)
+            on_guarded = score_additions(guarded_stats, pool, base, selected)
             guard_steps = [s for s in on_guarded if s.candidate.effect.rest_guard]
             other = max((s.gain for s in on_guarded if not s.candidate.effect.rest_guard),
                         default=-np.inf)
@@ -712,7 +736,7 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
             eligible = [s for s in steps if s.eligible(min_gain, min_t, min_share)
                         and (guarded_now or not s.candidate.effect.rest_guard)]
             while eligible:
-                pick, close = _one_standard_error(eligible)
+                pick, close = one_standard_error(eligible)
                 if acceptable(pick):
                     break
                 eligible.remove(pick)
@@ -727,7 +751,7 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
 
     # backward pass: drop the weakest effect that no longer earns its place
     while selected:
-        evidence = _given_others(guarded_stats if _uses_guard(selected) else stats, selected)
+        evidence = given_others(guarded_stats if _uses_guard(selected) else stats, selected)
         # the same held-out test as when it was picked (gain, consistency), now given
         # every other effect: a small term picked next to a large one is re-tested
         failing = [s for s in evidence if not s.eligible(min_gain, min_t)]
@@ -825,7 +849,7 @@ def _yardstick(stats, chosen):
     return np.minimum(mse * np.maximum(stats.counts.sum(0), 1), rss)
 
 
-def _score(stats, candidates, base, chosen=()):
+def score_additions(stats, candidates, base, chosen=()):
     """Evidence of adding each candidate to the columns ``base`` (of ``chosen``)."""
     weights = _weights(stats, base)
     base_losses = cv_losses(stats, base, weights)
@@ -835,7 +859,7 @@ def _score(stats, candidates, base, chosen=()):
             for c in candidates]
 
 
-def _one_standard_error(eligible):
+def one_standard_error(eligible):
     """The simplest eligible step not worse than the best by one paired standard error.
 
     Simplest: fewest parameters, then library order, then the default softening shape
@@ -981,7 +1005,7 @@ def plausibility_check(nominal):
     return check
 
 
-def _given_others(stats, selected):
+def given_others(stats, selected):
     """Evidence of each selected candidate given all the others."""
     out = []
     all_cols = np.concatenate([c.columns for c in selected])
