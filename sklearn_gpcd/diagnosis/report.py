@@ -126,7 +126,7 @@ def _entry(group):
         "description": "; ".join(f.effect.sentence(f.parameters, [f.target] if f.effect.per_joint
                                                     else f.joints) for f in group),
     }
-    if effect.name == "link_mass":
+    if effect.target_kind == "link":
         entry["link"] = int(first.target)
     ts = [f.evidence.t for f in group if f.evidence is not None]
     entry["confidence"] = confidence(min(ts)) if ts else None

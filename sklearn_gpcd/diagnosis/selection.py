@@ -77,7 +77,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import linalg
 
-from .effects import _joint_list
+from .effects import EFFECTS, PAIR_SEPARATION, _joint_list  # noqa: F401 (PAIR_SEPARATION: API)
 
 #: Default minimum share of the held-out loss (of the joints an effect acts
 #: on) that an effect must remove to be selected.
@@ -91,29 +91,9 @@ MIN_SHARE = 0.01
 #: not separable on the given recordings.
 AMBIGUOUS_CORRELATION = 0.9
 
-#: What excites each effect (for proposing a separating experiment).
-EXCITATION = {
-    "coulomb_friction": "constant-speed sweeps in both directions at 3-4 speeds "
-                        "(0.05-1 rad/s), 5 s each",
-    "viscous_friction": "constant-speed sweeps at 5 speeds up to the joint's limit, "
-                        "5 s each, both directions",
-    "stribeck_friction": "slow sweeps through zero velocity (0.002-0.1 rad/s, 10 reversals)",
-    "rotor_inertia": "fast small oscillations of the joint alone (amplitude 0.1 rad, 2-3 Hz, "
-                     "accelerations above 10 rad/s^2) at a fixed pose, 20 s",
-    "payload": "slow moves of the wrist joints through many orientations "
-               "(gravity torques), 60 s",
-    "link_mass": "slow moves of the joint through its whole range at several poses of the "
-                 "outer joints (gravity torques, accelerations below 1 rad/s^2), 60 s",
-    "gravity_tilt": "slow moves of the base joint through a full turn with the arm "
-                    "stretched out, 60 s",
-    "torque_constant": "moves at several payload-free torque levels: fast and slow "
-                       "accelerations at the same poses, 30 s",
-    "current_offset": "holds at several poses where the gravity torque changes sign, 5 s each",
-    "time_delay": "fast reversals (torque steps), 20 s",
-    "joint_spring": "slow moves over the joint's full range at a constant pose of the "
-                    "others, 60 s",
-    "friction_drift": "the same moves repeated over at least 20 minutes from a cold start",
-}
+#: What excites each effect (for proposing a separating experiment): the
+#: effects' own ``excitation`` (:class:`~sklearn_gpcd.diagnosis.Effect`).
+EXCITATION = {cls.name: cls.excitation for cls in EFFECTS if cls.excitation}
 
 
 @dataclass
@@ -172,7 +152,7 @@ class Candidate:
         name = "+".join(p.effect.name for p in self.parts) or self.effect.name
         if self.target is None:
             return name
-        kind = "link" if self.effect.name == "link_mass" else "joint"
+        kind = self.effect.target_kind
         return f"{name}[{kind} {self.target + 1}]"
 
 
@@ -211,44 +191,21 @@ def build_candidates(signals, nominal, effects):
     return candidates + _friction_pairs(candidates), design
 
 
-#: A composite Stribeck peak + softening pairs a peak at ``v_s`` with a
-#: softening at ``v_0 <= v_s / PAIR_SEPARATION`` (apart enough to be told apart).
-PAIR_SEPARATION = 3.0
-
-
 def _friction_pairs(candidates):
-    """Composites of two friction terms of one joint that can cancel each other.
+    """Composites of two terms of one target that can cancel each other.
 
-    A Stribeck peak added to friction that softens at lower speed cancels
-    part of the softening, and a Coulomb change of one sign part of a viscous
-    change of the other: tried one at a time, neither lowers the error much.
-    A composite shares the columns of its two parts (no new columns).
+    Each candidate's effect names the partners it leads a composite with
+    (:meth:`~sklearn_gpcd.diagnosis.Effect.composite_partners`: a Coulomb
+    change with the viscous change of its joint, a Stribeck peak with a
+    slower softening). A composite shares the columns of its two parts (no
+    new columns).
     """
-    peaks = [c for c in candidates if c.effect.name == "stribeck_friction"]
-    softenings = [c for c in candidates if c.effect.name == "friction_softening"]
-    viscous = {c.target: c for c in candidates if c.effect.name == "viscous_friction"}
     pairs = []
-    for coulomb in candidates:
-        # a Coulomb and a viscous change of opposite signs cancel at some speed: tried one
-        # at a time neither explains much, together they do
-        if coulomb.effect.name == "coulomb_friction" and coulomb.target in viscous:
-            visc = viscous[coulomb.target]
-            pairs.append(Candidate(coulomb.effect, coulomb.target, {}, coulomb.joints,
-                                   np.concatenate([coulomb.columns, visc.columns]),
-                                   coulomb.order, parts=(coulomb, visc)))
-    for peak in peaks:
-        vs = peak.settings.get("stribeck_velocity")
-        for soft in softenings:
-            v0 = soft.settings.get("stribeck_velocity")
-            if soft.target != peak.target or vs is None or v0 is None or \
-                    v0 * PAIR_SEPARATION > vs:
-                continue
-            pairs.append(Candidate(peak.effect, peak.target,
-                                   {**peak.settings, "softening_velocity": v0,
-                                    "softening_shape": soft.settings.get("shape", "gaussian")},
-                                   peak.joints,
-                                   np.concatenate([peak.columns, soft.columns]), peak.order,
-                                   parts=(peak, soft)))
+    for lead in candidates:
+        for partner, settings in lead.effect.composite_partners(lead, candidates):
+            pairs.append(Candidate(lead.effect, lead.target, settings, lead.joints,
+                                   np.concatenate([lead.columns, partner.columns]),
+                                   lead.order, parts=(lead, partner)))
     return pairs
 
 
@@ -981,26 +938,25 @@ def plausibility_check(nominal):
     'torque constant scale 0.05 outside [0.5, 1.5] (a motor that lost or gained 95 % of its torque)'
     """
 
-    def check(candidate, theta, peak=0.0):
+    def check(candidate, theta):
         if theta is None:
             return None
         theta = np.asarray(theta, dtype=float)
-        if candidate.parts:
-            start, peak = 0, 0.0
-            for part in candidate.parts:
-                if part.effect.name == "stribeck_friction":
-                    peak = float(theta[start])
-                reason = check(part, theta[start:start + part.n_params], peak)
-                if reason is not None:
-                    return f"{part.effect.name.replace('_', ' ')}: {reason}"
-                start += part.n_params
-            return None
-        effect = candidate.effect
-        params = effect.physical(theta, np.zeros((theta.size, theta.size)), candidate.target,
-                                 candidate.settings, nominal)
-        if effect.name == "friction_softening":  # on top of a peak of its composite
-            return effect.implausible(params, candidate.target, nominal, peak=peak)
-        return effect.implausible(params, candidate.target, nominal)
+        context, start = {}, 0
+        # the parts of a composite in order: each is judged given what the earlier ones
+        # tell it (a softening acts on the dry friction plus a peak before it)
+        for part in candidate.parts or (candidate,):
+            sub = theta[start:start + part.n_params]
+            params = part.effect.physical(sub, np.zeros((sub.size, sub.size)), part.target,
+                                          part.settings, nominal)
+            reason = part.effect.implausible_among(params, part.target, nominal, context)
+            if reason is not None:
+                return (f"{part.effect.name.replace('_', ' ')}: {reason}" if candidate.parts
+                        else reason)
+            for key, value in part.effect.context(params).items():
+                context[key] = context.get(key, 0.0) + value
+            start += part.n_params
+        return None
 
     return check
 
