@@ -184,13 +184,18 @@ def _family_key(candidate):
     return frozenset(p.family for p in (candidate.parts or (candidate,)))
 
 
-def best_variants(stats, candidates, guarded_stats, check=None):
+def best_variants(stats, candidates, guarded_stats, check=None, always=()):
     """Per family (or composite), its plausible variant that does best alone.
 
     Every candidate is scored alone (a rest-guarded one on ``guarded_stats``);
     per family the simplest variant within one paired standard error of the
     best held-out gain (:func:`~sklearn_gpcd.diagnosis.selection.one_standard_error`)
-    among those with a positive gain whose fit is plausible (``check``).
+    among those with a positive gain whose fit is plausible (``check``), or,
+    when none is, the variant with the best gain (it may show given the
+    others; :func:`thresholded_selection` picks the variants again given the
+    others and drops a family with no plausible gain then). The terms
+    ``always`` (the all-data selection's picks) enter even when they show
+    nothing alone.
     Then, strongest first, a composite enters only if none of its parts'
     families is in already (and a part only if its composite is not).
 
@@ -206,10 +211,13 @@ def best_variants(stats, candidates, guarded_stats, check=None):
         steps += score_additions(guarded_stats, guard, np.zeros(0, int))
     by_key = {}
     for step in steps:
-        if step.gain > 0 and step.relative_gain > 0 and (
-                check is None or check(step.candidate, step.theta) is None):
-            by_key.setdefault(_family_key(step.candidate), []).append(step)
-    picks = [one_standard_error(group)[0] for group in by_key.values()]
+        by_key.setdefault(_family_key(step.candidate), []).append(step)
+    picks = []
+    for group in by_key.values():
+        good = [st for st in group if st.gain > 0 and st.relative_gain > 0 and (
+            check is None or check(st.candidate, st.theta) is None)]
+        if good:
+            picks.append(one_standard_error(good)[0])
     chosen, families = [], set()
     for step in sorted(picks, key=lambda st: -st.gain):
         key = _family_key(step.candidate)
@@ -217,13 +225,38 @@ def best_variants(stats, candidates, guarded_stats, check=None):
             continue
         families |= key
         chosen.extend(step.candidate.parts or (step.candidate,))
+    # the proposals of the all-data selection enter whatever they show alone: a term
+    # may show only given the others (a friction peak next to an unmodelled payload)
+    chosen.extend(c for c in always if c.family not in families)
     return chosen
+
+
+def _variants_given_others(stats, guarded_stats, chosen, candidates, check):
+    """Each chosen term's variant picked again given all the other chosen terms.
+
+    A variant chosen alone may fit what another effect explains (a Stribeck
+    velocity scale picked next to an unmodelled payload); given the others,
+    the simplest variant within one standard error of the best positive
+    plausible gain (:func:`~sklearn_gpcd.diagnosis.selection.one_standard_error`)
+    replaces it, and a family with none leaves the set.
+    """
+    out = list(chosen)
+    for k, term in enumerate(chosen):
+        variants = [c for c in candidates if not c.parts and c.family == term.family]
+        others = [c for c in out[:k] + out[k + 1:] if c is not None]
+        base = np.concatenate([c.columns for c in others]) if others else np.zeros(0, int)
+        on = guarded_stats if any(c.effect.rest_guard for c in (*others, term)) else stats
+        steps = [st for st in score_additions(on, variants, base, others)
+                 if st.gain > 0 and (check is None or check(st.candidate, st.theta) is None)]
+        out[k] = one_standard_error(steps)[0].candidate if steps else None
+    return [c for c in out if c is not None]
 
 
 def thresholded_selection(stats, candidates, settings, guarded_stats=None):
     """One resample's selection: backward thresholding of the families' best variants.
 
-    Starts from :func:`best_variants` and removes, one at a time, the term
+    Starts from :func:`best_variants`, each variant picked again given the
+    others, and removes, one at a time, the term
     with the smallest held-out relative gain among those that fail
     :meth:`~sklearn_gpcd.diagnosis.Step.eligible` given all the others
     (``min_gain``, ``min_t``, ``min_share`` of ``settings``), refitting
@@ -235,8 +268,9 @@ def thresholded_selection(stats, candidates, settings, guarded_stats=None):
     stats, guarded_stats : FoldStatistics
     candidates : list of Candidate
     settings : dict
-        ``min_gain``, ``min_t``, ``min_share`` and ``check`` (plausibility of
-        a variant's fit alone, or None).
+        ``min_gain``, ``min_t``, ``min_share``, ``check`` (plausibility of
+        a variant's fit, or None) and ``always`` (terms that enter whatever
+        they show alone; default none).
 
     Returns
     -------
@@ -267,7 +301,10 @@ def thresholded_selection(stats, candidates, settings, guarded_stats=None):
     ['viscous_friction[joint 3]']
     """
     guarded_stats = stats if guarded_stats is None else guarded_stats
-    chosen = best_variants(stats, candidates, guarded_stats, settings.get("check"))
+    chosen = best_variants(stats, candidates, guarded_stats, settings.get("check"),
+                           settings.get("always", ()))
+    chosen = _variants_given_others(stats, guarded_stats, chosen, candidates,
+                                    settings.get("check"))
     bar = (settings["min_gain"], settings["min_t"], settings["min_share"])
     while chosen:
         on = guarded_stats if any(c.effect.rest_guard for c in chosen) else stats
@@ -433,6 +470,9 @@ def stability(candidates, design, residual, masks, signals, current, nominal, na
     n_resamples = settings.get("n_resamples", N_RESAMPLES)
     base = [c for c in short if not c.parts]
     original = {id(r): c for r, c in zip(reduced, base)}
+    named_terms = [reduced[k] for k, c in enumerate(base)
+                   if any(c is part for pick in picked for part in (pick.parts or (pick,)))]
+    settings = {**settings, "always": named_terms}
     found = {}
     for _ in range(n_resamples):
         state = rng.bit_generator.state
@@ -451,8 +491,6 @@ def stability(candidates, design, residual, masks, signals, current, nominal, na
                 entry["gain"].append(float(step.relative_gain))
                 if not step.candidate.parts:
                     entry["size"].append(_first_parameter(step, nominal))
-    named_terms = [reduced[k] for k, c in enumerate(base)
-                   if any(c is part for pick in picked for part in (pick.parts or (pick,)))]
     on = guarded if guarded is not None and any(c.effect.rest_guard for c in named_terms) \
         else plain
     per_term = dict(zip([c.family for c in named_terms],
