@@ -18,7 +18,7 @@ without psutil ``resource.getrusage``'s largest single process):
    is the figure that survives other jobs on the machine. Skipped (with a
    message) when the data are absent.
 2. **synthetic 1 hour at 500 Hz**: 1,800,000 rows x 6 joints of the simulator
-   (:func:`sklearn_gpcd.datasets.make_d1`, UR10e, ``sample_rate=500``),
+   (:func:`sklearn_gpcd.datasets.simulate_d1`, UR10e, ``sample_rate=500``),
    simulated in chunks of ``--chunk-targets`` D1 targets (each chunk its own
    seed and its own rest-to-rest trajectory) written as RTDE CSV files, the
    last one cut so the total is exactly 1,800,000 rows. The files are cached
@@ -150,7 +150,7 @@ def run_train(files, output, extra=()):
 
 def synthetic_files(cache, chunk_targets):
     """RTDE CSV chunks of a 1-hour 500 Hz D1 log (cached); returns (paths, seconds)."""
-    from sklearn_gpcd.datasets import make_d1
+    from sklearn_gpcd.datasets import simulate_d1
     from sklearn_gpcd.io import write_rtde_csv
 
     cache.mkdir(parents=True, exist_ok=True)
@@ -161,7 +161,7 @@ def synthetic_files(cache, chunk_targets):
         if done.exists():
             rows = int(done.read_text())
         else:
-            rec = make_d1("ur10e", n_targets=chunk_targets, sample_rate=500.0,
+            rec = simulate_d1("ur10e", n_targets=chunk_targets, sample_rate=500.0,
                           random_state=seed)
             rows = min(rec.n_samples, SYNTHETIC_ROWS - total)
             rec = rec.slice(0, rows)

@@ -145,12 +145,12 @@ def check_velocity(value, name, what, owner, allow_none=False):
 
     Examples
     --------
-    >>> check_velocity(0.01, "coulomb_width", "velocity scale", "RigidBodyRegressor")
+    >>> check_velocity(0.01, "coulomb_width", "velocity scale", "RigidBodyFeatures")
     0.01
-    >>> check_velocity(-1, "coulomb_width", "velocity scale", "RigidBodyRegressor")
+    >>> check_velocity(-1, "coulomb_width", "velocity scale", "RigidBodyFeatures")
     Traceback (most recent call last):
     ...
-    ValueError: RigidBodyRegressor: coulomb_width must be a finite velocity scale > 0, got -1
+    ValueError: RigidBodyFeatures: coulomb_width must be a finite velocity scale > 0, got -1
     """
     if value is None and allow_none:
         return None

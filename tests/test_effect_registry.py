@@ -28,7 +28,7 @@ from sklearn_gpcd.datasets import (
     _extra_effects,
     default_friction,
     effects,
-    make_d1,
+    simulate_d1,
     registered_effect,
 )
 from sklearn_gpcd.datasets.plant import drive_parameters
@@ -93,7 +93,7 @@ def test_no_two_package_classes_share_a_name():
 
 def test_expected_parameters_are_the_identifiers(nominal):
     """The conversion reports exactly the identifier's parameters, on a simulated run."""
-    recording = make_d1("ur10", n_targets=1, random_state=0)
+    recording = simulate_d1("ur10", n_targets=1, random_state=0)
     for entry in EFFECT_REGISTRY:
         expected = entry.expected(entry.inject(), *nominal, recording)
         assert expected, entry.name
@@ -109,7 +109,7 @@ def test_unknown_name_is_refused():
 def _simulate(entry, n_targets, seed):
     injected = entry.inject()
     plant = [e for e in injected if hasattr(e, "apply")]
-    recording = make_d1("ur10", n_targets=n_targets, effects=plant, random_state=seed)
+    recording = simulate_d1("ur10", n_targets=n_targets, effects=plant, random_state=seed)
     for effect in injected:
         if hasattr(effect, "apply_to_recording"):
             recording = effect.apply_to_recording(recording)

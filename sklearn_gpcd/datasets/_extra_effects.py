@@ -275,8 +275,8 @@ class LoggedCurrentDelay:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import LoggedCurrentDelay, make_d1
-    >>> recording = make_d1("ur10", n_targets=1, random_state=0)
+    >>> from sklearn_gpcd.datasets import LoggedCurrentDelay, simulate_d1
+    >>> recording = simulate_d1("ur10", n_targets=1, random_state=0)
     >>> delayed = LoggedCurrentDelay(0.016).apply_to_recording(recording)
     >>> recording.n_samples - delayed.n_samples  # the first 16 ms have no logged current
     2

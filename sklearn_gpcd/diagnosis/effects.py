@@ -743,7 +743,7 @@ class PayloadEffect(Effect):
 
     def design(self, signals, nominal, target, com=None):
         link, mapping = self._mapping(nominal, com)
-        Y = signals.rigid_body_regressor(nominal.robot.model)
+        Y = signals.rigid_body_features(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * link:10 * link + 10], mapping)
 
     def physical(self, theta, cov, target, settings, nominal):
@@ -830,7 +830,7 @@ class LinkMassEffect(Effect):
         mapping = np.column_stack([_point_mass_parameters(1.0, np.zeros(3), com)]
                                   + ([np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)]
                                      if com_shift else []))
-        Y = signals.rigid_body_regressor(nominal.robot.model)
+        Y = signals.rigid_body_features(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * target:10 * target + 10], mapping)
 
     def physical(self, theta, cov, target, settings, nominal):

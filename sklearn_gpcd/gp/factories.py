@@ -41,7 +41,7 @@ def make_p_f(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp_
     ----------
     features : list of n_joints callables or transformers, or None
         Per-joint regressors :math:`\phi_\ell`, e.g.
-        ``[RigidBodyRegressor(robot, joint=l) for l in range(n_joints)]``.
+        ``[RigidBodyFeatures(robot, joint=l) for l in range(n_joints)]``.
         None gives a zero mean (pure noise model).
     n_joints : int
         Number of joints (outputs).

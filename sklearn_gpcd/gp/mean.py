@@ -37,7 +37,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
     features : callable, transformer or None, default=None
         Map ``X -> Phi`` of shape ``(n_samples, n_params)``: a callable, or a
         scikit-learn transformer (cloned and fitted in :meth:`fit`), e.g.
-        ``RigidBodyRegressor(robot, joint=l)``. None uses ``Phi = X``
+        ``RigidBodyFeatures(robot, joint=l)``. None uses ``Phi = X``
         (a plain linear model).
     friction_columns : array-like of int, "auto" or None, default=None
         Columns of ``Phi`` holding friction terms. ``"auto"`` reads

@@ -307,7 +307,7 @@ class TrainedModel:
 
 def _build(model, robot, n_joints, params, coulomb_width=None):
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..dynamics import RigidBodyRegressor
+    from ..dynamics import RigidBodyFeatures
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
@@ -321,7 +321,7 @@ def _build(model, robot, n_joints, params, coulomb_width=None):
     if robot is None:
         raise ValueError(f"model {model!r} needs the robot (its rigid-body regressor); "
                          "models without one: 'sp_c', 'gp'")
-    phi = [RigidBodyRegressor(robot, joint=j, coulomb_width=coulomb_width)
+    phi = [RigidBodyFeatures(robot, joint=j, coulomb_width=coulomb_width)
            for j in range(n_joints)]
     return {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[model](
         phi, n_joints, **params)
@@ -425,7 +425,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
     coulomb_width : float > 0 or None, default=None
         Coulomb column ``tanh(qd / coulomb_width)`` of the rigid-body
         regressor instead of the paper's ``sign(qd)`` (P_f, SP_S, SP_P; see
-        :class:`~sklearn_gpcd.dynamics.RigidBodyRegressor`).
+        :class:`~sklearn_gpcd.dynamics.RigidBodyFeatures`).
     signals : "auto" or tuple of str, default="auto"
         Controller signals the inputs of SP_P, SP_C and the GP alone use
         (:class:`~sklearn_gpcd.features.CausalFeatures`): "auto", every one
