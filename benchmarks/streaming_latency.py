@@ -147,7 +147,7 @@ def main(argv=None):
           f"load average {os.getloadavg()[0]:.2f} (other processes add jitter)")
     print(f"model: {N_JOINTS} joints, {args.n_support} support points, kernels per joint: "
           f"ARD RBF on 18 state columns + gated ARD RBF on 36 augmented columns"
-          + (", mean: ur10e rigid-body regressor" if args.model == "sp_p" else ""))
+          + (", mean: ur10e rigid-body features" if args.model == "sp_p" else ""))
     print("samples (support and ticks): " + ", ".join(f"{v:.0%} {k}" for k, v in REGIMES.items()))
     print(f"fit {fit_seconds:.1f} s, compile {compile_seconds * 1e3:.0f} ms, "
           f"path: {monitor.predictor_kind}")

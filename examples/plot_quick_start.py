@@ -53,7 +53,7 @@ print("X:", X_train.shape, "y:", y_train.shape)
 # -----------------
 # Both share the parametric part: one
 # :class:`~sklearn_gpcd.dynamics.RigidBodyFeatures` per joint, the
-# rigid-body regressor of the built-in UR10 with Coulomb and viscous friction
+# rigid-body features of the built-in UR10 with Coulomb and viscous friction
 # (Eq. 8-10). SP_P adds the gated quasi-static kernel (Eq. 14-16) and zeroes the
 # friction columns at rest (the paper's :math:`\bar\phi`).
 #

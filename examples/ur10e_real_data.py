@@ -78,7 +78,7 @@ print(f"{len(y)} training samples")
 # Fit SP_S and SP_P on the UR10e model
 # ------------------------------------
 # The built-in ``"ur10e"`` model (published kinematic and inertial
-# parameters) provides the rigid-body regressor; the GPs correct what it
+# parameters) provides the rigid-body features; the GPs correct what it
 # misses. 500 support samples keep the fit short.
 # (base_parameters=False: see the quick start)
 features = [RigidBodyFeatures("ur10e", joint=j, base_parameters=False) for j in range(6)]

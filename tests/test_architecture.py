@@ -273,7 +273,7 @@ MANY_PARAMETERS = {
         "n_iter_no_change, as MLPRegressor), so that GridSearchCV and users reach them "
         "flat; the five minibatch ones are the part to split out when the API may change",
     "RigidBodyFeatures":
-        "each parameter picks columns of the regressor matrix or its identification; "
+        "each parameter picks columns of the feature matrix or its identification; "
         "issue 46 point 3 renames this class, and the split (friction terms and "
         "coulomb_width as one friction part) goes with that rename",
     "RobotSimulator":

@@ -148,7 +148,7 @@ def _per_joint_column(signals, joint, values):
 
 
 class Effect:
-    """Base class of a named effect: a group of regressor columns.
+    """Base class of a named effect: a group of torque-feature columns.
 
     Subclasses set the class attributes and implement :meth:`design` and,
     when the parameters are not reported as fitted, :meth:`physical`.
@@ -705,7 +705,7 @@ def _shared_columns(signals, link_columns, mapping):
 class PayloadEffect(Effect):
     """A payload at the flange: mass ``m`` and centre of mass ``c`` (flange frame).
 
-    Its torques are the last link's rigid-body regressor times the dynamic
+    Its torques are the last link's rigid-body features times the dynamic
     parameters of a point mass at the flange (``flange_frame`` placement
     ``(R, p)`` in the last joint frame), which are linear in ``(m, m c)``
     when the term ``m c c^T`` of the inertia about the joint origin is

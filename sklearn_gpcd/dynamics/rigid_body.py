@@ -1,4 +1,4 @@
-"""scikit-learn transformer from joint states to rigid-body regressor features."""
+"""scikit-learn transformer from joint states to rigid-body features."""
 
 import hashlib
 import os
@@ -108,11 +108,11 @@ def _identification(robot, p, regressor, n_states, random_state, reduce, rank_to
 
 
 class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
-    """Regressor features :math:`\\phi(x)` of the physical torque model.
+    """Torque features :math:`\\phi(x)` of the physical torque model.
 
     Maps joint states ``x = [q, qd, qdd]`` to the rows of the linear model
     :math:`\\tau = \\Phi(x)\\,\\pi` (paper Eq. 8-10; see
-    :mod:`sklearn_gpcd.dynamics.torque_model`): pinocchio's rigid-body regressor
+    :mod:`sklearn_gpcd.dynamics.torque_model`): pinocchio's rigid-body features
     plus per-joint rotor-inertia, Coulomb, viscous and offset columns,
     optionally reduced to the base (identifiable) parameters and expressed
     in motor-current units (Eq. 4). These are the features of the parametric

@@ -103,7 +103,7 @@ def parameter_names(n_joints, rotor_inertia=True, friction=FRICTION_TERMS, offse
 
 
 def inertial_features(model, q, qd, qdd):
-    """Pinocchio's rigid-body regressor for a batch of states.
+    """Pinocchio's rigid-body features for a batch of states.
 
     Parameters
     ----------

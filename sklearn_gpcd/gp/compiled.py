@@ -371,7 +371,7 @@ class _GaussianProcessPredictor:
         groups = (g.finalize() for blocks in by_columns.values()
                   for g in _groups(blocks, n_outputs))
         self.groups = [g for g in groups if g.n_rows]  # no row, no contribution
-        self.states = {}  # rigid-body regressors shared by the means of one robot
+        self.states = {}  # rigid-body features shared by the means of one robot
         self.means = [_compile_mean(post.mean, wrap, self.states) for post in posteriors]
         self.row = np.empty((1, n_features))
         self.live_means = [(j, mean) for j, mean in enumerate(self.means) if mean is not None]
@@ -416,7 +416,7 @@ def _rigid_body_mean(mean, states):
 
 
 class _SampleState:
-    """The full rigid-body regressor at the current tick, shared by several means."""
+    """The full rigid-body features at the current tick, shared by several means."""
 
     def __init__(self, features):
         self.features = features

@@ -20,7 +20,7 @@ class ParametricKernel(Kernel):
     If :math:`f(x) = \phi(x) w` with :math:`w \sim N(m_w, \Sigma)`, the
     covariance of :math:`f` is the kernel of the parametric prior (paper,
     Sec. III-A "Parametric priors" and option (ii) of "Semi-Parametric
-    priors"; :math:`\phi` is e.g. the rigid-body regressor with the friction
+    priors"; :math:`\phi` is e.g. the rigid-body features with the friction
     columns of Eq. 8-10):
 
     .. math::
@@ -118,7 +118,7 @@ class ParametricKernel(Kernel):
         )
 
     def design_matrix(self, X, phi=None):
-        r"""The regressor matrix :math:`\Phi(X)`, validated.
+        r"""The feature matrix :math:`\Phi(X)`, validated.
 
         Parameters
         ----------
