@@ -19,9 +19,9 @@ from sklearn_gpcd.datasets import (
     Payload,
     TorqueConstantError,
     default_friction,
-    delay_logged_current,
     simulate_d1,
 )
+from sklearn_gpcd.datasets._extra_effects import delay_logged_current
 from sklearn_gpcd.datasets.plant import drive_parameters
 from sklearn_gpcd.diagnosis import (
     DiagnosedModel,

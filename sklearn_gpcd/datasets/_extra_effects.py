@@ -1,4 +1,7 @@
-"""More effects to inject into the simulated robot (for the diagnosis tests).
+"""More effects to inject into the simulated robot, for the diagnosis tests and studies.
+
+Not public, except :class:`FrictionDelta`, which the gallery uses
+(``sklearn_gpcd.datasets.FrictionDelta``); the others are imported from here.
 
 They follow the protocol of :mod:`sklearn_gpcd.datasets.effects` (a frozen
 dataclass with ``start``/``stop`` and ``apply(plant)`` returning an undo
