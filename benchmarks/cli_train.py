@@ -222,7 +222,7 @@ def recipe(model, train, calib, work, extra=()):
     return chosen, choice, folds, seconds
 
 
-def choice_real(root, work):
+def choice_real(root, work, models=CHOICE_MODELS, halves=("half1", "half2")):
     """The table's UR10e rows: each model through the recipe on the benchmark's split."""
     import readme_recipe
     import real_ur10e as bench
@@ -236,8 +236,9 @@ def choice_real(root, work):
              "half2": ([root / k for k in second],
                        [root / k for k in bench.PUSHES + first])}
     held = {"half1": second, "half2": first}
+    calib = {name: calib[name] for name in halves}
     rows = []
-    for model in CHOICE_MODELS:
+    for model in models:
         chosen, choice, folds, seconds = recipe(model, train, calib, work / model)
         caught = n_pushes = outside = 0
         for name, report in folds:
@@ -286,13 +287,13 @@ def sim_logs(folder, seed=0):
     return files, windows
 
 
-def choice_sim(work):
+def choice_sim(work, models=CHOICE_MODELS):
     """The table's simulated rows: feed-forward target current, pushes on joint 1."""
     files, windows = sim_logs(work / "logs")
     monitor = files["push"] + files["unseen"]
     push_names = {Path(f).name for f in files["push"]}
     rows = []
-    for model in CHOICE_MODELS:
+    for model in models:
         chosen, choice, folds, seconds = recipe(
             model, files["train"], {"all": (files["calibrate"], monitor)},
             work / model, ["--robot", SIM_ROBOT])
@@ -325,7 +326,9 @@ def choice_table(rows):
     out += [table_row(r) for r in rows]
     for plant in dict.fromkeys(r["plant"] for r in rows):
         mine = [r for r in rows if r["plant"] == plant]
-        auto = next(r for r in mine if r["model"] == "auto")
+        auto = next((r for r in mine if r["model"] == "auto"), None)
+        if auto is None:
+            continue
         better = [r["model"].upper() for r in mine if r["model"] != "auto" and (
             r["caught"] > auto["caught"] or (r["caught"] == auto["caught"]
                                             and r["false_alarms"] < auto["false_alarms"]))]
@@ -374,6 +377,10 @@ def main(argv=None):
     parser.add_argument("--skip-synthetic", action="store_true")
     parser.add_argument("--choice", default="",
                         help="comma-separated plants of the model-choice table: real, sim")
+    parser.add_argument("--models", default=",".join(CHOICE_MODELS),
+                        help="comma-separated gpcd train --model values of the table")
+    parser.add_argument("--halves", default="half1,half2",
+                        help="UR10e split: calibrate on half1 and/or half2 of its unseen set")
     parser.add_argument("--fold-sizes", action="store_true",
                         help="the auto comparison at several fold sizes (UR10e split)")
     parser.add_argument("--output", type=Path, default=None,
@@ -432,16 +439,17 @@ def main(argv=None):
     if plants or args.fold_sizes:
         root = real_data_path("ur10e_mamedov", args.data)
         have_real = root is not None and Path(root).is_dir()
-        rows = []
+        rows, models = [], args.models.split(",")
         with tempfile.TemporaryDirectory() as tmp:
             for plant in plants:
                 print(f"model choice against detection: {plant} ...", flush=True)
                 if plant == "real" and not have_real:
                     print(f"  real UR10e data not found ({root}): skipped")
                 elif plant == "real":
-                    rows += choice_real(Path(root), Path(tmp) / "real")
+                    rows += choice_real(Path(root), Path(tmp) / "real", models,
+                                        args.halves.split(","))
                 else:
-                    rows += choice_sim(Path(tmp) / "sim")
+                    rows += choice_sim(Path(tmp) / "sim", models)
                 report["model_choice"] = rows
                 write_report(args.output, report)
         if rows:
