@@ -50,11 +50,12 @@ def nominal():
 
 
 def _injectors():
-    """Every simulator injector class (a plant or a recording effect)."""
+    """Every simulator injector class (a plant or a recording effect; a private base
+    class such as ``effects._FrictionEffect`` is none)."""
     found = set()
     for module in (effects, _extra_effects):
         for _, cls in inspect.getmembers(module, inspect.isclass):
-            if cls.__module__ == module.__name__ and (
+            if cls.__module__ == module.__name__ and not cls.__name__.startswith("_") and (
                     hasattr(cls, "apply") or hasattr(cls, "apply_to_recording")):
                 found.add(cls)
     return found
