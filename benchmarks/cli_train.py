@@ -375,16 +375,20 @@ def main(argv=None):
                         help="D1 targets per simulated chunk (about 300 s each)")
     parser.add_argument("--skip-real", action="store_true")
     parser.add_argument("--skip-synthetic", action="store_true")
-    parser.add_argument("--choice", default="",
-                        help="comma-separated plants of the model-choice table: real, sim")
-    parser.add_argument("--models", default=",".join(CHOICE_MODELS),
-                        help="comma-separated gpcd train --model values of the table")
-    parser.add_argument("--halves", default="half1,half2",
-                        help="UR10e split: calibrate on half1 and/or half2 of its unseen set")
-    parser.add_argument("--fold-sizes", action="store_true",
-                        help="the auto comparison at several fold sizes (UR10e split)")
-    parser.add_argument("--output", type=Path, default=None,
-                        help="folder for cli_train.json and model_choice.json / .txt")
+    choice_options = {  # the model-choice table and the fold sizes
+        "--choice": dict(default="", help="comma-separated plants of the model-choice "
+                         "table: real, sim"),
+        "--models": dict(default=",".join(CHOICE_MODELS), help="comma-separated gpcd "
+                         "train --model values of the table"),
+        "--halves": dict(default="half1,half2", help="UR10e split: calibrate on half1 "
+                         "and/or half2 of its unseen set"),
+        "--fold-sizes": dict(action="store_true", help="the auto comparison at several "
+                             "fold sizes (UR10e split)"),
+        "--output": dict(type=Path, default=None, help="folder for cli_train.json and "
+                         "model_choice.txt"),
+    }
+    for flag, options in choice_options.items():
+        parser.add_argument(flag, **options)
     args = parser.parse_args(argv)
     print(f"cores: {os.cpu_count()}, load average at start: "
           f"{', '.join(f'{v:.1f}' for v in os.getloadavg())}", flush=True)
