@@ -274,8 +274,8 @@ MANY_PARAMETERS = {
         "flat; the five minibatch ones are the part to split out when the API may change",
     "RigidBodyFeatures":
         "each parameter picks columns of the feature matrix or its identification; "
-        "issue 46 point 3 renames this class, and the split (friction terms and "
-        "coulomb_width as one friction part) goes with that rename",
+        "the friction terms and coulomb_width are the part to split out (one friction "
+        "part) when the API may change",
     "RobotSimulator":
         "a plant's physical settings; the sensor ones (current_noise_std, "
         "velocity_noise_std, position_resolution) are the part to split out when the "
@@ -449,3 +449,16 @@ def test_no_subpackage_exports_a_command_line_helper():
                     == extra.__name__ and not n.startswith("_")} - {"FrictionDelta"}
     public = set(sklearn_gpcd.datasets.__all__) | set(dir(sklearn_gpcd.datasets))
     assert studies_only and not studies_only & public, studies_only & public
+
+
+def test_one_regime_vocabulary():
+    """The regimes of the features (and the diagnosis, which uses them) and of
+    the detector are words of one vocabulary, ``_gate.REGIME_WORDS``, in which
+    each word has one meaning (issue #46 item 3)."""
+    from sklearn_gpcd._gate import REGIME_WORDS
+    from sklearn_gpcd.detection import REGIME_NAMES
+    from sklearn_gpcd.features import REGIMES
+
+    assert set(REGIMES) <= set(REGIME_WORDS), set(REGIMES) - set(REGIME_WORDS)
+    assert set(REGIME_NAMES) <= set(REGIME_WORDS), set(REGIME_NAMES) - set(REGIME_WORDS)
+    assert set(REGIMES) | set(REGIME_NAMES) == set(REGIME_WORDS)

@@ -1,4 +1,4 @@
-"""Physical torque model features: regressor, base parameters, sklearn transformer;
+"""The physical torque model's features, base parameters and sklearn transformer;
 the generalized-momentum observer.
 
 >>> from sklearn_gpcd.dynamics import parameter_names

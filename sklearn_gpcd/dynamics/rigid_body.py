@@ -176,13 +176,13 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         Names of the full parameter vector :math:`\\pi` (see
         :func:`~sklearn_gpcd.dynamics.parameter_names`).
     base_parameters_ : dict
-        ``indices`` (independent columns of the full regressor),
+        ``indices`` (independent columns of the full torque features),
         ``mapping`` ``K`` of shape ``(n_base, n_parameters)`` with
         :math:`\\Phi_{base}\\,(K\\pi) = \\Phi\\,\\pi`, ``names``, ``rank`` and
         ``tol`` (absolute threshold on :math:`|R_{ii}|`). Identity mapping
         when ``base_parameters=False``.
     columns_ : ndarray of int
-        Columns of the full regressor returned by ``transform``.
+        Columns of the full torque features returned by ``transform``.
     parameter_mapping_ : ndarray of shape (n_features_out, n_parameters)
         Rows of ``K`` for ``columns_``: ``transform(X) @ (parameter_mapping_
         @ pi)`` are the torques (currents) of the selected joint(s).
@@ -319,7 +319,7 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         return self
 
     def transform(self, X):
-        """Regressor rows of the selected joint(s).
+        """Torque-feature rows of the selected joint(s).
 
         Parameters
         ----------

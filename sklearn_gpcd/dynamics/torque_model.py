@@ -1,4 +1,4 @@
-"""The linear-in-parameters torque model and its regressor.
+"""The linear-in-parameters torque model and its features :math:`\\Phi`.
 
 The joint torques of a rigid serial arm with reflected rotor inertias,
 friction and offsets are linear in the parameters (paper Eq. 8-10):
@@ -103,7 +103,7 @@ def parameter_names(n_joints, rotor_inertia=True, friction=FRICTION_TERMS, offse
 
 
 def inertial_features(model, q, qd, qdd):
-    """Pinocchio's rigid-body features for a batch of states.
+    """Pinocchio's joint torque regressor, the inertial block of :math:`\\Phi`, for a batch.
 
     Parameters
     ----------
@@ -130,7 +130,7 @@ def inertial_features(model, q, qd, qdd):
 def _joint_torque_rows(model, q, qd, qdd, rows=None):
     """Rows ``rows`` (default all) of :func:`inertial_features`, read-only.
 
-    The regressor of the last batch is cached when it has at most
+    The features of the last batch are cached when it has at most
     :data:`CACHE_MAX_BYTES` bytes; a larger batch is computed for the
     requested rows only (so the feature map of one joint of D1, 80,000
     samples, needs 38 MB instead of 230 MB).
@@ -156,7 +156,7 @@ def _joint_torque_rows(model, q, qd, qdd, rows=None):
     return out
 
 
-#: The regressor of the last batch of states is kept when it has at most this
+#: The features of the last batch of states are kept when it has at most this
 #: many bytes (46,000 samples of a 6-joint arm), so that the feature maps of
 #: the joints of one recording, fitted one after the other, call pinocchio
 #: once per sample instead of once per joint and per call.
@@ -185,7 +185,7 @@ def _batch_key(model, q, qd, qdd):
 def _diagonal_block(values, rows=None):
     """(n, nv) per-joint values -> (n, len(rows), nv), ``values[:, l]`` at ``[l, l]``.
 
-    ``rows`` (default: all joints) are the joints whose regressor rows are kept.
+    ``rows`` (default: all joints) are the joints whose rows are kept.
     """
     n, nv = values.shape
     rows = np.arange(nv) if rows is None else rows
@@ -245,7 +245,7 @@ def friction_features(qd, term, sigma_v=None, coulomb_width=None):
 
 def torque_features(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERMS,
                    offset=False, sigma_v=None, joints=None, coulomb_width=None):
-    """Regressor of the full parameter vector for a batch of states.
+    """Torque features :math:`\\Phi` of the full parameter vector for a batch of states.
 
     Parameters
     ----------
@@ -259,7 +259,7 @@ def torque_features(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TER
     sigma_v : float, default=None
         Velocity threshold of the friction gate (Eq. 17).
     joints : int or sequence of int, default=None
-        Keep only the regressor rows of these joints (all by default).
+        Keep only the rows of these joints (all by default).
     coulomb_width : float > 0, default=None
         Coulomb column :math:`\\tanh(\\dot q_l / w)` instead of the sign
         (see :func:`friction_features`).

@@ -15,7 +15,8 @@ import numpy as np
 
 from .._gate import DEFAULT_SIGMA_V, check_sigma_v, quasi_static
 
-#: Labels returned by :func:`regimes`, from lowest to highest precedence.
+#: Labels returned by :func:`regimes`, from lowest to highest precedence
+#: (words of the package's one regime vocabulary, ``_gate.REGIME_WORDS``).
 REGIMES = ("moving", "creep", "rest", "braking", "reversal")
 
 
@@ -128,8 +129,9 @@ def regimes(
     so ``rest`` or ``creep`` is exactly :func:`quasi_static_mask` (Eq. 15).
     Two event labels override the bands:
 
-    * ``"braking"``: :math:`|\\ddot q_\\ell| \\ge \\sigma_a`
-      (only when ``qdd`` is given);
+    * ``"braking"``: :math:`|\\ddot q_\\ell| \\ge` ``brake_limit``, hard
+      stops and starts (only when ``qdd`` is given; the detector's braking
+      regime has the same meaning);
     * ``"reversal"`` (highest precedence): the joint changes direction. Two
       samples ``k1 < k2`` with :math:`|\\dot q_\\ell| \\ge \\sigma_v` and
       opposite signs, only quasi-static samples between them and
