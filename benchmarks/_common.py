@@ -1,6 +1,6 @@
 """Shared data and timing helpers of the GP benchmarks (run on demand).
 
-The data are simulated by :func:`sklearn_gpcd.datasets.make_d1` (UR10, the
+The data are simulated by :func:`sklearn_gpcd.datasets.simulate_d1` (UR10, the
 paper's D1 protocol): inputs ``x = [q, qd, qdd]`` of the 6 joints (the 18
 state columns the SP_S kernel of Eq. 11 sees) and the current of one joint.
 """
@@ -16,7 +16,7 @@ from sklearn_gpcd.features import make_inputs
 
 def d1_state_problem(n_train=3000, n_test=3000, joint=1, n_targets=40, random_state=0):
     """``(X_train, y_train, X_test, y_test)``: disjoint random rows of a simulated D1."""
-    rec = datasets.make_d1("ur10", n_targets=n_targets, random_state=random_state)
+    rec = datasets.simulate_d1("ur10", n_targets=n_targets, random_state=random_state)
     X, Y = make_inputs(rec, augmented=True)
     X = X[:, state_columns(rec.n_joints)]
     rows = np.random.RandomState(random_state).permutation(len(X))

@@ -18,7 +18,7 @@ import numpy as np
 
 from _common import nmse, table, timed
 from sklearn_gpcd import datasets
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
 from sklearn_gpcd.robots import resolve_robot
@@ -31,8 +31,8 @@ def main():
     parser.add_argument("--n-support", type=int, default=1500)
     parser.add_argument("--n-jobs", type=int, default=2)
     args = parser.parse_args()
-    d1 = datasets.make_d1("ur10", n_targets=args.d1_targets, random_state=0)
-    d2 = datasets.make_d2("ur10", n_targets=args.d2_targets, random_state=1)
+    d1 = datasets.simulate_d1("ur10", n_targets=args.d1_targets, random_state=0)
+    d2 = datasets.simulate_d2("ur10", n_targets=args.d2_targets, random_state=1)
     X, Y = make_inputs(d1, augmented=True)
     X2, Y2 = make_inputs(d2, augmented=True)
     n = d1.n_joints
@@ -41,7 +41,7 @@ def main():
     print(f"D1 {X.shape[0]} rows, D2 {X2.shape[0]} rows, n_support {args.n_support}", flush=True)
     scores, seconds = {}, {}
     for optimizer in ("fmin_l_bfgs_b", "adam"):
-        model = make_sp_p([RigidBodyRegressor(robot, joint=j) for j in range(n)], n,
+        model = make_sp_p([RigidBodyFeatures(robot, joint=j) for j in range(n)], n,
                           n_support=args.n_support, optimizer=optimizer, random_state=0,
                           n_jobs=args.n_jobs)
         _, seconds[optimizer] = timed(model.fit, X, Y)

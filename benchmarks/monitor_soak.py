@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 from sklearn.linear_model import LinearRegression
 
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
 from sklearn_gpcd.features import CausalFeatures
 from sklearn_gpcd.monitoring import MonitorSession
@@ -63,7 +63,7 @@ def rss_bytes():
 
 def setup():
     """The detector, its features and the run streamed over and over."""
-    runs = [make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=s) for s in range(3)]
+    runs = [simulate_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=s) for s in range(3)]
     features = CausalFeatures().fit(runs)
     X = np.vstack([stack_currents(features.transform(r), r.current) for r in runs])
     rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.5, filter_cutoff=10.0,

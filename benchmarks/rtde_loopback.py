@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 from sklearn_gpcd.cli import main as gpcd
-from sklearn_gpcd.datasets import make_d1, make_interaction_test
+from sklearn_gpcd.datasets import simulate_d1, simulate_interaction_test
 from sklearn_gpcd.io import load_recording, write_rtde_csv
 
 RATE = 500.0
@@ -51,9 +51,9 @@ def _serve(path, queue, max_duration):
 
 def make_data(folder, seconds, seed=0):
     """Collision-free 500 Hz runs and a ``seconds`` long run with two current bumps."""
-    free = [write_rtde_csv(make_d1("ur10e", n_targets=3, sample_rate=RATE, random_state=s),
+    free = [write_rtde_csv(simulate_d1("ur10e", n_targets=3, sample_rate=RATE, random_state=s),
                            folder / f"free{s}.csv", robot_comment=True) for s in range(3)]
-    rec = make_interaction_test("ur10e", sample_rate=RATE, random_state=seed,
+    rec = simulate_interaction_test("ur10e", sample_rate=RATE, random_state=seed,
                                 rest_duration=5.0)
     rec = rec.slice(0, int(seconds * RATE)) if rec.duration > seconds else rec
     t = rec.time - rec.time[0]

@@ -1,6 +1,6 @@
 """Benchmark (c): full SP_P training on a D1-sized set (80,000 samples x 6 joints).
 
-D1 is simulated with the paper's protocol (``make_d1("ur10", n_targets=200)``,
+D1 is simulated with the paper's protocol (``simulate_d1("ur10", n_targets=200)``,
 ~80,000 samples at 125 Hz, ~30 s); the inputs are the augmented ``x^a`` of
 Eq. 13 (36 columns). SP_P (``make_sp_p``: per joint ``C * ARDRBF(18 cols) +
 C * QuasiStaticGate(ARDRBF(36 cols)) + White`` around the rigid-body +
@@ -24,7 +24,7 @@ from joblib.externals.loky import get_reusable_executor
 
 from _common import table
 from sklearn_gpcd import datasets
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
 from sklearn_gpcd.robots import resolve_robot
@@ -40,14 +40,14 @@ def main():
     parser.add_argument("--n-jobs", type=int, default=2)
     args = parser.parse_args()
     tic = time.perf_counter()
-    rec = datasets.make_d1("ur10", n_targets=200, random_state=0)
+    rec = datasets.simulate_d1("ur10", n_targets=200, random_state=0)
     X, Y = make_inputs(rec, augmented=True)
     t_sim = time.perf_counter() - tic
     rss_data = peak_rss_mb()
     print(f"(c) simulated D1: {X.shape[0]} samples x {Y.shape[1]} joints, {X.shape[1]} input "
           f"columns in {t_sim:.1f} s (peak RSS so far {rss_data:.0f} MB)", flush=True)
     robot = resolve_robot("ur10")
-    features = [RigidBodyRegressor(robot, joint=j) for j in range(rec.n_joints)]
+    features = [RigidBodyFeatures(robot, joint=j) for j in range(rec.n_joints)]
     model = make_sp_p(features, rec.n_joints, n_support=5000, random_state=0, n_jobs=args.n_jobs)
     tic = time.perf_counter()
     model.fit(X, Y)

@@ -19,7 +19,7 @@ optimised (``optimizer=None``): latency depends on the model's shape, not on
 its fitted values.
 
 With ``--model sp_p`` each joint also has the rigid-body parametric mean of
-SP_P (:class:`~sklearn_gpcd.dynamics.RigidBodyRegressor` of the built-in
+SP_P (:class:`~sklearn_gpcd.dynamics.RigidBodyFeatures` of the built-in
 ``ur10e``, friction columns zeroed at rest, Eq. 17), whose per-tick path
 computes pinocchio's regressor once per tick for all joints; the default
 ``--model gp`` has no parametric mean.
@@ -38,7 +38,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from sklearn_gpcd.detection import AlarmRule, CollisionDetector, StreamingMonitor, stack_currents
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.gp import make_sp_p
 
 N_JOINTS = 6
@@ -110,7 +110,7 @@ def main(argv=None):
     y = synthetic_currents(X, rng)
     features = None
     if args.model == "sp_p":
-        features = [RigidBodyRegressor("ur10e", joint=joint, sigma_v=SIGMA_V)
+        features = [RigidBodyFeatures("ur10e", joint=joint, sigma_v=SIGMA_V)
                     for joint in range(N_JOINTS)]
     regressor = make_sp_p(features, N_JOINTS, sigma_v=SIGMA_V, optimizer=None, n_jobs=2,
                           n_support=args.n_support)
@@ -147,7 +147,7 @@ def main(argv=None):
           f"load average {os.getloadavg()[0]:.2f} (other processes add jitter)")
     print(f"model: {N_JOINTS} joints, {args.n_support} support points, kernels per joint: "
           f"ARD RBF on 18 state columns + gated ARD RBF on 36 augmented columns"
-          + (", mean: ur10e rigid-body regressor" if args.model == "sp_p" else ""))
+          + (", mean: ur10e rigid-body features" if args.model == "sp_p" else ""))
     print("samples (support and ticks): " + ", ".join(f"{v:.0%} {k}" for k, v in REGIMES.items()))
     print(f"fit {fit_seconds:.1f} s, compile {compile_seconds * 1e3:.0f} ms, "
           f"path: {monitor.predictor_kind}")

@@ -22,7 +22,7 @@ nominal model and the recordings. It
 # friction. The "real" robot carries a payload and a higher Stribeck peak.
 import numpy as np
 
-from sklearn_gpcd.datasets import FrictionDelta, Payload, default_friction, make_d1
+from sklearn_gpcd.datasets import FrictionDelta, Payload, default_friction, simulate_d1
 from sklearn_gpcd.datasets.plant import drive_parameters
 from sklearn_gpcd.diagnosis import DynamicsDiagnosis
 from sklearn_gpcd.robots import load_robot
@@ -35,8 +35,8 @@ nominal_friction = default_friction(robot)
 
 concealed = [Payload(2.5, com=(0.0, 0.02, 0.05)),
              FrictionDelta(static=[0.0, 6.0, 0.0, 0.0, 0.0, 0.0])]
-train = make_d1("ur10", n_targets=10, effects=concealed, random_state=0)
-test = make_d1("ur10", n_targets=6, effects=concealed, random_state=1)
+train = simulate_d1("ur10", n_targets=10, effects=concealed, random_state=0)
+test = simulate_d1("ur10", n_targets=6, effects=concealed, random_state=1)
 print(f"training: {train.duration:.0f} s, held-out: {test.duration:.0f} s of robot time")
 
 # %%

@@ -33,7 +33,7 @@ import numpy as np
 from sklearn_gpcd.datasets import (
     EFFECT_REGISTRY,
     default_friction,
-    make_d1,
+    simulate_d1,
     registered_effect,
 )
 from sklearn_gpcd.datasets.plant import drive_parameters
@@ -77,7 +77,7 @@ def simulate(effects, seed=1):
     plant = [e for e in effects if hasattr(e, "apply")]
 
     def run(n_targets, random_state):
-        recording = make_d1("ur10", n_targets=n_targets, effects=plant,
+        recording = simulate_d1("ur10", n_targets=n_targets, effects=plant,
                             random_state=random_state)
         for effect in effects:  # a logging delay acts on the finished recording
             if hasattr(effect, "apply_to_recording"):

@@ -38,13 +38,13 @@ from sklearn.metrics import make_scorer
 from sklearn.model_selection import GridSearchCV, GroupKFold
 from sklearn.pipeline import Pipeline
 
-from sklearn_gpcd.datasets import make_joint1_cyclic
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.datasets import simulate_joint1_cyclic
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import InverseDynamicsFeatures, targets
 from sklearn_gpcd.gp import make_sp_p
 from sklearn_gpcd.metrics import nmse
 
-runs = [make_joint1_cyclic("ur10", rest_duration=2.0, random_state=seed) for seed in range(3)]
+runs = [simulate_joint1_cyclic("ur10", rest_duration=2.0, random_state=seed) for seed in range(3)]
 inputs = InverseDynamicsFeatures().fit(runs)
 run_id = np.concatenate([np.full(run.n_samples, k) for k, run in enumerate(runs)])
 X = np.column_stack([inputs.transform(runs), run_id])
@@ -59,7 +59,7 @@ print(X.shape, "columns", names[:3], "...", names[-3:], "+ run")
 # overrides the threshold of the six gates and the six friction masks at
 # once, so the grid is over ``gp__sigma_v``.
 # (base_parameters=False: see the quick start)
-features = [RigidBodyRegressor("ur10", joint=j, base_parameters=False) for j in range(6)]
+features = [RigidBodyFeatures("ur10", joint=j, base_parameters=False) for j in range(6)]
 pipe = Pipeline([
     ("inputs", ColumnTransformer([("drop_run", "drop", [X.shape[1] - 1])],
                                  remainder="passthrough")),

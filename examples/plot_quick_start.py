@@ -27,20 +27,20 @@ samples, so the whole script runs in a few seconds.
 # %%
 # Simulate the training and test runs
 # -----------------------------------
-# ``make_joint1_cyclic`` returns a :class:`~sklearn_gpcd.io.Recording` sampled
+# ``simulate_joint1_cyclic`` returns a :class:`~sklearn_gpcd.io.Recording` sampled
 # at 125 Hz, with the reference trajectory's phases in its metadata. The two
 # runs differ in their sensor noise (``random_state``) and hence in where
 # joint 1 sticks.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sklearn_gpcd.datasets import make_joint1_cyclic
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.datasets import simulate_joint1_cyclic
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p, make_sp_s
 
-train = make_joint1_cyclic("ur10", rest_duration=2.0, random_state=0)
-test = make_joint1_cyclic("ur10", rest_duration=2.0, random_state=1)
+train = simulate_joint1_cyclic("ur10", rest_duration=2.0, random_state=0)
+test = simulate_joint1_cyclic("ur10", rest_duration=2.0, random_state=1)
 print(f"training run: {train.n_samples} samples, {train.duration:.1f} s, "
       f"{train.n_joints} joints")
 
@@ -52,8 +52,8 @@ print("X:", X_train.shape, "y:", y_train.shape)
 # Fit SP_S and SP_P
 # -----------------
 # Both share the parametric part: one
-# :class:`~sklearn_gpcd.dynamics.RigidBodyRegressor` per joint, the
-# rigid-body regressor of the built-in UR10 with Coulomb and viscous friction
+# :class:`~sklearn_gpcd.dynamics.RigidBodyFeatures` per joint, the
+# rigid-body features of the built-in UR10 with Coulomb and viscous friction
 # (Eq. 8-10). SP_P adds the gated quasi-static kernel (Eq. 14-16) and zeroes the
 # friction columns at rest (the paper's :math:`\bar\phi`).
 #
@@ -61,7 +61,7 @@ print("X:", X_train.shape, "y:", y_train.shape)
 # identifiable columns, a QR decomposition that dominates the fit at this tiny
 # size; the least-squares fit of the mean is minimum-norm, so the predictions
 # are the same.
-features = [RigidBodyRegressor("ur10", joint=j, base_parameters=False) for j in range(6)]
+features = [RigidBodyFeatures("ur10", joint=j, base_parameters=False) for j in range(6)]
 models = {
     "SP_S": make_sp_s(features, n_joints=6, n_support=150, random_state=0),
     "SP_P": make_sp_p(features, n_joints=6, sigma_v=1e-2, n_support=150,

@@ -28,7 +28,7 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 
-from sklearn_gpcd.datasets import Contact, make_joint1_cyclic, reference_joint1_cyclic, simulate
+from sklearn_gpcd.datasets import Contact, simulate_joint1_cyclic, reference_joint1_cyclic, simulate
 from sklearn_gpcd.detection import (
     AlarmRule,
     CollisionDetector,
@@ -36,14 +36,14 @@ from sklearn_gpcd.detection import (
     StreamingMonitor,
     stack_currents,
 )
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
 
 # (base_parameters=False: see the quick start)
-features = [RigidBodyRegressor("ur10", joint=j, base_parameters=False) for j in range(6)]
+features = [RigidBodyFeatures("ur10", joint=j, base_parameters=False) for j in range(6)]
 model = make_sp_p(features, n_joints=6, n_support=150, random_state=0)
-training = make_joint1_cyclic("ur10", rest_duration=2.0, random_state=0)
+training = simulate_joint1_cyclic("ur10", rest_duration=2.0, random_state=0)
 rule = AlarmRule(contamination=1e-3, filter_cutoff=2.0, min_duration=5)
 detector = CollisionDetector(model, n_joints=6, sample_time=1 / 125, rules=rule)
 detector.fit(stack_currents(*make_inputs(training)))

@@ -33,10 +33,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 from sklearn.frozen import FrozenEstimator
 
-from sklearn_gpcd.datasets import Contact, make_joint1_cyclic, reference_joint1_cyclic, simulate
+from sklearn_gpcd.datasets import Contact, simulate_joint1_cyclic, reference_joint1_cyclic, simulate
 from sklearn_gpcd.detection import (AlarmRule, CollisionDetector, CollisionThresholdCV,
                                     stack_currents)
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
 from sklearn_gpcd.plotting import plot_monitoring
@@ -69,9 +69,9 @@ print(f"{len(runs)} runs, {len(y)} samples, "
 # %%
 # The current model: SP_P fitted on a collision-free run
 # ------------------------------------------------------
-free = make_joint1_cyclic("ur10", rest_duration=2.0, random_state=10)
+free = simulate_joint1_cyclic("ur10", rest_duration=2.0, random_state=10)
 # (base_parameters=False: see the quick start)
-features = [RigidBodyRegressor("ur10", joint=j, base_parameters=False) for j in range(6)]
+features = [RigidBodyFeatures("ur10", joint=j, base_parameters=False) for j in range(6)]
 model = make_sp_p(features, n_joints=6, n_support=150, random_state=0)
 model.fit(*make_inputs(free))
 

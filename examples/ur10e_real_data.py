@@ -46,7 +46,7 @@ if DATA is None:
     sys.exit(0)
 
 from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
-from sklearn_gpcd.dynamics import RigidBodyRegressor  # noqa: E402
+from sklearn_gpcd.dynamics import RigidBodyFeatures  # noqa: E402
 from sklearn_gpcd.features import make_inputs  # noqa: E402
 from sklearn_gpcd.gp import make_sp_p, make_sp_s  # noqa: E402
 from sklearn_gpcd.io import load_recording  # noqa: E402
@@ -78,10 +78,10 @@ print(f"{len(y)} training samples")
 # Fit SP_S and SP_P on the UR10e model
 # ------------------------------------
 # The built-in ``"ur10e"`` model (published kinematic and inertial
-# parameters) provides the rigid-body regressor; the GPs correct what it
+# parameters) provides the rigid-body features; the GPs correct what it
 # misses. 500 support samples keep the fit short.
 # (base_parameters=False: see the quick start)
-features = [RigidBodyRegressor("ur10e", joint=j, base_parameters=False) for j in range(6)]
+features = [RigidBodyFeatures("ur10e", joint=j, base_parameters=False) for j in range(6)]
 models = {
     "SP_S": make_sp_s(features, n_joints=6, n_support=500, random_state=0),
     "SP_P": make_sp_p(features, n_joints=6, sigma_v=1e-2, n_support=500, random_state=0),

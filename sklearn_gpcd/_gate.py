@@ -19,6 +19,13 @@ constraints): a finite real > 0. Zero is refused: no velocity is below it, so
 the gate would never open and no sample would ever be quasi-static; where
 "no gate" is meaningful a parameter takes None instead.
 
+The motion regimes built on the gate have one vocabulary,
+:data:`REGIME_WORDS`: the labels of :func:`sklearn_gpcd.features.regimes`
+(per joint and sample, for where a model errs, used by the diagnosis) and the
+regimes of the detector's thresholds
+(:class:`sklearn_gpcd.detection.Regimes`, for the whole arm) are words of it,
+with the meaning written there.
+
 This module imports nothing of the package, so every layer may use it.
 """
 
@@ -26,13 +33,27 @@ import numbers
 
 import numpy as np
 
-__all__ = ["DEFAULT_SIGMA_V", "SIGMA_V_CONSTRAINT", "quasi_static", "check_sigma_v",
-           "check_velocity"]
+__all__ = ["DEFAULT_SIGMA_V", "REGIME_WORDS", "SIGMA_V_CONSTRAINT", "quasi_static",
+           "check_sigma_v", "check_velocity"]
 
 #: The default velocity threshold :math:`\sigma_v` [rad/s] of the whole package
 #: (Sec. III-C of the paper: :math:`10^{-2}` rad/s for a UR10 at 125 Hz): the
 #: gates and masks of the model, the detector's regimes, the analyses.
 DEFAULT_SIGMA_V = 1e-2
+
+#: The one vocabulary of motion regimes: word -> meaning. ``features.regimes``
+#: labels each joint with moving / creep / rest / braking / reversal; the
+#: detector's regimes label the arm moving / settling / rest (/ braking).
+REGIME_WORDS = {
+    "moving": "|qd| >= sigma_v: the dynamical side of the gate (for the arm: some joint)",
+    "creep": "sigma_rest <= |qd| < sigma_v: quasi-static, yet not still (one joint)",
+    "settling": "every joint quasi-static for less than the settle time after a motion",
+    "rest": "standing still: |qd| < sigma_rest for a joint; for the arm, every joint "
+            "quasi-static for longer than the settle time (or since the start)",
+    "braking": "some |qdd| above the braking limit (hard stops and starts), and for the "
+               "arm the hold after it",
+    "reversal": "a joint changes direction within a short window",
+}
 
 
 def __getattr__(name):
@@ -145,12 +166,12 @@ def check_velocity(value, name, what, owner, allow_none=False):
 
     Examples
     --------
-    >>> check_velocity(0.01, "coulomb_width", "velocity scale", "RigidBodyRegressor")
+    >>> check_velocity(0.01, "coulomb_width", "velocity scale", "RigidBodyFeatures")
     0.01
-    >>> check_velocity(-1, "coulomb_width", "velocity scale", "RigidBodyRegressor")
+    >>> check_velocity(-1, "coulomb_width", "velocity scale", "RigidBodyFeatures")
     Traceback (most recent call last):
     ...
-    ValueError: RigidBodyRegressor: coulomb_width must be a finite velocity scale > 0, got -1
+    ValueError: RigidBodyFeatures: coulomb_width must be a finite velocity scale > 0, got -1
     """
     if value is None and allow_none:
         return None

@@ -9,7 +9,7 @@ explain.
 import numpy as np
 from sklearn.linear_model import LinearRegression
 
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
 from sklearn_gpcd.features import CausalFeatures
 
@@ -20,7 +20,7 @@ PUSH_A, PUSH_S = 2.0, 0.3
 
 def free_runs(n=3, n_targets=2):
     """Collision-free 500 Hz UR10e runs (seeds 0..n-1)."""
-    return [make_d1("ur10e", n_targets=n_targets, sample_rate=RATE, random_state=s)
+    return [simulate_d1("ur10e", n_targets=n_targets, sample_rate=RATE, random_state=s)
             for s in range(n)]
 
 

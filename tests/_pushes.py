@@ -13,7 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from sklearn_gpcd.contact import contact_point
-from sklearn_gpcd.datasets import Contact, JointTrajectory, make_d1, simulate
+from sklearn_gpcd.datasets import Contact, JointTrajectory, simulate_d1, simulate
 from sklearn_gpcd.robots import load_robot
 
 #: Peak torque [Nm] of a push on link k on joint k.
@@ -30,7 +30,7 @@ def inputs(rec):
 
 def training_run(seed=0, n_targets=12):
     """Collision-free D1-like run to fit the observer on."""
-    return make_d1("ur10", n_targets=n_targets, random_state=seed)
+    return simulate_d1("ur10", n_targets=n_targets, random_state=seed)
 
 
 def design(seed, n_per_link=5):

@@ -44,8 +44,8 @@ def simulated_interaction():
     """A simulated UR10 interaction test (pushes at rest) and a collision-free D2 run."""
     from sklearn_gpcd import datasets
 
-    rec = datasets.make_interaction_test("ur10", n_turns=0.2, rest_duration=8.0, random_state=0)
-    free = datasets.make_d2("ur10", n_targets=2, n_turns=0.3, random_state=1)
+    rec = datasets.simulate_interaction_test("ur10", n_turns=0.2, rest_duration=8.0, random_state=0)
+    free = datasets.simulate_d2("ur10", n_targets=2, n_turns=0.3, random_state=1)
     return rec, free
 
 

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.io import (Recording, RecordingWarning, load_recording, load_recordings,
                              read_csv, read_value_files, write_rtde_csv)
@@ -151,8 +151,8 @@ def test_the_api_refuses_a_robot_with_more_joints_than_the_data(gripper_urdf):
     X, _ = make_inputs(_moving(3))                 # augmented inputs of 3 joints
     with pytest.raises(ValueError, match=r"18 columns \(the inputs of 3 joints\).*--joints 3.*"
                                          r"has 5 joints"):
-        RigidBodyRegressor(load_robot(gripper_urdf), joint=0).fit(X)
-    phi = RigidBodyRegressor(load_robot(gripper_urdf, joints=3), joint=0).fit(X)
+        RigidBodyFeatures(load_robot(gripper_urdf), joint=0).fit(X)
+    phi = RigidBodyFeatures(load_robot(gripper_urdf, joints=3), joint=0).fit(X)
     assert phi.transform(X).shape[0] == len(X)
 
 
@@ -216,8 +216,8 @@ def test_the_real_panda_log_and_a_gripper_urdf():
     assert (rec.n_samples, rec.n_joints, rec.units) == (20544, 7, "Nm")
     X, _ = make_inputs(rec.slice(0, 500))
     with pytest.raises(ValueError, match=r"--joints 7.*'panda' has 9 joints"):
-        RigidBodyRegressor(load_robot(urdf), joint=0).fit(X)
-    assert RigidBodyRegressor(load_robot(urdf, joints=7), joint=0).fit(X).n_joints_ == 7
+        RigidBodyFeatures(load_robot(urdf), joint=0).fit(X)
+    assert RigidBodyFeatures(load_robot(urdf, joints=7), joint=0).fit(X).n_joints_ == 7
 
 
 # ------------------------------------------------------ units in the tables

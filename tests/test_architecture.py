@@ -272,10 +272,10 @@ MANY_PARAMETERS = {
         "under scikit-learn's names (batch_size, max_iter, learning_rate, tol, "
         "n_iter_no_change, as MLPRegressor), so that GridSearchCV and users reach them "
         "flat; the five minibatch ones are the part to split out when the API may change",
-    "RigidBodyRegressor":
-        "each parameter picks columns of the regressor matrix or its identification; "
-        "issue 46 point 3 renames this class, and the split (friction terms and "
-        "coulomb_width as one friction part) goes with that rename",
+    "RigidBodyFeatures":
+        "each parameter picks columns of the feature matrix or its identification; "
+        "the friction terms and coulomb_width are the part to split out (one friction "
+        "part) when the API may change",
     "RobotSimulator":
         "a plant's physical settings; the sensor ones (current_noise_std, "
         "velocity_noise_std, position_resolution) are the part to split out when the "
@@ -383,3 +383,82 @@ def test_contributing_names_modules_and_objects_that_exist():
         offences += [f"{concept}: no module of {paths} defines {name}" for name in names
                      if not any(m is not None and hasattr(m, name) for m in modules)]
     assert not offences, "\n".join(offences)
+
+
+#: Where a user meets the package: README, user guide (and the docs' front
+#: page) and gallery.
+USER_DOCS = [ROOT.parent / "README.md", ROOT.parent / "docs" / "index.rst",
+             *sorted((ROOT.parent / "docs" / "user_guide").glob("*.rst")),
+             *sorted((ROOT.parent / "examples").glob("*.py"))]
+MAX_TOP_LEVEL = 30
+
+
+def _mentions(name, texts):
+    pattern = re.compile(rf"(?<![\w.]){re.escape(name)}\b|\.{re.escape(name)}\b")
+    return any(pattern.search(t) for t in texts)
+
+
+def test_top_level_names_are_few_and_each_used_where_users_read():
+    """``sklearn_gpcd.__all__``: at most 30 names, each in the README, the user
+    guide or the gallery; the rest is imported from its subpackage."""
+    names = [n for n in sklearn_gpcd.__all__ if n != "__version__"]
+    assert len(sklearn_gpcd.__all__) <= MAX_TOP_LEVEL, len(sklearn_gpcd.__all__)
+    texts = [p.read_text() for p in USER_DOCS if p.exists()]
+    if not texts:
+        pytest.skip("README, docs and examples not found (installed package)")
+    unused = [n for n in names if not _mentions(n, texts)]
+    assert not unused, f"top-level names no user page shows: {unused}"
+
+
+def _subpackages():
+    return sorted(p.parent.name for p in ROOT.glob("*/__init__.py"))
+
+
+def test_no_subpackage_exports_a_command_line_helper():
+    """A name in a subpackage's ``__all__`` that, outside its own subpackage,
+    only ``cli/`` uses, and that no page of the docs, README, gallery or
+    benchmarks names (a report, an option check, a rule text) is the command
+    line's helper: public in its module, not in ``__all__``. The same for a
+    test double (``io.LoopbackRTDEServer``) and the diagnosis studies'
+    simulator effects (``datasets._extra_effects``)."""
+    files = {p: p.read_text() for p in ROOT.rglob("*.py")}
+    repo = ROOT.parent
+    pages = [p.read_text() for p in [repo / "README.md", *repo.glob("docs/*.rst"),
+                                     *repo.glob("docs/user_guide/*.rst"),
+                                     *repo.glob("examples/*.py"), *repo.glob("benchmarks/*.py")]]
+    if not pages:
+        pytest.skip("README, docs, examples and benchmarks not found (installed package)")
+    offenders = []
+    for sub in _subpackages():
+        if sub == "cli":
+            continue
+        module = importlib.import_module(f"sklearn_gpcd.{sub}")
+        own = ROOT / sub
+        for name in getattr(module, "__all__", ()):
+            users = {p for p, text in files.items()
+                     if own not in p.parents and _mentions(name, [text])}
+            if users and all((ROOT / "cli") in p.parents for p in users) \
+                    and not _mentions(name, pages):
+                offenders.append(f"{sub}.{name}")
+    assert not offenders, f"command-line helpers in a public __all__: {offenders}"
+    import sklearn_gpcd.datasets._extra_effects as extra
+    import sklearn_gpcd.io as io
+
+    assert "LoopbackRTDEServer" not in io.__all__
+    studies_only = {n for n, v in vars(extra).items() if getattr(v, "__module__", "")
+                    == extra.__name__ and not n.startswith("_")} - {"FrictionDelta"}
+    public = set(sklearn_gpcd.datasets.__all__) | set(dir(sklearn_gpcd.datasets))
+    assert studies_only and not studies_only & public, studies_only & public
+
+
+def test_one_regime_vocabulary():
+    """The regimes of the features (and the diagnosis, which uses them) and of
+    the detector are words of one vocabulary, ``_gate.REGIME_WORDS``, in which
+    each word has one meaning (issue #46 item 3)."""
+    from sklearn_gpcd._gate import REGIME_WORDS
+    from sklearn_gpcd.detection import REGIME_NAMES
+    from sklearn_gpcd.features import REGIMES
+
+    assert set(REGIMES) <= set(REGIME_WORDS), set(REGIMES) - set(REGIME_WORDS)
+    assert set(REGIME_NAMES) <= set(REGIME_WORDS), set(REGIME_NAMES) - set(REGIME_WORDS)
+    assert set(REGIMES) | set(REGIME_NAMES) == set(REGIME_WORDS)

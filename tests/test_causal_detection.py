@@ -373,7 +373,7 @@ def test_controller_features_need_the_augmented_layout():
 
 
 # sklearn's parametrize_with_checks is not run on ControllerFeatures and
-# ControllerCurrent, for the reason given for RigidBodyRegressor in
+# ControllerCurrent, for the reason given for RigidBodyFeatures in
 # test_dynamics.py: the generic checks feed 1-10 columns while both need the
 # augmented layout (6 columns per joint) and rightly reject fewer (30 of 52
 # checks fail on that ValueError alone). What those checks cover is tested here.

@@ -8,7 +8,7 @@ from sklearn.frozen import FrozenEstimator
 
 from sklearn_gpcd.cli import main
 from sklearn_gpcd.workflow import DETECTOR_RULE, load_detector
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.detection import (
     AlarmRule,
     CollisionDetector,
@@ -35,14 +35,14 @@ def work(tmp_path_factory):
     controller's current as the model (no training: the test is about the CLI) and a
     two-band detector calibrated by the CLI."""
     folder = tmp_path_factory.mktemp("bands")
-    free = [write_rtde_csv(make_d1("ur10e", n_targets=2, random_state=seed),
+    free = [write_rtde_csv(simulate_d1("ur10e", n_targets=2, random_state=seed),
                            folder / f"free{seed}.csv", robot_comment=True)
             for seed in range(3)]
     recs = [load_recording(p) for p in free]
     features = CausalFeatures().fit(recs)
     model = ControllerCurrent(6).fit(features.transform(recs[0]), recs[0].current)
     model_file = save_model(TrainedModel(model, features, {}), folder / "model.skops")
-    rec = make_d1("ur10e", n_targets=2, random_state=7)
+    rec = simulate_d1("ur10e", n_targets=2, random_state=7)
     t = rec.time - rec.time[0]
     current = rec.current.copy()
     tap = np.searchsorted(t, TAP_S)

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.io import write_rtde_csv
 from sklearn_gpcd.io.recording import JOINT_SIGNALS
 
@@ -88,7 +88,7 @@ def sims(tmp_path_factory):
     """Three small simulated UR10e runs (RTDE CSV naming their robot), variants of
     the first one, a GP model trained on it and a detector calibrated on all three."""
     folder = tmp_path_factory.mktemp("messages")
-    recs = [make_d1("ur10e", n_targets=3, random_state=seed) for seed in range(3)]
+    recs = [simulate_d1("ur10e", n_targets=3, random_state=seed) for seed in range(3)]
     rec = recs[0]
     s = {"folder": folder, "rec": rec,
          **{f"d{k}": _rtde(r, folder / f"d{k}.csv") for k, r in enumerate(recs)}}

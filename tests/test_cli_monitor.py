@@ -9,7 +9,7 @@ from sklearn.frozen import FrozenEstimator
 
 from sklearn_gpcd.cli import main
 from sklearn_gpcd.workflow import DETECTOR_RULE, SELECT_GRID, load_detector
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.detection import (
     AlarmRule,
     CollisionDetector,
@@ -34,9 +34,9 @@ def work(tmp_path_factory):
     folder = tmp_path_factory.mktemp("monitor")
     free = []
     for seed in range(3):
-        rec = make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=seed)
+        rec = simulate_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=seed)
         free.append(write_rtde_csv(rec, folder / f"free{seed}.csv", robot_comment=True))
-    rec = make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=7)
+    rec = simulate_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=7)
     t = rec.time - rec.time[0]
     current = rec.current.copy()
     current[(t >= 1.5) & (t < 1.9), 1] += 1.0

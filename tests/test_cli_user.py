@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import build_parser, main, parse_args
-from sklearn_gpcd.datasets import make_d1, make_joint1_cyclic
+from sklearn_gpcd.datasets import simulate_d1, simulate_joint1_cyclic
 from sklearn_gpcd.io import Recording, load_recording, write_rtde_csv
 
 REPO = Path(__file__).resolve().parents[1]
@@ -41,7 +41,7 @@ def sims(tmp_path_factory):
     the same run headerless in the UR10e preset layout, and in a custom 26-field
     layout that no preset knows."""
     folder = tmp_path_factory.mktemp("user")
-    rec = make_d1("ur10e", n_targets=8, random_state=3)
+    rec = simulate_d1("ur10e", n_targets=8, random_state=3)
     assert rec.n_samples > 2000  # more rows than n_support="auto" keeps
     rtde = write_rtde_csv(rec, folder / "d1.csv", robot_comment=True)
     preset = _mamedov_csv(rec, folder / "d1_mamedov.csv")
@@ -242,7 +242,7 @@ def test_every_subcommand_that_reads_recordings_has_column_map():
 
 # ------------------------------------------------------------------ Recording repr
 def test_recording_repr_is_a_short_summary():
-    rec = make_joint1_cyclic(random_state=0)
+    rec = simulate_joint1_cyclic(random_state=0)
     text = repr(rec)
     assert str(rec) == text
     assert len(text) < 300 and "\n" not in text

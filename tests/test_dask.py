@@ -33,7 +33,7 @@ from sklearn_gpcd.detection import (
     CollisionThresholdCV,
     stack_currents,
 )
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import make_inputs
 from sklearn_gpcd.gp import make_sp_p
 from sklearn_gpcd.robots import load_robot
@@ -64,11 +64,11 @@ def client(cluster):
 def robot_data():
     """Three 2-s simulated UR10 recordings (D1-like, random targets)."""
     robot = load_robot("ur10")
-    recordings = [datasets.make_d1(robot, n_targets=1, random_state=s).slice(0, 250)
+    recordings = [datasets.simulate_d1(robot, n_targets=1, random_state=s).slice(0, 250)
                   for s in range(3)]
     X, y = make_inputs(recordings)
     groups = np.repeat(np.arange(3), [r.n_samples for r in recordings])
-    features = [RigidBodyRegressor(robot, joint=j) for j in range(N_JOINTS)]
+    features = [RigidBodyFeatures(robot, joint=j) for j in range(N_JOINTS)]
     return X, y, groups, features
 
 

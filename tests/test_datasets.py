@@ -17,10 +17,10 @@ from sklearn_gpcd.datasets import (
     RobotSimulator,
     TorqueConstantError,
     default_friction,
-    make_d1,
-    make_d2,
-    make_interaction_test,
-    make_joint1_cyclic,
+    simulate_d1,
+    simulate_d2,
+    simulate_interaction_test,
+    simulate_joint1_cyclic,
     reference_d1,
     reference_d2,
     reference_interaction_test,
@@ -70,17 +70,17 @@ def longest_run(flags):
 # ----------------------------------------------------------------- fixtures
 @pytest.fixture(scope="module")
 def cyclic():
-    return make_joint1_cyclic("ur10", rest_duration=4.0, random_state=0)
+    return simulate_joint1_cyclic("ur10", rest_duration=4.0, random_state=0)
 
 
 @pytest.fixture(scope="module")
 def interaction():
-    return make_interaction_test("ur10", n_turns=0.2, rest_duration=12.0, random_state=0)
+    return simulate_interaction_test("ur10", n_turns=0.2, rest_duration=12.0, random_state=0)
 
 
 @pytest.fixture(scope="module")
 def d1_small():
-    return make_d1("ur10", n_targets=4, random_state=1)
+    return simulate_d1("ur10", n_targets=4, random_state=1)
 
 
 # ------------------------------------------------------------- trajectories
@@ -359,7 +359,7 @@ def test_interaction_plan_has_two_pushes_moving_two_at_rest(ur10):
 
 
 def test_small_generators_produce_clean_recordings(d1_small, ur10):
-    d2 = make_d2(ur10, n_targets=2, n_turns=0.05, random_state=0)
+    d2 = simulate_d2(ur10, n_targets=2, n_turns=0.05, random_state=0)
     for rec in (d1_small, d2):
         assert isinstance(rec, Recording)
         for key in rec.available():
@@ -384,8 +384,8 @@ def test_rtde_csv_round_trip(interaction, tmp_path):
 # ------------------------------------------------------------------ full size
 @pytest.mark.slow
 def test_full_size_d1_and_d2():
-    d1 = make_d1("ur10", random_state=0)
-    d2 = make_d2("ur10", random_state=0)
+    d1 = simulate_d1("ur10", random_state=0)
+    d2 = simulate_d2("ur10", random_state=0)
     print(f"\nD1 {d1.n_samples} samples, real-time factor "
           f"{d1.metadata['real_time_factor']:.1f}; D2 {d2.n_samples} samples, "
           f"real-time factor {d2.metadata['real_time_factor']:.1f}")

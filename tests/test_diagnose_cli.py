@@ -5,7 +5,7 @@ import json
 import pytest
 
 from sklearn_gpcd.cli import build_parser, main
-from sklearn_gpcd.datasets import Payload, make_d1
+from sklearn_gpcd.datasets import Payload, simulate_d1
 from sklearn_gpcd.io import write_rtde_csv
 
 
@@ -13,8 +13,8 @@ from sklearn_gpcd.io import write_rtde_csv
 def csv_files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("diagnose")
     train, test = folder / "train.csv", folder / "test.csv"
-    write_rtde_csv(make_d1("ur10", n_targets=6, effects=[Payload(3.0)], random_state=1), train)
-    write_rtde_csv(make_d1("ur10", n_targets=4, effects=[Payload(3.0)], random_state=2), test)
+    write_rtde_csv(simulate_d1("ur10", n_targets=6, effects=[Payload(3.0)], random_state=1), train)
+    write_rtde_csv(simulate_d1("ur10", n_targets=4, effects=[Payload(3.0)], random_state=2), test)
     return train, test
 
 

@@ -19,9 +19,9 @@ from sklearn_gpcd.datasets import (
     Payload,
     TorqueConstantError,
     default_friction,
-    delay_logged_current,
-    make_d1,
+    simulate_d1,
 )
+from sklearn_gpcd.datasets._extra_effects import delay_logged_current
 from sklearn_gpcd.datasets.plant import drive_parameters
 from sklearn_gpcd.diagnosis import (
     DiagnosedModel,
@@ -53,8 +53,8 @@ def _one_hot(joint, value, n=6):
 
 
 def _simulate(effects=(), delay=None, seed=1):
-    train = make_d1("ur10", n_targets=N_TRAIN, effects=list(effects), random_state=seed)
-    test = make_d1("ur10", n_targets=N_TEST, effects=list(effects), random_state=seed + 100)
+    train = simulate_d1("ur10", n_targets=N_TRAIN, effects=list(effects), random_state=seed)
+    test = simulate_d1("ur10", n_targets=N_TEST, effects=list(effects), random_state=seed + 100)
     if delay:
         train, test = delay_logged_current(train, delay), delay_logged_current(test, delay)
     return train, test
@@ -179,8 +179,8 @@ def test_command_delay_is_not_a_missing_effect(nominal):
 def test_pair_mode_simulated_and_real_runs(nominal):
     """Reference = a simulated run of the same trajectory, time-aligned by the package."""
     robot, friction = nominal
-    real = make_d1("ur10", n_targets=N_TRAIN, effects=[Payload(2.5)], random_state=5)
-    sim = make_d1("ur10", n_targets=N_TRAIN, random_state=5)
+    real = simulate_d1("ur10", n_targets=N_TRAIN, effects=[Payload(2.5)], random_state=5)
+    sim = simulate_d1("ur10", n_targets=N_TRAIN, random_state=5)
     sim = sim.slice(10, None)  # the simulated log starts later: needs alignment
     diag = DynamicsDiagnosis(robot, effects=["payload", "coulomb_friction", "viscous_friction",
                                              "torque_constant"]).fit(real, simulated=sim)
@@ -195,7 +195,7 @@ def test_base_model_diagnoses_against_a_refined_model(nominal):
     first = DynamicsDiagnosis(robot, effects=["coulomb_friction", "viscous_friction",
                                               "stribeck_friction"]).fit(train)
     assert {e.name for e in first.effects_} >= {"coulomb_friction", "viscous_friction"}
-    loaded = make_d1("ur10", n_targets=N_TRAIN, effects=[Payload(2.0)], random_state=7)
+    loaded = simulate_d1("ur10", n_targets=N_TRAIN, effects=[Payload(2.0)], random_state=7)
     second = DynamicsDiagnosis(base_model=first.model_,
                                effects=["payload", "coulomb_friction"]).fit(loaded)
     assert [e.name for e in second.effects_] == ["payload"]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.datasets import JointTrajectory, Payload, make_d1, simulate
+from sklearn_gpcd.datasets import JointTrajectory, Payload, simulate_d1, simulate
 from sklearn_gpcd.diagnosis import DynamicsDiagnosis, NominalModel
 from sklearn_gpcd.diagnosis.identifiability import identifiability, needs
 from sklearn_gpcd.diagnosis.plan import (PLAN_SECONDS, excitation_plan, robot_limits,
@@ -128,7 +128,7 @@ def test_identifiability_confounds_a_duplicate_column(robot):
 
 
 def test_fitted_diagnosis_writes_its_plan(robot, tmp_path):
-    rec = make_d1("ur10", n_targets=5, effects=[Payload(3.0)], random_state=1)
+    rec = simulate_d1("ur10", n_targets=5, effects=[Payload(3.0)], random_state=1)
     diag = DynamicsDiagnosis(robot, effects=["payload", "torque_constant", "time_delay"])
     diag.fit(rec)
     assert {"effect", "detectable", "confounded_with"} <= set(diag.identifiability_[0])
@@ -146,7 +146,7 @@ def test_fitted_diagnosis_writes_its_plan(robot, tmp_path):
 
 def test_cli_plan(tmp_path, capsys):
     train = tmp_path / "train.csv"
-    write_rtde_csv(make_d1("ur10", n_targets=5, effects=[Payload(3.0)], random_state=1), train)
+    write_rtde_csv(simulate_d1("ur10", n_targets=5, effects=[Payload(3.0)], random_state=1), train)
     plan = tmp_path / "plan.csv"
     assert main(["diagnose", "--robot", "ur10", str(train), "--effects",
                  "payload,time_delay", "--plan", str(plan)]) == 0

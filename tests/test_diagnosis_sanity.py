@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.datasets import Payload, make_d1
+from sklearn_gpcd.datasets import Payload, simulate_d1
 from sklearn_gpcd.diagnosis import (
     Candidate,
     DynamicsDiagnosis,
@@ -38,7 +38,7 @@ from sklearn_gpcd.io import Recording, write_rtde_csv
 
 @pytest.fixture(scope="module")
 def payload_run():
-    return make_d1("ur10", n_targets=4, effects=[Payload(3.0)], random_state=3)
+    return simulate_d1("ur10", n_targets=4, effects=[Payload(3.0)], random_state=3)
 
 
 @pytest.fixture(scope="module")
@@ -295,9 +295,9 @@ def test_no_friction_drift_on_simulator_output_without_drift():
     """`gpcd simulate --scenario d2` then `gpcd diagnose --robot ur10` reported "friction drift
     0.00332 +- 0.0039 Nm per minute ... strong (t = 7.7)": a consistent but tiny held-out gain
     (a 0.0x % share of the residual) with a parameter that does not differ from zero."""
-    from sklearn_gpcd.datasets import make_d2
+    from sklearn_gpcd.datasets import simulate_d2
 
-    rec = make_d2("ur10", random_state=0)
+    rec = simulate_d2("ur10", random_state=0)
     diag = DynamicsDiagnosis("ur10").fit(rec)
     assert "friction_drift" not in [e.name for e in diag.effects_]
     for fitted in diag.effects_:  # every named effect is a practical and significant finding
@@ -405,7 +405,7 @@ def test_a_lead_shorter_than_half_a_sample_is_not_a_delay():
     any delay. A lead below half the sample period (4 ms here) is not a delay of the log; a
     longer one still is."""
     robot, friction = _simulator_nominal()
-    run = make_d1("ur10", n_targets=8, random_state=1)
+    run = simulate_d1("ur10", n_targets=8, random_state=1)
     assert np.median(np.diff(run.time)) == pytest.approx(0.008)
     # (a 3 ms lead removes 1.6 % of the held-out error here: below the default min_gain,
     # so the bar is lowered to reach the rule)
@@ -429,7 +429,7 @@ def test_torque_constant_a_run_cannot_show_is_said_so():
 
     robot, friction = _simulator_nominal()
     control = DynamicsDiagnosis(robot, friction=friction).fit(
-        make_d1("ur10", n_targets=8, random_state=1))
+        simulate_d1("ur10", n_targets=8, random_state=1))
     said = {u["joints"][0]: u for u in control.unidentifiable_}
     assert {4, 5} <= set(said) and not {0, 1, 2} & set(said)
     assert said[4]["smallest_change"] > 0.1 and said[4]["friction_share"] > 0.9
@@ -439,7 +439,7 @@ def test_torque_constant_a_run_cannot_show_is_said_so():
     # on this simulator nothing else competes for joint 5's residual: a 10 % change is named
     # (and then not listed)
     changed = DynamicsDiagnosis(robot, friction=friction).fit(
-        make_d1("ur10", n_targets=8, effects=[TorqueConstantError([1, 1, 1, 1, 0.9, 1])],
+        simulate_d1("ur10", n_targets=8, effects=[TorqueConstantError([1, 1, 1, 1, 0.9, 1])],
                 random_state=1))
     named = [f for f in changed.effects_ if f.name == "torque_constant"]
     assert [f.target for f in named] == [4]

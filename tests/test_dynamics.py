@@ -1,4 +1,4 @@
-"""Tests of sklearn_gpcd.dynamics: regressor, base parameters, RigidBodyRegressor."""
+"""Tests of sklearn_gpcd.dynamics: regressor, base parameters, RigidBodyFeatures."""
 
 import pickle
 
@@ -9,9 +9,9 @@ from sklearn.exceptions import NotFittedError
 
 from sklearn_gpcd.layout import column_names
 from sklearn_gpcd.dynamics import (
-    RigidBodyRegressor,
+    RigidBodyFeatures,
     base_parameters,
-    full_regressor,
+    torque_features,
     parameter_names,
     parameter_vector,
 )
@@ -19,7 +19,7 @@ from sklearn_gpcd.robots import list_robots, load_robot
 
 ROTOR = [0.6, 0.5, 0.3, 0.05, 0.04, 0.03]
 
-# sklearn's parametrize_with_checks is not run on RigidBodyRegressor: its
+# sklearn's parametrize_with_checks is not run on RigidBodyFeatures: its
 # generic checks feed 1-10 feature columns, while the transformer needs the
 # 3 * n_joints (18) columns [q, qd, qdd] of a robot and rightly rejects fewer
 # (every check fails with our "needs at least 18" ValueError). The behaviour
@@ -51,7 +51,7 @@ def test_full_regressor_reproduces_rnea_plus_friction(robot, rng):
     q, qd, qdd = random_states(rng, 100)
     fc, fv = rng.uniform(1, 10, 6), rng.uniform(1, 10, 6)
     pi = parameter_vector(robot, friction={"coulomb": fc, "viscous": fv})
-    Phi = full_regressor(robot, q, qd, qdd)
+    Phi = torque_features(robot, q, qd, qdd)
     np.testing.assert_allclose(Phi @ pi, model_torques(robot, q, qd, qdd, fc, fv),
                                atol=1e-9, rtol=0)
 
@@ -63,16 +63,16 @@ def test_transformer_full_base_and_per_joint_reproduce_torques(robot, rng):
     pi = parameter_vector(robot, friction={"coulomb": fc, "viscous": fv})
     tau = model_torques(robot, q, qd, qdd, fc, fv)
 
-    full = RigidBodyRegressor(robot, base_parameters=False).fit(X)
+    full = RigidBodyFeatures(robot, base_parameters=False).fit(X)
     np.testing.assert_allclose(full.transform(X) @ pi, tau.ravel(order="F"), atol=1e-9, rtol=0)
 
-    base = RigidBodyRegressor(robot).fit(X)
+    base = RigidBodyFeatures(robot).fit(X)
     beta = base.project_parameters(pi)
     assert beta.shape == (base.base_parameters_["rank"],)
     np.testing.assert_allclose(base.transform(X) @ beta, tau.ravel(order="F"), atol=1e-9, rtol=0)
 
     for j in range(6):
-        one = RigidBodyRegressor(robot, joint=j).fit(X)
+        one = RigidBodyFeatures(robot, joint=j).fit(X)
         Phi_j = one.transform(X)
         assert Phi_j.shape[0] == 100
         np.testing.assert_allclose(Phi_j @ one.project_parameters(pi), tau[:, j], atol=1e-9, rtol=0)
@@ -85,7 +85,7 @@ def test_offset_column(rng):
     off = rng.normal(size=6)
     fc, fv = np.ones(6), np.ones(6)
     pi = parameter_vector(robot, friction={"coulomb": fc, "viscous": fv}, offset=off)
-    est = RigidBodyRegressor(robot, offset=True).fit(X)
+    est = RigidBodyFeatures(robot, offset=True).fit(X)
     assert "offset_3" in est.get_feature_names_out()
     tau = model_torques(robot, q, qd, qdd, fc, fv, off)
     np.testing.assert_allclose(est.transform(X) @ est.project_parameters(pi), tau.ravel(order="F"),
@@ -110,7 +110,7 @@ def test_urdf_robot_through_transformer(rng, tmp_path):
     robot = load_robot(urdf, rotor_inertias=[0.1, 0.2])
     q, qd, qdd = random_states(rng, 40, n_joints=2)
     X = np.hstack([q, qd, qdd])
-    est = RigidBodyRegressor(urdf, friction=("viscous",), rotor_inertia=True).fit(X)
+    est = RigidBodyFeatures(urdf, friction=("viscous",), rotor_inertia=True).fit(X)
     pi = parameter_vector(robot, friction={"viscous": [0.5, 0.7]})
     # the estimator loaded its own copy of the URDF without rotor inertias
     pi_est = parameter_vector(est.robot_, friction={"viscous": [0.5, 0.7]})
@@ -123,9 +123,9 @@ def test_urdf_robot_through_transformer(rng, tmp_path):
 # ------------------------------------------------------------- options
 def test_joint_none_is_joint_by_joint_blocks(rng):
     X = np.hstack(random_states(rng, 7))
-    stacked = RigidBodyRegressor("ur5").fit(X).transform(X)
-    full = full_regressor("ur5", X[:, :6], X[:, 6:12], X[:, 12:18])
-    cols = RigidBodyRegressor("ur5").fit(X).columns_
+    stacked = RigidBodyFeatures("ur5").fit(X).transform(X)
+    full = torque_features("ur5", X[:, :6], X[:, 6:12], X[:, 12:18])
+    cols = RigidBodyFeatures("ur5").fit(X).columns_
     assert stacked.shape == (7 * 6, len(cols))
     for l in range(6):
         for k in range(7):
@@ -136,8 +136,8 @@ def test_sigma_v_zeroes_friction_columns_only(rng):
     q, qd, qdd = random_states(rng, 200)
     qd[::3] *= 1e-3  # some joints nearly at rest
     X = np.hstack([q, qd, qdd])
-    plain = RigidBodyRegressor("ur10", joint=2).fit(X)
-    gated = RigidBodyRegressor("ur10", joint=2, sigma_v=0.01).fit(X)
+    plain = RigidBodyFeatures("ur10", joint=2).fit(X)
+    gated = RigidBodyFeatures("ur10", joint=2, sigma_v=0.01).fit(X)
     A, B = plain.transform(X), gated.transform(X)
     fr = gated.friction_columns_
     names = gated.get_feature_names_out()
@@ -156,8 +156,8 @@ def test_coulomb_width_smooths_the_coulomb_column_only(rng):
     q, qd, qdd = random_states(rng, 200)
     qd[::3] *= 1e-4  # velocity jitter of a still joint
     X = np.hstack([q, qd, qdd])
-    sign = RigidBodyRegressor("ur10", joint=2).fit(X)
-    smooth = RigidBodyRegressor("ur10", joint=2, coulomb_width=0.01).fit(X)
+    sign = RigidBodyFeatures("ur10", joint=2).fit(X)
+    smooth = RigidBodyFeatures("ur10", joint=2, coulomb_width=0.01).fit(X)
     names = smooth.get_feature_names_out()
     assert np.array_equal(names, sign.get_feature_names_out())
     A, B = sign.transform(X), smooth.transform(X)
@@ -170,38 +170,38 @@ def test_coulomb_width_smooths_the_coulomb_column_only(rng):
     assert np.abs(B[jitter][:, coulomb]).max() < 0.1  # the sign is +-1 there
     np.testing.assert_allclose(B[fast][:, coulomb], A[fast][:, coulomb], atol=1e-15)
     # the velocity gate (Eq. 17) still zeroes it at rest
-    gated = RigidBodyRegressor("ur10", joint=2, coulomb_width=0.01, sigma_v=0.01).fit(X)
+    gated = RigidBodyFeatures("ur10", joint=2, coulomb_width=0.01, sigma_v=0.01).fit(X)
     np.testing.assert_array_equal(gated.transform(X)[jitter][:, coulomb], 0.0)
 
 
 def test_currents_divides_by_torque_constants(rng):
     X = np.hstack(random_states(rng, 30))
     robot = load_robot("ur10e", torque_constants=[10, 11, 12, 13, 14, 15])
-    torque = RigidBodyRegressor(robot).fit(X).transform(X)
-    current = RigidBodyRegressor(robot, currents=True).fit(X).transform(X)
+    torque = RigidBodyFeatures(robot).fit(X).transform(X)
+    current = RigidBodyFeatures(robot, currents=True).fit(X).transform(X)
     k = np.repeat([10, 11, 12, 13, 14, 15], 30)[:, None]
     np.testing.assert_allclose(current, torque / k, rtol=1e-14)
     with pytest.raises(ValueError, match="torque constants"):
-        RigidBodyRegressor("ur5", currents=True).fit(X)
+        RigidBodyFeatures("ur5", currents=True).fit(X)
 
 
 def test_friction_options_and_names(rng):
     X = np.hstack(random_states(rng, 10))
-    est = RigidBodyRegressor("ur3", friction=("viscous",), rotor_inertia=False,
+    est = RigidBodyFeatures("ur3", friction=("viscous",), rotor_inertia=False,
                              base_parameters=False).fit(X)
     names = list(est.get_feature_names_out())
     assert names == parameter_names(6, rotor_inertia=False, friction=("viscous",))
     assert names[:2] == ["link0_m", "link0_mx"] and names[-1] == "viscous_5"
     assert not any(n.startswith(("coulomb", "rotor")) for n in names)
     np.testing.assert_array_equal(est.friction_columns_, np.arange(60, 66))
-    assert RigidBodyRegressor("ur3", friction=None).fit(X).friction_columns_.size == 0
+    assert RigidBodyFeatures("ur3", friction=None).fit(X).friction_columns_.size == 0
     with pytest.raises(ValueError, match="stribeck"):
-        RigidBodyRegressor("ur3", friction=("stribeck",)).fit(X)
+        RigidBodyFeatures("ur3", friction=("stribeck",)).fit(X)
 
 
 def test_per_joint_drops_structural_zero_columns(rng):
     X = np.hstack(random_states(rng, 20))
-    est = RigidBodyRegressor("ur10", joint=5, base_parameters=False).fit(X)
+    est = RigidBodyFeatures("ur10", joint=5, base_parameters=False).fit(X)
     names = est.get_feature_names_out()
     # joint 5 (wrist 3) only feels link 5 and its own drive terms
     assert all(n.startswith(("link5_", "rotor_5", "coulomb_5", "viscous_5")) for n in names)
@@ -211,7 +211,7 @@ def test_per_joint_drops_structural_zero_columns(rng):
 # ---------------------------------------------------- base parameters
 def test_base_parameters_rank_and_mapping(rng):
     X = np.hstack(random_states(rng, 20))
-    est = RigidBodyRegressor("ur10e").fit(X)
+    est = RigidBodyFeatures("ur10e").fit(X)
     info = est.base_parameters_
     p = len(est.parameter_names_)
     assert info["mapping"].shape == (info["rank"], p)
@@ -224,12 +224,12 @@ def test_base_parameters_rank_and_mapping(rng):
     Phi = est.transform(np.hstack([q, qd, qdd]))
     assert np.linalg.matrix_rank(Phi) == info["rank"]
     # deterministic for a given random_state
-    same = RigidBodyRegressor("ur10e").fit(X)
+    same = RigidBodyFeatures("ur10e").fit(X)
     np.testing.assert_array_equal(same.base_parameters_["indices"], info["indices"])
     np.testing.assert_array_equal(same.base_parameters_["mapping"], info["mapping"])
     # the dependencies are structural: another seed or a looser tolerance find
     # the same rank (which column of a dependent group is kept may differ)
-    other = RigidBodyRegressor("ur10e", random_state=7, rank_tol=1e-8).fit(X)
+    other = RigidBodyFeatures("ur10e", random_state=7, rank_tol=1e-8).fit(X)
     assert other.base_parameters_["rank"] == info["rank"]
 
 
@@ -247,21 +247,21 @@ def test_base_parameters_helper_toy_example():
 # ----------------------------------------------------- sklearn contract
 def test_clone_pickle_and_refit_are_consistent(rng):
     X = np.hstack(random_states(rng, 25))
-    est = RigidBodyRegressor("ur10", joint=1, sigma_v=0.05)
+    est = RigidBodyFeatures("ur10", joint=1, sigma_v=0.05)
     assert clone(est).get_params() == est.get_params()
     fitted = est.fit(X)
     again = pickle.loads(pickle.dumps(fitted))
     np.testing.assert_array_equal(again.transform(X), fitted.transform(X))
     np.testing.assert_array_equal(again.get_feature_names_out(), fitted.get_feature_names_out())
     np.testing.assert_array_equal(clone(est).fit_transform(X), fitted.transform(X))
-    refit = RigidBodyRegressor("ur10", joint=1, sigma_v=0.05).fit(X).fit(X)
+    refit = RigidBodyFeatures("ur10", joint=1, sigma_v=0.05).fit(X).fit(X)
     np.testing.assert_array_equal(refit.columns_, fitted.columns_)
 
 
 def test_robot_instance_parameter_is_cloned_and_pickled(rng):
     X = np.hstack(random_states(rng, 5))
     robot = load_robot("ur5e", torque_constants=[9.0] * 6)
-    est = RigidBodyRegressor(robot, currents=True)
+    est = RigidBodyFeatures(robot, currents=True)
     copy = clone(est)
     assert copy.robot is not robot
     np.testing.assert_array_equal(copy.fit(X).transform(X), est.fit(X).transform(X))
@@ -269,7 +269,7 @@ def test_robot_instance_parameter_is_cloned_and_pickled(rng):
 
 
 def test_init_stores_parameters_verbatim():
-    est = RigidBodyRegressor(robot="nonsense", joint=99, friction="bad", rank_tol=-1)
+    est = RigidBodyFeatures(robot="nonsense", joint=99, friction="bad", rank_tol=-1)
     assert est.get_params()["robot"] == "nonsense"
     assert est.get_params()["joint"] == 99
 
@@ -278,8 +278,8 @@ def test_n_features_in_and_extra_columns_ignored(rng):
     q, qd, qdd = random_states(rng, 12)
     X18 = np.hstack([q, qd, qdd])
     X36 = np.hstack([X18, rng.normal(size=(12, 18))])  # augmented layout (Eq. 13)
-    a = RigidBodyRegressor("ur10e", joint=0).fit(X18)
-    b = RigidBodyRegressor("ur10e", joint=0).fit(X36)
+    a = RigidBodyFeatures("ur10e", joint=0).fit(X18)
+    b = RigidBodyFeatures("ur10e", joint=0).fit(X36)
     assert a.n_features_in_ == 18 and b.n_features_in_ == 36
     np.testing.assert_array_equal(a.transform(X18), b.transform(X36))
     with pytest.raises(ValueError, match="36 features"):
@@ -289,7 +289,7 @@ def test_n_features_in_and_extra_columns_ignored(rng):
 def test_dataframe_input_sets_feature_names(rng):
     pd = pytest.importorskip("pandas")
     X = pd.DataFrame(np.hstack(random_states(rng, 8)), columns=column_names(6, augmented=False))
-    est = RigidBodyRegressor("ur5", joint=2).fit(X)
+    est = RigidBodyFeatures("ur5", joint=2).fit(X)
     assert list(est.feature_names_in_) == column_names(6, augmented=False)
     names_out = est.get_feature_names_out(column_names(6, augmented=False))
     assert len(names_out) == est.transform(X).shape[1]
@@ -299,21 +299,21 @@ def test_dataframe_input_sets_feature_names(rng):
 
 def test_not_fitted_raises():
     with pytest.raises(NotFittedError):
-        RigidBodyRegressor().transform(np.zeros((2, 18)))
+        RigidBodyFeatures().transform(np.zeros((2, 18)))
 
 
 # ------------------------------------------------------------ bad input
 def test_too_few_columns_is_named(rng):
     with pytest.raises(ValueError, match="X has 17 columns.*robot .ur10. has 6 joints"):
-        RigidBodyRegressor("ur10").fit(rng.normal(size=(4, 17)))
+        RigidBodyFeatures("ur10").fit(rng.normal(size=(4, 17)))
 
 
 def test_nan_is_named(rng):
     X = rng.normal(size=(4, 18))
     X[2, 7] = np.nan
     with pytest.raises(ValueError, match="NaN"):
-        RigidBodyRegressor("ur10").fit(X)
-    est = RigidBodyRegressor("ur10").fit(rng.normal(size=(4, 18)))
+        RigidBodyFeatures("ur10").fit(X)
+    est = RigidBodyFeatures("ur10").fit(rng.normal(size=(4, 18)))
     with pytest.raises(ValueError, match="NaN"):
         est.transform(X)
 
@@ -334,7 +334,7 @@ def test_nan_is_named(rng):
     ],
 )
 def test_bad_parameters_fail_in_fit(kwargs, err, match, rng):
-    est = RigidBodyRegressor(**kwargs)
+    est = RigidBodyFeatures(**kwargs)
     with pytest.raises(err, match=match):
         est.fit(rng.normal(size=(3, 18)))
 
@@ -344,37 +344,37 @@ def test_parameter_vector_checks_lengths():
         parameter_vector("ur5", friction={"coulomb": [1.0] * 5})
     with pytest.raises(ValueError, match="offset"):
         parameter_vector("ur5", offset=[1.0])
-    est = RigidBodyRegressor("ur5").fit(np.zeros((2, 18)))
+    est = RigidBodyFeatures("ur5").fit(np.zeros((2, 18)))
     with pytest.raises(ValueError, match="parameter_names_"):
         est.project_parameters(np.zeros(3))
 
 
 def test_joint_selection_and_batch_cache_give_the_same_rows(rng, monkeypatch):
-    from sklearn_gpcd.dynamics import regressor as reg
+    from sklearn_gpcd.dynamics import torque_model as reg
 
     reg._LAST_BATCH.clear()
-    full_regressor("ur10", *rng.normal(size=(3, 5, 6)))  # a few samples: not cached
+    torque_features("ur10", *rng.normal(size=(3, 5, 6)))  # a few samples: not cached
     assert not reg._LAST_BATCH
     q, qd, qdd = rng.normal(size=(3, reg.CACHE_MIN_SAMPLES, 6))
-    full = full_regressor("ur10", q, qd, qdd)
+    full = torque_features("ur10", q, qd, qdd)
     assert reg._LAST_BATCH["value"].shape == (reg.CACHE_MIN_SAMPLES, 6, 60)
-    again = full_regressor("ur10", q, qd, qdd)  # served by the one-batch cache
+    again = torque_features("ur10", q, qd, qdd)  # served by the one-batch cache
     assert np.array_equal(full, again)
     for joint in (0, 3, [1, 5]):
-        assert np.array_equal(full_regressor("ur10", q, qd, qdd, joints=joint),
+        assert np.array_equal(torque_features("ur10", q, qd, qdd, joints=joint),
                               full[:, np.atleast_1d(joint), :])
     # other states or another robot are not served from the cache
-    assert not np.array_equal(full_regressor("ur10", q + 0.1, qd, qdd), full)
-    assert not np.array_equal(full_regressor("ur5", q, qd, qdd), full)
+    assert not np.array_equal(torque_features("ur10", q + 0.1, qd, qdd), full)
+    assert not np.array_equal(torque_features("ur5", q, qd, qdd), full)
     # batches above the cache size compute only the requested rows
     monkeypatch.setattr(reg, "CACHE_MAX_BYTES", 0)
     reg._LAST_BATCH.clear()
-    assert np.array_equal(full_regressor("ur10", q, qd, qdd, joints=2), full[:, [2], :])
+    assert np.array_equal(torque_features("ur10", q, qd, qdd, joints=2), full[:, [2], :])
     assert not reg._LAST_BATCH
     # the public function returns a writable copy, never the cached array
-    Y = reg.joint_torque_regressor(load_robot("ur10").model, q, qd, qdd)
+    Y = reg.inertial_features(load_robot("ur10").model, q, qd, qdd)
     Y[:] = 0.0
-    assert np.array_equal(full_regressor("ur10", q, qd, qdd), full)
+    assert np.array_equal(torque_features("ur10", q, qd, qdd), full)
 
 
 @pytest.mark.parametrize("options", [
@@ -386,12 +386,12 @@ def test_joint_selection_and_batch_cache_give_the_same_rows(rng, monkeypatch):
 ])
 def test_sample_regressor_equals_the_batch_one_in_place_too(options, rng):
     """One state at a time, into a fresh array or over the previous result."""
-    from sklearn_gpcd.dynamics.regressor import SampleRegressor
+    from sklearn_gpcd.dynamics.torque_model import SampleTorqueFeatures
 
-    sample = SampleRegressor("ur10e", **options)
+    sample = SampleTorqueFeatures("ur10e", **options)
     out = None
     for q, qd, qdd in rng.normal(size=(4, 3, 6)) * [[1.0], [0.005], [1.0]]:
-        expected = full_regressor("ur10e", q, qd, qdd, **options)[0]
+        expected = torque_features("ur10e", q, qd, qdd, **options)[0]
         out = sample(q, qd, qdd, out=out)
         assert np.array_equal(out, expected) and out.shape == (6, sample.n_parameters)
         assert np.array_equal(sample(q, qd, qdd), expected)

@@ -28,7 +28,7 @@ from sklearn_gpcd.datasets import (
     _extra_effects,
     default_friction,
     effects,
-    make_d1,
+    simulate_d1,
     registered_effect,
 )
 from sklearn_gpcd.datasets.plant import drive_parameters
@@ -50,11 +50,12 @@ def nominal():
 
 
 def _injectors():
-    """Every simulator injector class (a plant or a recording effect)."""
+    """Every simulator injector class (a plant or a recording effect; a private base
+    class such as ``effects._FrictionEffect`` is none)."""
     found = set()
     for module in (effects, _extra_effects):
         for _, cls in inspect.getmembers(module, inspect.isclass):
-            if cls.__module__ == module.__name__ and (
+            if cls.__module__ == module.__name__ and not cls.__name__.startswith("_") and (
                     hasattr(cls, "apply") or hasattr(cls, "apply_to_recording")):
                 found.add(cls)
     return found
@@ -93,7 +94,7 @@ def test_no_two_package_classes_share_a_name():
 
 def test_expected_parameters_are_the_identifiers(nominal):
     """The conversion reports exactly the identifier's parameters, on a simulated run."""
-    recording = make_d1("ur10", n_targets=1, random_state=0)
+    recording = simulate_d1("ur10", n_targets=1, random_state=0)
     for entry in EFFECT_REGISTRY:
         expected = entry.expected(entry.inject(), *nominal, recording)
         assert expected, entry.name
@@ -109,7 +110,7 @@ def test_unknown_name_is_refused():
 def _simulate(entry, n_targets, seed):
     injected = entry.inject()
     plant = [e for e in injected if hasattr(e, "apply")]
-    recording = make_d1("ur10", n_targets=n_targets, effects=plant, random_state=seed)
+    recording = simulate_d1("ur10", n_targets=n_targets, effects=plant, random_state=seed)
     for effect in injected:
         if hasattr(effect, "apply_to_recording"):
             recording = effect.apply_to_recording(recording)

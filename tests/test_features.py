@@ -503,7 +503,7 @@ def test_regimes_on_constructed_profile():
     labels = regimes(np.column_stack([qd0, qd1]), qdd, reversal_window=4)
 
     j0 = labels[:, 0]
-    assert set(j0[:10]) == {"rest"} and j0[10] == "high_acceleration"
+    assert set(j0[:10]) == {"rest"} and j0[10] == "braking"
     assert set(j0[11:20]) == {"rest"}
     assert set(j0[20:40]) == {"creep"}
     assert set(j0[40:59]) == {"moving"}
@@ -516,15 +516,15 @@ def test_regimes_on_constructed_profile():
     assert set(j0[114:]) == {"moving"}
     j1 = labels[:, 1]
     np.testing.assert_array_equal(np.flatnonzero(j1 != "moving"), [40, 41, 42])
-    assert set(j1[40:43]) == {"high_acceleration"}
+    assert set(j1[40:43]) == {"braking"}
     # away from the event labels, rest + creep is exactly the paper's gate
     qd = np.column_stack([qd0, qd1])
-    plain = ~np.isin(labels, ["reversal", "high_acceleration"])
+    plain = ~np.isin(labels, ["reversal", "braking"])
     np.testing.assert_array_equal(
         np.isin(labels, ["rest", "creep"])[plain], quasi_static_mask(qd)[plain]
     )
-    # without qdd there is no high_acceleration label
-    assert "high_acceleration" not in regimes(qd, reversal_window=4)
+    # without qdd there is no braking label
+    assert "braking" not in regimes(qd, reversal_window=4)
 
 
 def test_reversal_through_quasi_static_band():

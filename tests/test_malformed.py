@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.features import InverseDynamicsFeatures, differentiate, make_inputs
 from sklearn_gpcd.io import (
     Recording,
@@ -45,7 +45,7 @@ def base(tmp_path_factory):
     (accelerations are differentiated from ``qd``).
     """
     path = tmp_path_factory.mktemp("base") / "base.csv"
-    write_rtde_csv(make_d1("ur10", n_targets=3, random_state=1).replace(qdd=None), path)
+    write_rtde_csv(simulate_d1("ur10", n_targets=3, random_state=1).replace(qdd=None), path)
     lines = path.read_text().splitlines()
     return lines[0].split(","), [line.split(",") for line in lines[1:]]
 

@@ -33,9 +33,9 @@ CONFIG = PaperConfig(d1_targets=12, d2_targets=3, n_support=400, batch_size=200,
 @pytest.fixture(scope="module")
 def interaction():
     robot = load_robot("ur10")
-    d1 = datasets.make_d1(robot, n_targets=CONFIG.d1_targets, random_state=1)
-    d2 = datasets.make_d2(robot, n_targets=CONFIG.d2_targets, n_turns=0.5, random_state=2)
-    test = datasets.make_interaction_test(robot, n_turns=0.5,
+    d1 = datasets.simulate_d1(robot, n_targets=CONFIG.d1_targets, random_state=1)
+    d2 = datasets.simulate_d2(robot, n_targets=CONFIG.d2_targets, n_turns=0.5, random_state=2)
+    test = datasets.simulate_interaction_test(robot, n_turns=0.5,
                                           rest_duration=CONFIG.rest_duration, random_state=3)
     sp_p = build_estimators(robot, CONFIG, random_state=0, n_jobs=2)["SP_P"]
     sp_p.fit(*make_inputs(d1))

@@ -15,13 +15,13 @@ from sklearn_gpcd.dynamics import (
     ControllerCurrent,
     ControllerFeatures,
     MomentumObserver,
-    RigidBodyRegressor,
+    RigidBodyFeatures,
 )
 from sklearn_gpcd.features import CausalFeatures, InverseDynamicsFeatures
 from sklearn_gpcd.gp import ParametricMean, SemiParametricGPRegressor
 
 ESTIMATORS = [
-    RigidBodyRegressor("ur5"),
+    RigidBodyFeatures("ur5"),
     ControllerFeatures(joint=0, n_joints=1),
     ControllerCurrent(1),
     MomentumObserver("ur10"),

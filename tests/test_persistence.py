@@ -22,7 +22,7 @@ from sklearn.preprocessing import FunctionTransformer, PolynomialFeatures
 
 import sklearn_gpcd
 from sklearn_gpcd import _persistence
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.detection import (
     AlarmRule,
     CollisionDetector,
@@ -32,7 +32,7 @@ from sklearn_gpcd.detection import (
     stack_currents,
 )
 from sklearn_gpcd.diagnosis import DiagnosedModel, DynamicsDiagnosis, NominalModel
-from sklearn_gpcd.dynamics import RigidBodyRegressor
+from sklearn_gpcd.dynamics import RigidBodyFeatures
 from sklearn_gpcd.features import InverseDynamicsFeatures
 from sklearn_gpcd.gp import (
     ParametricMean,
@@ -54,7 +54,7 @@ FACTORIES = {"P_f": make_p_f, "SP_S": make_sp_s, "SP_P": make_sp_p}
 @pytest.fixture(scope="module")
 def recording():
     """A short simulated UR10 run (the paper's D1 with 2 targets, ~960 rows)."""
-    return make_d1("ur10", n_targets=2, random_state=0)
+    return simulate_d1("ur10", n_targets=2, random_state=0)
 
 
 @pytest.fixture(scope="module")
@@ -219,7 +219,7 @@ def test_rigid_body_features_round_trip(factory, fmt, data, tmp_path):
     """Estimators holding a Robot (a pinocchio.Model) survive both formats,
     and a skops file needs no ``trusted=`` for them."""
     X, Y, X_test, _ = data
-    features = [RigidBodyRegressor("ur10", joint=j) for j in range(N_JOINTS)]
+    features = [RigidBodyFeatures("ur10", joint=j) for j in range(N_JOINTS)]
     gp = factory(features, N_JOINTS, optimizer=None, n_support=60, random_state=0).fit(X, Y)
     path = save(gp, tmp_path / f"model.{fmt}")
     if fmt == "skops":
@@ -245,7 +245,7 @@ def stateful_objects(detector):
         CollisionThresholdCV(CollisionDetector(Ridge(), rules=AlarmRule()),
                              {"rules__min_duration": [1, 3]}),
         InverseDynamicsFeatures(),
-        RigidBodyRegressor("ur10"),
+        RigidBodyFeatures("ur10"),
         DynamicsDiagnosis(),
         DiagnosedModel(NominalModel("ur10"), []),
         StreamingMonitor(detector),

@@ -1,7 +1,7 @@
 """Signals a detector cannot trust (issue #47, point 5): scaled, sign-flipped or swapped
 columns are refused or warned about naming the column, never accepted in silence.
 
-Simulator data (``make_d1``, UR10e at 500 Hz); the real push log is
+Simulator data (``simulate_d1``, UR10e at 500 Hz); the real push log is
 ``benchmarks/mutated_logs.py``.
 """
 
@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.io import Recording, SignalCheck, load_recording, signal_ranges, write_rtde_csv
 from sklearn_gpcd.workflow import check_signals, load_detector
 
@@ -26,7 +26,7 @@ def work(tmp_path_factory):
     monitor: the last calibration run with one current bump (within what the model
     knows, so that its clean copy gives no warning)."""
     folder = tmp_path_factory.mktemp("plausibility")
-    free = [write_rtde_csv(make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=s),
+    free = [write_rtde_csv(simulate_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=s),
                            folder / f"free{s}.csv", robot_comment=True) for s in range(3)]
     rec = load_recording(free[2])
     t = rec.time - rec.time[0]
@@ -221,7 +221,7 @@ def test_a_file_that_would_not_fit_is_refused_before_reading(tmp_path, monkeypat
     available, before a byte is parsed: one line naming the file and what to do."""
     from sklearn_gpcd.io import _text
 
-    rec = make_d1("ur10e", n_targets=1, random_state=0)
+    rec = simulate_d1("ur10e", n_targets=1, random_state=0)
     path = write_rtde_csv(rec, tmp_path / "long.csv")
     size = path.stat().st_size
     monkeypatch.setattr(_text, "available_memory", lambda: 5 * size)

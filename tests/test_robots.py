@@ -162,8 +162,8 @@ def _round_trip(robot, fmt, tmp_path):
 
 def _assert_bit_identical(copy, robot, rng):
     """Same fields; pinocchio.rnea, Robot.rnea and the regressors agree bit for bit."""
-    from sklearn_gpcd.dynamics import full_regressor
-    from sklearn_gpcd.dynamics import regressor as regressor_module
+    from sklearn_gpcd.dynamics import torque_features
+    from sklearn_gpcd.dynamics import torque_model as regressor_module
 
     assert isinstance(copy, Robot) and isinstance(copy.model, pin.Model)
     assert copy.model is not robot.model and copy.model == robot.model
@@ -190,7 +190,7 @@ def _assert_bit_identical(copy, robot, rng):
     phis = []
     for r in (robot, copy):
         regressor_module._LAST_BATCH.clear()  # no cache hit: compute from each model
-        phis.append(full_regressor(r, q, qd, qdd, sigma_v=0.01))
+        phis.append(torque_features(r, q, qd, qdd, sigma_v=0.01))
     assert np.array_equal(phis[1], phis[0])
 
 

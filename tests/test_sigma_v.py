@@ -14,7 +14,7 @@ from sklearn.utils._param_validation import InvalidParameterError
 import sklearn_gpcd
 from sklearn_gpcd._gate import DEFAULT_SIGMA_V, SIGMA_V_CONSTRAINT, check_sigma_v
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.features import quasi_static_mask, regimes
 from sklearn_gpcd.io import write_rtde_csv
 from sklearn_gpcd.kernels import ARDRBF, QuasiStaticGate
@@ -32,7 +32,7 @@ def work(tmp_path_factory):
     """Two simulated UR10e runs, an SP_C model trained by ``gpcd train --sigma-v 0.05``
     and a detector calibrated on it by ``gpcd calibrate``."""
     folder = tmp_path_factory.mktemp("sigma_v")
-    free = [write_rtde_csv(make_d1("ur10e", n_targets=2, random_state=seed),
+    free = [write_rtde_csv(simulate_d1("ur10e", n_targets=2, random_state=seed),
                            folder / f"free{seed}.csv", robot_comment=True)
             for seed in range(2)]
     model = folder / "model.skops"
@@ -95,7 +95,7 @@ def _estimators_with_sigma_v():
 def test_every_estimator_constrains_sigma_v_with_the_one_constraint():
     estimators = _estimators_with_sigma_v()
     assert {"CollisionDetector", "SemiParametricGPRegressor", "ParametricMean",
-            "RigidBodyRegressor", "DynamicsDiagnosis"} <= set(estimators)
+            "RigidBodyFeatures", "DynamicsDiagnosis"} <= set(estimators)
     offences = {name: cls._parameter_constraints["sigma_v"]
                 for name, cls in estimators.items()
                 if [c for c in cls._parameter_constraints["sigma_v"] if c is not None]

@@ -28,7 +28,7 @@ PUBLIC_MODULES = {
     "layout": "Column layout of the inputs",
     "io": "Recordings and loaders",
     "robots": "Robot models",
-    "dynamics": "Rigid-body regressor features",
+    "dynamics": "Rigid-body features",
     "features": "Inputs, derivatives and quasi-static masks",
     "kernels": "Kernels",
     "gp": "Semi-parametric GP regression",

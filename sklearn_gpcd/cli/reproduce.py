@@ -61,9 +61,9 @@ def run_simulate(args):
     # deferred: the simulator needs pinocchio and scikit-learn
     from .. import datasets
 
-    makers = dict(zip(SCENARIOS, (datasets.make_d1, datasets.make_d2,
-                                  datasets.make_joint1_cyclic,
-                                  datasets.make_interaction_test)))
+    makers = dict(zip(SCENARIOS, (datasets.simulate_d1, datasets.simulate_d2,
+                                  datasets.simulate_joint1_cyclic,
+                                  datasets.simulate_interaction_test)))
     start = time.perf_counter()
     recording = makers[args.scenario](robot=args.robot, random_state=args.seed)
     write_rtde_csv(recording, args.output, robot_comment=True)  # later commands need no --robot

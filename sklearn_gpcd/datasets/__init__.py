@@ -3,19 +3,12 @@
 :class:`RobotSimulator` runs a built-in robot (pinocchio ABA) under a UR-like
 1 kHz joint servo with motor currents, Stribeck friction and real stiction,
 sensor noise, external contacts and injected effects, and logs a
-:class:`~sklearn_gpcd.io.Recording` at 125 Hz. The ``make_*`` generators
-build the paper's experiments on it.
+:class:`~sklearn_gpcd.io.Recording` at 125 Hz. The ``simulate_*`` generators
+simulate the paper's experiments on it. The effects the diagnosis tests
+and studies inject besides (``_extra_effects``) are not public.
 """
 
-from ._extra_effects import (
-    FrictionDelta,
-    GravityTilt,
-    LinkMass,
-    LoggedCurrentDelay,
-    RotorInertiaChange,
-    delay_logged_current,
-    friction_drift,
-)
+from ._extra_effects import FrictionDelta
 from .contacts import Contact, contact_labels
 from .effect_registry import (
     DIAGNOSIS_ONLY,
@@ -34,14 +27,14 @@ from .effects import (
 )
 from .friction import JointFriction, default_friction
 from .generators import (
-    make_d1,
-    make_d2,
-    make_interaction_test,
-    make_joint1_cyclic,
     reference_d1,
     reference_d2,
     reference_interaction_test,
     reference_joint1_cyclic,
+    simulate_d1,
+    simulate_d2,
+    simulate_interaction_test,
+    simulate_joint1_cyclic,
 )
 from .servo import ServoGains, feedforward_torque, servo_gains
 from .simulator import RobotSimulator, simulate
@@ -50,12 +43,6 @@ from .workspace import Hemisphere, inverse_kinematics
 
 __all__ = [
     "FrictionDelta",
-    "GravityTilt",
-    "LinkMass",
-    "LoggedCurrentDelay",
-    "RotorInertiaChange",
-    "delay_logged_current",
-    "friction_drift",
     "Contact",
     "DIAGNOSIS_ONLY",
     "EFFECT_REGISTRY",
@@ -77,10 +64,10 @@ __all__ = [
     "default_friction",
     "feedforward_torque",
     "inverse_kinematics",
-    "make_d1",
-    "make_d2",
-    "make_interaction_test",
-    "make_joint1_cyclic",
+    "simulate_d1",
+    "simulate_d2",
+    "simulate_interaction_test",
+    "simulate_joint1_cyclic",
     "reference_d1",
     "reference_d2",
     "reference_interaction_test",

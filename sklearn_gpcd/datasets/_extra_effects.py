@@ -1,4 +1,7 @@
-"""More effects to inject into the simulated robot (for the diagnosis tests).
+"""More effects to inject into the simulated robot, for the diagnosis tests and studies.
+
+Not public, except :class:`FrictionDelta`, which the gallery uses
+(``sklearn_gpcd.datasets.FrictionDelta``); the others are imported from here.
 
 They follow the protocol of :mod:`sklearn_gpcd.datasets.effects` (a frozen
 dataclass with ``start``/``stop`` and ``apply(plant)`` returning an undo
@@ -19,12 +22,12 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .effects import _per_joint
+from .effects import _FrictionEffect, _per_joint
 from .friction import JointFriction
 
 
 @dataclass(frozen=True)
-class FrictionDelta:
+class FrictionDelta(_FrictionEffect):
     """Add to the true friction levels (additive, unlike :class:`FrictionChange`).
 
     ``coulomb`` and ``static`` raised by the same amount add a pure Coulomb
@@ -84,16 +87,6 @@ class FrictionDelta:
             viscous=friction.viscous + _per_joint(self.viscous, n, "FrictionDelta.viscous"),
             stribeck_velocity=vs)
 
-    def apply(self, plant):
-        """Change the plant's friction; return the undo function."""
-        saved = plant.friction
-        plant.friction = self.changed(saved)
-
-        def undo():
-            plant.friction = saved
-
-        return undo
-
 
 def friction_drift(coulomb_rate=0.0, viscous_rate=0.0, duration=60.0, step=0.5, start=0.0):
     """Friction rising linearly with time, as a staircase of :class:`FrictionDelta` steps.
@@ -120,7 +113,7 @@ def friction_drift(coulomb_rate=0.0, viscous_rate=0.0, duration=60.0, step=0.5, 
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import friction_drift
+    >>> from sklearn_gpcd.datasets._extra_effects import friction_drift
     >>> steps = friction_drift(coulomb_rate=0.1, duration=2.0, step=0.5)
     >>> len(steps), steps[0].start, round(steps[0].coulomb, 3)
     (4, 0.25, 0.05)
@@ -149,7 +142,7 @@ class RotorInertiaChange:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import RotorInertiaChange
+    >>> from sklearn_gpcd.datasets._extra_effects import RotorInertiaChange
     >>> RotorInertiaChange([0.5, 0, 0, 0, 0, 0]).start
     0.0
     """
@@ -190,7 +183,7 @@ class LinkMass:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import LinkMass
+    >>> from sklearn_gpcd.datasets._extra_effects import LinkMass
     >>> LinkMass(link=2, mass=1.5).mass
     1.5
     """
@@ -235,7 +228,7 @@ class GravityTilt:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import GravityTilt
+    >>> from sklearn_gpcd.datasets._extra_effects import GravityTilt
     >>> GravityTilt(roll=0.02, pitch=-0.01).roll
     0.02
     """
@@ -275,8 +268,9 @@ class LoggedCurrentDelay:
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import LoggedCurrentDelay, make_d1
-    >>> recording = make_d1("ur10", n_targets=1, random_state=0)
+    >>> from sklearn_gpcd.datasets import simulate_d1
+    >>> from sklearn_gpcd.datasets._extra_effects import LoggedCurrentDelay
+    >>> recording = simulate_d1("ur10", n_targets=1, random_state=0)
     >>> delayed = LoggedCurrentDelay(0.016).apply_to_recording(recording)
     >>> recording.n_samples - delayed.n_samples  # the first 16 ms have no logged current
     2
@@ -309,7 +303,7 @@ def delay_logged_current(recording, delay):
     --------
     >>> import numpy as np
     >>> from sklearn_gpcd.io import Recording
-    >>> from sklearn_gpcd.datasets import delay_logged_current
+    >>> from sklearn_gpcd.datasets._extra_effects import delay_logged_current
     >>> t = np.arange(5) * 0.01
     >>> rec = Recording(time=t, q=np.zeros((5, 1)), qd=np.zeros((5, 1)), current=t[:, None])
     >>> delay_logged_current(rec, 0.02).current.ravel().round(3).tolist()

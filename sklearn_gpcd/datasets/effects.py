@@ -102,8 +102,24 @@ class Payload:
         return undo
 
 
+class _FrictionEffect:
+    """A change of the plant's friction levels: :meth:`apply` swaps them for
+    those of ``changed(friction)`` until undone (:class:`FrictionChange`,
+    ``FrictionDelta``)."""
+
+    def apply(self, plant):
+        """Change the plant's friction; return the undo function."""
+        saved = plant.friction
+        plant.friction = self.changed(saved)
+
+        def undo():
+            plant.friction = saved
+
+        return undo
+
+
 @dataclass(frozen=True)
-class FrictionChange:
+class FrictionChange(_FrictionEffect):
     """Scale the true friction levels (e.g. a Stribeck/static level change).
 
     Parameters
@@ -150,16 +166,6 @@ class FrictionChange:
             static=_per_joint(self.static, n, "FrictionChange.static"),
             viscous=_per_joint(self.viscous, n, "FrictionChange.viscous"),
         )
-
-    def apply(self, plant):
-        """Scale the plant's friction; return the undo function."""
-        saved = plant.friction
-        plant.friction = self.changed(saved)
-
-        def undo():
-            plant.friction = saved
-
-        return undo
 
 
 @dataclass(frozen=True)

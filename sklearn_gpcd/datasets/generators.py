@@ -6,13 +6,13 @@ returns a :class:`~sklearn_gpcd.io.Recording` at 125 Hz with ``labels``.
 Write one as a UR RTDE CSV file with :func:`sklearn_gpcd.io.write_rtde_csv`.
 
 =============================  =============================================
-:func:`make_d1`                200 random flange targets in a hemisphere,
+:func:`simulate_d1`                200 random flange targets in a hemisphere,
                                ~80,000 samples (paper's D1)
-:func:`make_d2`                50 random targets then a 30 cm circle at
+:func:`simulate_d2`                50 random targets then a 30 cm circle at
                                30 mm/s, ~22,000 samples (paper's D2)
-:func:`make_joint1_cyclic`     joint 1 alone between rests at q1 = pi/2,
+:func:`simulate_joint1_cyclic`     joint 1 alone between rests at q1 = pi/2,
                                2.09, pi/2, 0.52 rad (paper Sec. III-C)
-:func:`make_interaction_test`  circle then rest, four pushes on link 1
+:func:`simulate_interaction_test`  circle then rest, four pushes on link 1
                                (paper Sec. V-B)
 =============================  =============================================
 """
@@ -448,7 +448,7 @@ def _simulate(reference, robot, name, random_state, contacts=(), effects=(), **p
     return recording
 
 
-def make_d1(robot="ur10", n_targets=200, *, period=D1_PERIOD, effects=(), random_state=None,
+def simulate_d1(robot="ur10", n_targets=200, *, period=D1_PERIOD, effects=(), random_state=None,
             **simulator_params):
     """Simulate the paper's D1: random flange targets in a hemisphere.
 
@@ -475,8 +475,8 @@ def make_d1(robot="ur10", n_targets=200, *, period=D1_PERIOD, effects=(), random
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import make_d1
-    >>> rec = make_d1("ur10", n_targets=2, random_state=0)
+    >>> from sklearn_gpcd.datasets import simulate_d1
+    >>> rec = simulate_d1("ur10", n_targets=2, random_state=0)
     >>> rec.n_joints, int(rec.labels.max()), rec.n_samples > 2 * 3.0 * 125
     (6, 0, True)
     """
@@ -485,7 +485,7 @@ def make_d1(robot="ur10", n_targets=200, *, period=D1_PERIOD, effects=(), random
     return _simulate(reference, robot, "d1", rng, effects=effects, **simulator_params)
 
 
-def make_d2(robot="ur10", n_targets=50, *, period=D2_PERIOD, radius=0.3, n_turns=1.0,
+def simulate_d2(robot="ur10", n_targets=50, *, period=D2_PERIOD, radius=0.3, n_turns=1.0,
             effects=(), random_state=None, **simulator_params):
     """Simulate the paper's D2: 50 random targets, then a 30 cm circle at 30 mm/s.
 
@@ -502,7 +502,7 @@ def make_d2(robot="ur10", n_targets=50, *, period=D2_PERIOD, radius=0.3, n_turns
     n_turns : float, default=1.0
         Circle turns (size knob).
     effects, random_state, **simulator_params
-        As in :func:`make_d1`.
+        As in :func:`simulate_d1`.
 
     Returns
     -------
@@ -510,8 +510,8 @@ def make_d2(robot="ur10", n_targets=50, *, period=D2_PERIOD, radius=0.3, n_turns
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import make_d2
-    >>> rec = make_d2("ur10", n_targets=1, n_turns=0.1, random_state=0)
+    >>> from sklearn_gpcd.datasets import simulate_d2
+    >>> rec = simulate_d2("ur10", n_targets=1, n_turns=0.1, random_state=0)
     >>> rec.n_joints, int(rec.labels.max()), rec.metadata["phases"][-1]["kind"]
     (6, 0, 'circle')
     """
@@ -521,7 +521,7 @@ def make_d2(robot="ur10", n_targets=50, *, period=D2_PERIOD, radius=0.3, n_turns
     return _simulate(reference, robot, "d2", rng, effects=effects, **simulator_params)
 
 
-def make_joint1_cyclic(robot="ur10", *, n_cycles=1, rest_duration=6.0, effects=(),
+def simulate_joint1_cyclic(robot="ur10", *, n_cycles=1, rest_duration=6.0, effects=(),
                        random_state=None, **simulator_params):
     """Simulate the cyclic joint-1 test showing the stick-slip effect (Sec. III-C).
 
@@ -537,7 +537,7 @@ def make_joint1_cyclic(robot="ur10", *, n_cycles=1, rest_duration=6.0, effects=(
     n_cycles : int, default=1
     rest_duration : float, default=6.0
     effects, random_state, **simulator_params
-        As in :func:`make_d1`.
+        As in :func:`simulate_d1`.
 
     Returns
     -------
@@ -545,8 +545,8 @@ def make_joint1_cyclic(robot="ur10", *, n_cycles=1, rest_duration=6.0, effects=(
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import make_joint1_cyclic
-    >>> rec = make_joint1_cyclic(rest_duration=2.0, random_state=0)
+    >>> from sklearn_gpcd.datasets import simulate_joint1_cyclic
+    >>> rec = simulate_joint1_cyclic(rest_duration=2.0, random_state=0)
     >>> sorted({p["visit"] for p in rec.metadata["phases"] if p["kind"] == "rest"})
     [0, 1, 2, 3, 4]
     """
@@ -555,7 +555,7 @@ def make_joint1_cyclic(robot="ur10", *, n_cycles=1, rest_duration=6.0, effects=(
                      **simulator_params)
 
 
-def make_interaction_test(robot="ur10", *, radius=0.3, n_turns=1.0, rest_duration=30.0,
+def simulate_interaction_test(robot="ur10", *, radius=0.3, n_turns=1.0, rest_duration=30.0,
                           push_torque=60.0, effects=(), random_state=None, **simulator_params):
     """Simulate the human-interaction test: circle, rest, four pushes on link 1.
 
@@ -574,7 +574,7 @@ def make_interaction_test(robot="ur10", *, radius=0.3, n_turns=1.0, rest_duratio
     push_torque : float, default=60.0
         Peak joint-1 torque of each push [Nm].
     effects, random_state, **simulator_params
-        As in :func:`make_d1`.
+        As in :func:`simulate_d1`.
 
     Returns
     -------
@@ -582,8 +582,8 @@ def make_interaction_test(robot="ur10", *, radius=0.3, n_turns=1.0, rest_duratio
 
     Examples
     --------
-    >>> from sklearn_gpcd.datasets import make_interaction_test
-    >>> rec = make_interaction_test("ur10", n_turns=0.1, rest_duration=3.0, random_state=0)
+    >>> from sklearn_gpcd.datasets import simulate_interaction_test
+    >>> rec = simulate_interaction_test("ur10", n_turns=0.1, rest_duration=3.0, random_state=0)
     >>> sorted(set(rec.labels.tolist()))
     [0, 1, 2, 3, 4]
     """

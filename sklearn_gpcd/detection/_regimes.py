@@ -25,7 +25,8 @@ import numpy as np
 from .._gate import quasi_static
 
 #: Regime names, indexed by the codes of :func:`regime_pass` ("braking" only
-#: with a braking limit).
+#: with a braking limit); words of the package's one vocabulary
+#: (``_gate.REGIME_WORDS``), which the features' regimes share.
 REGIME_NAMES = ("moving", "settling", "rest", "braking")
 MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
 #: Release level of an event (ratio of the signal to its threshold).

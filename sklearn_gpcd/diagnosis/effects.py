@@ -176,7 +176,7 @@ def sample_period(signals):
 
 
 class Effect:
-    """Base class of a named effect: a group of regressor columns.
+    """Base class of a named effect: a group of torque-feature columns.
 
     Subclasses set the class attributes and implement :meth:`design` and,
     when the parameters are not reported as fitted, :meth:`physical`.
@@ -865,7 +865,7 @@ def _shared_columns(signals, link_columns, mapping):
 class PayloadEffect(Effect):
     """A payload at the flange: mass ``m`` and centre of mass ``c`` (flange frame).
 
-    Its torques are the last link's rigid-body regressor times the dynamic
+    Its torques are the last link's rigid-body features times the dynamic
     parameters of a point mass at the flange (``flange_frame`` placement
     ``(R, p)`` in the last joint frame), which are linear in ``(m, m c)``
     when the term ``m c c^T`` of the inertia about the joint origin is
@@ -906,7 +906,7 @@ class PayloadEffect(Effect):
 
     def design(self, signals, nominal, target, com=None):
         link, mapping = self._mapping(nominal, com)
-        Y = signals.rigid_body_regressor(nominal.robot.model)
+        Y = signals.rigid_body_features(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * link:10 * link + 10], mapping)
 
     def settings_from_fit(self, settings, theta):
@@ -1004,7 +1004,7 @@ class LinkMassEffect(Effect):
         mapping = np.column_stack([_point_mass_parameters(1.0, np.zeros(3), com)]
                                   + ([np.r_[0.0, e, np.zeros(6)] for e in np.eye(3)]
                                      if com_shift else []))
-        Y = signals.rigid_body_regressor(nominal.robot.model)
+        Y = signals.rigid_body_features(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * target:10 * target + 10], mapping)
 
     def physical(self, theta, cov, target, settings, nominal):

@@ -4,7 +4,7 @@ The residual :math:`r_\\ell = i_\\ell - \\hat i_\\ell` (measured minus
 reference current) is summarised per joint
 
 * by **regime** (:func:`sklearn_gpcd.features.regimes`: ``rest``,
-  ``creep``, ``moving``, ``high_acceleration``, ``reversal``),
+  ``creep``, ``moving``, ``braking``, ``reversal``),
 * by **configuration region**: quantile bins of the joint's own position,
 * by **time**: equal-length windows of each recording,
 
@@ -143,7 +143,7 @@ def residual_breakdown(signals, residual, sigma_v=DEFAULT_SIGMA_V, sigma_rest=1e
     >>> s = Signals.from_states(NominalModel("ur10"), X)
     >>> b = residual_breakdown(s, 0.1 * rng.normal(size=(200, 6)))
     >>> b.rms.shape, sorted(b.regimes) == sorted(["moving", "creep", "rest",
-    ...                                            "high_acceleration", "reversal"])
+    ...                                            "braking", "reversal"])
     ((6,), True)
     """
     residual = np.asarray(residual, dtype=float)

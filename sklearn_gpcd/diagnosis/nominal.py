@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..dynamics import joint_torque_regressor
+from ..dynamics import inertial_features
 from ..features import differentiate
 from ..io import Recording
 from ..robots.loading import resolve_robot
@@ -337,7 +337,7 @@ class Signals:
             segment=np.zeros(X.shape[0], dtype=int), torque_constants=nominal.constants(units),
         )
 
-    def rigid_body_regressor(self, model):
+    def rigid_body_features(self, model):
         """Pinocchio's joint torque regressor of every sample, cached.
 
         Returns
@@ -345,6 +345,6 @@ class Signals:
         Y : ndarray of shape (n_samples, n_joints, 10 n_joints)
         """
         if "regressor" not in self._cache:
-            self._cache["regressor"] = joint_torque_regressor(model, self.q, self.qd, self.qdd)
+            self._cache["regressor"] = inertial_features(model, self.q, self.qd, self.qdd)
         return self._cache["regressor"]
 

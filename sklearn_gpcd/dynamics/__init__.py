@@ -1,4 +1,4 @@
-"""Physical torque model features: regressor, base parameters, sklearn transformer;
+"""The physical torque model's features, base parameters and sklearn transformer;
 the generalized-momentum observer.
 
 >>> from sklearn_gpcd.dynamics import parameter_names
@@ -9,29 +9,29 @@ the generalized-momentum observer.
 from .base_parameters import base_parameters
 from .controller import ControllerCurrent, ControllerFeatures
 from .friction import stribeck_friction, stribeck_peak
-from .regressor import (
+from .torque_model import (
     FRICTION_TERMS,
     INERTIAL_PARAMETERS,
     friction_features,
-    full_regressor,
-    joint_torque_regressor,
+    torque_features,
+    inertial_features,
     parameter_names,
     parameter_vector,
 )
 from .observer import UR_OBSERVER_GAINS, MomentumObserver, MomentumObserverStream
-from .rigid_body import RigidBodyRegressor
+from .rigid_body import RigidBodyFeatures
 
 __all__ = [
     "ControllerCurrent",
     "ControllerFeatures",
-    "RigidBodyRegressor",
+    "RigidBodyFeatures",
     "MomentumObserver",
     "MomentumObserverStream",
     "UR_OBSERVER_GAINS",
     "parameter_vector",
     "parameter_names",
-    "full_regressor",
-    "joint_torque_regressor",
+    "torque_features",
+    "inertial_features",
     "friction_features",
     "base_parameters",
     "FRICTION_TERMS",

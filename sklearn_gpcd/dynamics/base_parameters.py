@@ -1,6 +1,6 @@
 """Base (identifiable) parameters by QR decomposition with column pivoting.
 
-Stacking the regressor over many random states gives
+Stacking the torque features over many random states gives
 :math:`W \\in \\mathbb{R}^{N \\times p}` with :math:`W\\pi = \\tau`. Some
 columns are zero or linear combinations of others for *every* state (e.g. a
 link's inertia about an axis it never rotates about), so :math:`\\pi` is not
@@ -20,7 +20,7 @@ from scipy.linalg import qr, solve_triangular
 
 
 def base_parameters(W, rank_tol=None):
-    """Independent columns of a stacked regressor and the map to base parameters.
+    """Independent columns of stacked torque features and the map to base parameters.
 
     Parameters
     ----------

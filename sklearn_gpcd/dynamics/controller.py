@@ -10,7 +10,7 @@ model (Sec. III-A) only learns the correction on top of it,
 
 .. math:: i_\\ell = w_\\ell\\, i_{c,\\ell} + f_\\ell(x) + e .
 
-This is our extension of the paper (which uses the rigid-body regressor
+This is our extension of the paper (which uses the rigid-body features
 there); :func:`~sklearn_gpcd.gp.make_sp_c` builds it.
 """
 

@@ -44,7 +44,7 @@ pinocchio's (``crba``, ``computeCoriolisMatrix``,
 ``computeGeneralizedGravity``) on the package's robot model, with the
 inertial parameters, reflected rotor inertias and friction identified by
 :meth:`MomentumObserver.fit` from collision-free recordings (the linear
-model of :class:`~sklearn_gpcd.dynamics.RigidBodyRegressor`). The friction
+model of :class:`~sklearn_gpcd.dynamics.RigidBodyFeatures`). The friction
 law is :math:`\tau_{f,\ell} = F_{c,\ell}\tanh(\dot q_\ell / w) + F_{v,\ell}
 \dot q_\ell + o_\ell` (smooth Coulomb, viscous, offset).
 """
@@ -62,8 +62,8 @@ from .._persistence import VersionedStateMixin
 from ..layout import block_columns
 from ..robots import Robot
 from ..robots.loading import resolve_robot
-from .regressor import full_regressor, parameter_vector
-from .rigid_body import RigidBodyRegressor
+from .torque_model import torque_features, parameter_vector
+from .rigid_body import RigidBodyFeatures
 
 __all__ = ["MomentumObserver", "MomentumObserverStream", "UR_OBSERVER_GAINS"]
 
@@ -238,7 +238,7 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
     identify : {"all", "friction", "none"}, default="all"
         What ``fit`` identifies by weighted least squares on the
         collision-free rows (torque ``K_tau y`` against the regressor of
-        :class:`~sklearn_gpcd.dynamics.RigidBodyRegressor`): ``"all"``, the
+        :class:`~sklearn_gpcd.dynamics.RigidBodyFeatures`): ``"all"``, the
         base inertial parameters, rotor inertias and friction (the full
         parameter vector is the nominal one plus the minimum-norm correction
         that reproduces the identified base parameters); ``"friction"``, only
@@ -256,7 +256,7 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
         Time step [s] used when no time stamps are given.
     random_state : int, default=0
         Seed of the base-parameter reduction
-        (:class:`~sklearn_gpcd.dynamics.RigidBodyRegressor`).
+        (:class:`~sklearn_gpcd.dynamics.RigidBodyFeatures`).
 
     Attributes
     ----------
@@ -399,7 +399,7 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
 
     def _identify_all(self, X, tau, pi0):
         n = self.n_joints_
-        phi = RigidBodyRegressor(self.robot_, friction=("coulomb", "viscous"),
+        phi = RigidBodyFeatures(self.robot_, friction=("coulomb", "viscous"),
                                  coulomb_width=self.coulomb_width, offset=self.offset,
                                  random_state=self.random_state).fit(X[:, :3 * n])
         K = phi.parameter_mapping_
@@ -410,7 +410,7 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
 
     def _identify_friction(self, q, qd, qdd, tau, pi0):
         n = self.n_joints_
-        Phi = full_regressor(self.robot_, q, qd, qdd, friction=("coulomb", "viscous"),
+        Phi = torque_features(self.robot_, q, qd, qdd, friction=("coulomb", "viscous"),
                              offset=True, coulomb_width=self.coulomb_width)
         links = 10 * n
         rigid = Phi[:, :, :links] @ pi0[:links]

@@ -1,4 +1,4 @@
-"""scikit-learn transformer from joint states to rigid-body regressor features."""
+"""scikit-learn transformer from joint states to rigid-body features."""
 
 import hashlib
 import os
@@ -17,11 +17,11 @@ from .._persistence import VersionedStateMixin
 from ..robots import Robot
 from ..robots.loading import resolve_robot
 from .base_parameters import base_parameters
-from .regressor import (
+from .torque_model import (
     FRICTION_TERMS,
-    SampleRegressor,
+    SampleTorqueFeatures,
     check_friction,
-    full_regressor,
+    torque_features,
     parameter_names,
 )
 
@@ -107,12 +107,12 @@ def _identification(robot, p, regressor, n_states, random_state, reduce, rank_to
     return _copies(*_IDENTIFICATION_CACHE[key])
 
 
-class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
-    """Regressor features :math:`\\phi(x)` of the physical torque model.
+class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
+    """Torque features :math:`\\phi(x)` of the physical torque model.
 
     Maps joint states ``x = [q, qd, qdd]`` to the rows of the linear model
     :math:`\\tau = \\Phi(x)\\,\\pi` (paper Eq. 8-10; see
-    :mod:`sklearn_gpcd.dynamics.regressor`): pinocchio's rigid-body regressor
+    :mod:`sklearn_gpcd.dynamics.torque_model`): pinocchio's rigid-body features
     plus per-joint rotor-inertia, Coulomb, viscous and offset columns,
     optionally reduced to the base (identifiable) parameters and expressed
     in motor-current units (Eq. 4). These are the features of the parametric
@@ -137,7 +137,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         velocity scale :math:`w` [rad/s] instead of the sign (ours, not the
         paper's: a still joint's logged velocity jitters around zero and
         flips the sign; see
-        :func:`~sklearn_gpcd.dynamics.regressor.friction_features`).
+        :func:`~sklearn_gpcd.dynamics.torque_model.friction_features`).
     rotor_inertia : bool, default=True
         Add a :math:`\\ddot q_l` column per joint (reflected rotor inertia,
         Eq. 4). pinocchio's regressor lacks this term, ``rnea`` includes it.
@@ -176,13 +176,13 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         Names of the full parameter vector :math:`\\pi` (see
         :func:`~sklearn_gpcd.dynamics.parameter_names`).
     base_parameters_ : dict
-        ``indices`` (independent columns of the full regressor),
+        ``indices`` (independent columns of the full torque features),
         ``mapping`` ``K`` of shape ``(n_base, n_parameters)`` with
         :math:`\\Phi_{base}\\,(K\\pi) = \\Phi\\,\\pi`, ``names``, ``rank`` and
         ``tol`` (absolute threshold on :math:`|R_{ii}|`). Identity mapping
         when ``base_parameters=False``.
     columns_ : ndarray of int
-        Columns of the full regressor returned by ``transform``.
+        Columns of the full torque features returned by ``transform``.
     parameter_mapping_ : ndarray of shape (n_features_out, n_parameters)
         Rows of ``K`` for ``columns_``: ``transform(X) @ (parameter_mapping_
         @ pi)`` are the torques (currents) of the selected joint(s).
@@ -197,9 +197,9 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
     Examples
     --------
     >>> import numpy as np
-    >>> from sklearn_gpcd.dynamics import RigidBodyRegressor
+    >>> from sklearn_gpcd.dynamics import RigidBodyFeatures
     >>> X = np.random.default_rng(0).normal(size=(5, 18))
-    >>> phi = RigidBodyRegressor("ur10e", joint=1).fit(X)
+    >>> phi = RigidBodyFeatures("ur10e", joint=1).fit(X)
     >>> phi.transform(X).shape[0]
     5
     >>> phi.get_feature_names_out()[:2].tolist()
@@ -267,7 +267,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
                 X[:, block_columns("qdd", n)])
 
     def _regressor(self, q, qd, qdd, sigma_v, joints=None):
-        return full_regressor(self.robot_, q, qd, qdd, rotor_inertia=self.rotor_inertia,
+        return torque_features(self.robot_, q, qd, qdd, rotor_inertia=self.rotor_inertia,
                               friction=self.friction_, offset=self.offset, sigma_v=sigma_v,
                               joints=joints, coulomb_width=self.coulomb_width)
 
@@ -286,7 +286,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
 
         Returns
         -------
-        self : RigidBodyRegressor
+        self : RigidBodyFeatures
         """
         X = validate_data(self, X, dtype=np.float64)
         self.robot_ = resolve_robot(self.robot)
@@ -319,7 +319,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         return self
 
     def transform(self, X):
-        """Regressor rows of the selected joint(s).
+        """Torque-feature rows of the selected joint(s).
 
         Parameters
         ----------
@@ -349,7 +349,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         Returns
         -------
         features : Bunch
-            ``full``, a :class:`~sklearn_gpcd.dynamics.regressor.SampleRegressor`
+            ``full``, a :class:`~sklearn_gpcd.dynamics.torque_model.SampleTorqueFeatures`
             mapping ``(q, qd, qdd)`` of one sample to the regressor of every
             joint and parameter; ``key``, equal for estimators whose ``full``
             agree (several joints of one robot share one evaluation per tick);
@@ -361,9 +361,9 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         Examples
         --------
         >>> import numpy as np
-        >>> from sklearn_gpcd.dynamics import RigidBodyRegressor
+        >>> from sklearn_gpcd.dynamics import RigidBodyFeatures
         >>> X = np.random.default_rng(0).normal(size=(4, 18))
-        >>> est = RigidBodyRegressor("ur10", joint=2, sigma_v=0.01).fit(X)
+        >>> est = RigidBodyFeatures("ur10", joint=2, sigma_v=0.01).fit(X)
         >>> f = est.sample_features()
         >>> x = X[0]
         >>> one = f.full(x[f.q], x[f.qd], x[f.qdd])[f.rows][:, f.columns] * f.scale[:, None]
@@ -379,7 +379,7 @@ class RigidBodyRegressor(VersionedStateMixin, TransformerMixin, BaseEstimator):
         options = (bool(self.rotor_inertia), tuple(self.friction_), bool(self.offset),
                    self.sigma_v, self.coulomb_width)
         return Bunch(
-            full=SampleRegressor(self.robot_, *options),
+            full=SampleTorqueFeatures(self.robot_, *options),
             key=(_robot_key(self.robot_),) + options,
             rows=rows,
             columns=np.asarray(self.columns_),

@@ -27,7 +27,7 @@ from ..layout import block_columns
 from sklearn.frozen import FrozenEstimator
 
 from ..detection import AlarmRule, CollisionDetector, stack_currents
-from ..dynamics import RigidBodyRegressor
+from ..dynamics import RigidBodyFeatures
 from ..features import CausalFeatures, contiguous_segments, make_inputs
 from ..gp import make_p_f, make_sp_p, make_sp_s
 from ..metrics import alarm_onsets, nmse
@@ -107,10 +107,10 @@ def simulate_datasets(robot, config, random_state, progress):
     rng = np.random.RandomState(random_state)
     seeds = rng.randint(0, 2**31 - 1, size=4)
     makers = {
-        "d1": lambda s: datasets.make_d1(robot, n_targets=config.d1_targets, random_state=s),
-        "d2": lambda s: datasets.make_d2(robot, n_targets=config.d2_targets, random_state=s),
-        "cyclic": lambda s: datasets.make_joint1_cyclic(robot, random_state=s),
-        "interaction": lambda s: datasets.make_interaction_test(
+        "d1": lambda s: datasets.simulate_d1(robot, n_targets=config.d1_targets, random_state=s),
+        "d2": lambda s: datasets.simulate_d2(robot, n_targets=config.d2_targets, random_state=s),
+        "cyclic": lambda s: datasets.simulate_joint1_cyclic(robot, random_state=s),
+        "interaction": lambda s: datasets.simulate_interaction_test(
             robot, rest_duration=config.rest_duration, random_state=s),
     }
     recordings = {}
@@ -126,7 +126,7 @@ def simulate_datasets(robot, config, random_state, progress):
 def build_estimators(robot, config, random_state, n_jobs):
     """P_f, SP_S and SP_P for ``robot`` (Sec. V), sharing one D_SDP rule."""
     n = robot.n_joints
-    features = [RigidBodyRegressor(robot, joint=j) for j in range(n)]
+    features = [RigidBodyFeatures(robot, joint=j) for j in range(n)]
     gp = dict(n_support=config.n_support, optimizer="adam", batch_size=config.batch_size,
               random_state=random_state, n_jobs=n_jobs)
     return {

@@ -15,8 +15,9 @@ import numpy as np
 
 from .._gate import DEFAULT_SIGMA_V, check_sigma_v, quasi_static
 
-#: Labels returned by :func:`regimes`, from lowest to highest precedence.
-REGIMES = ("moving", "creep", "rest", "high_acceleration", "reversal")
+#: Labels returned by :func:`regimes`, from lowest to highest precedence
+#: (words of the package's one regime vocabulary, ``_gate.REGIME_WORDS``).
+REGIMES = ("moving", "creep", "rest", "braking", "reversal")
 
 
 def _as_float_array(value, name):
@@ -112,7 +113,7 @@ def _reversal_mask(qd, sigma_v, window):
 
 
 def regimes(
-    qd, qdd=None, sigma_v=DEFAULT_SIGMA_V, sigma_rest=None, sigma_a=5.0, reversal_window=10
+    qd, qdd=None, sigma_v=DEFAULT_SIGMA_V, sigma_rest=None, brake_limit=5.0, reversal_window=10
 ):
     """Label every sample of every joint with its motion regime.
 
@@ -128,8 +129,9 @@ def regimes(
     so ``rest`` or ``creep`` is exactly :func:`quasi_static_mask` (Eq. 15).
     Two event labels override the bands:
 
-    * ``"high_acceleration"``: :math:`|\\ddot q_\\ell| \\ge \\sigma_a`
-      (only when ``qdd`` is given);
+    * ``"braking"``: :math:`|\\ddot q_\\ell| \\ge` ``brake_limit``, hard
+      stops and starts (only when ``qdd`` is given; the detector's braking
+      regime has the same meaning);
     * ``"reversal"`` (highest precedence): the joint changes direction. Two
       samples ``k1 < k2`` with :math:`|\\dot q_\\ell| \\ge \\sigma_v` and
       opposite signs, only quasi-static samples between them and
@@ -144,13 +146,13 @@ def regimes(
         Joint velocities [rad/s].
     qdd : array-like of the same shape as ``qd``, default=None
         Joint accelerations [rad/s^2]; without them no sample is
-        ``"high_acceleration"``.
+        ``"braking"``.
     sigma_v : float, default=1e-2
         Quasi-static threshold [rad/s] of Eq. 15.
     sigma_rest : float, default=None
         Rest threshold [rad/s]; ``None`` means ``sigma_v / 10`` (1e-3 rad/s,
         the rest level of the UR10e logs). Must not exceed ``sigma_v``.
-    sigma_a : float, default=5.0
+    brake_limit : float, default=5.0
         Acceleration threshold [rad/s^2]. On the UR10e reference logs the
         Fourier excitation trajectories stay below about 4 rad/s^2 (99.9th
         percentile below 3, Savitzky-Golay derivative of ``qd``) while the
@@ -190,8 +192,8 @@ def regimes(
         qdd = _as_float_array(qdd, "qdd")
         if qdd.shape != qd.shape:
             raise ValueError(f"qdd has shape {qdd.shape}, qd has {qd.shape}")
-        _check_positive(sigma_a, "sigma_a")
-        labels[np.abs(qdd) >= sigma_a] = "high_acceleration"
+        _check_positive(brake_limit, "brake_limit")
+        labels[np.abs(qdd) >= brake_limit] = "braking"
     columns = qd.reshape(qd.shape[0], -1)
     reversal = np.column_stack(
         [_reversal_mask(col, sigma_v, int(reversal_window)) for col in columns.T]

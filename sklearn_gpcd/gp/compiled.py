@@ -51,7 +51,7 @@ from sklearn.frozen import FrozenEstimator
 from sklearn.gaussian_process import GaussianProcessRegressor
 
 from .._gate import quasi_static
-from ..dynamics import ControllerFeatures, RigidBodyRegressor
+from ..dynamics import ControllerFeatures, RigidBodyFeatures
 from ..kernels.plan import compile_kernel, flatten
 from ._posterior import GPPosterior
 from .mean import ParametricMean
@@ -371,7 +371,7 @@ class _GaussianProcessPredictor:
         groups = (g.finalize() for blocks in by_columns.values()
                   for g in _groups(blocks, n_outputs))
         self.groups = [g for g in groups if g.n_rows]  # no row, no contribution
-        self.states = {}  # rigid-body regressors shared by the means of one robot
+        self.states = {}  # rigid-body features shared by the means of one robot
         self.means = [_compile_mean(post.mean, wrap, self.states) for post in posteriors]
         self.row = np.empty((1, n_features))
         self.live_means = [(j, mean) for j, mean in enumerate(self.means) if mean is not None]
@@ -416,7 +416,7 @@ def _rigid_body_mean(mean, states):
 
 
 class _SampleState:
-    """The full rigid-body regressor at the current tick, shared by several means."""
+    """The full rigid-body features at the current tick, shared by several means."""
 
     def __init__(self, features):
         self.features = features
@@ -431,7 +431,7 @@ def _compile_mean(mean, wrap, states):
     """``x -> m(x)`` of one output: fast paths for plain ParametricMean.
 
     A linear mean on the inputs is one dot product; a rigid-body mean
-    (:class:`~sklearn_gpcd.dynamics.RigidBodyRegressor` features, Eq. 10 and
+    (:class:`~sklearn_gpcd.dynamics.RigidBodyFeatures` features, Eq. 10 and
     17) reads the regressor row of its joint from a per-tick evaluation
     (``states``) shared by every mean of the same robot; the controller
     mean of SP_C is one product. Anything else calls ``mean.predict``.
@@ -441,7 +441,7 @@ def _compile_mean(mean, wrap, states):
 
     coef = getattr(mean, "coef_", None)
     plain = type(mean) is ParametricMean and np.ndim(coef) == 1
-    if plain and type(mean.features_) is RigidBodyRegressor and mean.features_.joint is not None:
+    if plain and type(mean.features_) is RigidBodyFeatures and mean.features_.joint is not None:
         return _rigid_body_mean(mean, states)
     if type(mean) is ParametricMean and mean.features_ is None and np.ndim(coef) == 1:
         coef = np.asarray(coef, dtype=float)

@@ -29,7 +29,7 @@ def make_p_f(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp_
     r"""P_f: the parametric estimator with friction (Eq. 8-10).
 
     Joint :math:`\ell`'s current is :math:`\phi_\ell(x) w_\ell` with the
-    rigid-body regressor and the friction columns
+    rigid-body features and the friction columns
     :math:`[\operatorname{sign}(\dot q_\ell)\ \dot q_\ell]` (Eq. 10), ``w``
     fitted by least squares (:class:`ParametricMean`). It is still a
     :class:`SemiParametricGPRegressor`, whose GP has only a ``WhiteKernel``:
@@ -41,7 +41,7 @@ def make_p_f(features, n_joints, *, sigma_v=None, friction_columns="auto", **gp_
     ----------
     features : list of n_joints callables or transformers, or None
         Per-joint regressors :math:`\phi_\ell`, e.g.
-        ``[RigidBodyRegressor(robot, joint=l) for l in range(n_joints)]``.
+        ``[RigidBodyFeatures(robot, joint=l) for l in range(n_joints)]``.
         None gives a zero mean (pure noise model).
     n_joints : int
         Number of joints (outputs).
@@ -199,7 +199,7 @@ def make_sp_c(n_joints, **gp_params):
     SP_S (Sec. III-A) with the feature map :math:`\phi_\ell = [i_{c,\ell}]`
     (:class:`~sklearn_gpcd.dynamics.ControllerFeatures`): the robot vendor's
     model of the current, logged as the target current (UR ``i_des``),
-    replaces the rigid-body regressor, and the GP on :math:`x = [q, \dot q,
+    replaces the rigid-body features, and the GP on :math:`x = [q, \dot q,
     \ddot q]` learns what it misses. Our extension of the paper, for logs
     that have :math:`i_c`; pair it with an alarm rule with
     ``Regimes(rest_reference=...)`` for the history-dependent current at rest.

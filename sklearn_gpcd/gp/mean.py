@@ -17,7 +17,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
 
     The paper's parametric prior (Eq. 8-10) writes joint :math:`\ell`'s current
     as :math:`\phi_\ell(x) w_\ell` with :math:`\phi_\ell = [\phi^d_\ell\
-    \phi^f_\ell]`, the rigid-body regressor plus Coulomb/viscous friction
+    \phi^f_\ell]`, the rigid-body features plus Coulomb/viscous friction
     columns :math:`[\operatorname{sign}(\dot q_\ell)\ \dot q_\ell]`. Treating
     :math:`w` as deterministic (Sec. III-A, option (i)) it is fitted once by
     (ridge) least squares
@@ -37,7 +37,7 @@ class ParametricMean(VersionedStateMixin, RegressorMixin, BaseEstimator):
     features : callable, transformer or None, default=None
         Map ``X -> Phi`` of shape ``(n_samples, n_params)``: a callable, or a
         scikit-learn transformer (cloned and fitted in :meth:`fit`), e.g.
-        ``RigidBodyRegressor(robot, joint=l)``. None uses ``Phi = X``
+        ``RigidBodyFeatures(robot, joint=l)``. None uses ``Phi = X``
         (a plain linear model).
     friction_columns : array-like of int, "auto" or None, default=None
         Columns of ``Phi`` holding friction terms. ``"auto"`` reads

@@ -612,7 +612,7 @@ def _set_sigma_v(obj, sigma_v):
     "Every" is safe because the name has one meaning in the package: the
     quasi-static threshold of Eq. 15 (the kernels' gates, a mean's
     :math:`\bar\phi` mask and its feature map's, e.g. a
-    ``RigidBodyRegressor``). Depth is what ``get_params(deep=True)`` reaches
+    ``RigidBodyFeatures``). Depth is what ``get_params(deep=True)`` reaches
     (kernel operands, a mean's ``features`` estimator); an object kept in a
     plain list or a callable is not reached and keeps its own value.
 

@@ -63,7 +63,6 @@ __all__ = [
     "COLUMN_PRESETS",
     "JOINT_SIGNALS",
     "ColumnPreset",
-    "LoopbackRTDEServer",
     "MalformedPackage",
     "RTDEClient",
     "RTDEProtocolError",

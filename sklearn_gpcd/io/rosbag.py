@@ -91,12 +91,8 @@ def read_rosbag(
         Joints the robot has; another count is an error.
     name : str, default=None
         Recording name; the bag's name when None.
-    max_dropped : float, default=0.05
-        Largest fraction of messages each cleaning step may drop.
-    max_joint_speed : float or None, default=10.0
-        Glitch filter speed limit [rad/s]; None disables it.
-    min_samples : int, default=2
-        Fewest valid samples accepted.
+    max_dropped, max_joint_speed, min_samples
+        As for :func:`~sklearn_gpcd.io.read_csv` (messages instead of rows).
 
     Returns
     -------

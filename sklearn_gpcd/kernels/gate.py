@@ -178,21 +178,13 @@ class QuasiStaticGate(Kernel):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples_X, n_features)
-            Left argument of the returned kernel k(X, Y).
-        Y : array-like of shape (n_samples_Y, n_features), default=None
-            Right argument; if None, k(X, X) is evaluated instead.
-        eval_gradient : bool, default=False
-            Whether to return the gradient with respect to the log of the
-            hyperparameters. Only supported when Y is None.
+        X, Y, eval_gradient
+            As for :meth:`ARDRBF.__call__ <sklearn_gpcd.kernels.ARDRBF.__call__>`.
 
         Returns
         -------
-        K : ndarray of shape (n_samples_X, n_samples_Y)
-            Kernel k(X, Y).
-        K_gradient : ndarray of shape (n_samples_X, n_samples_X, n_dims), optional
-            Gradient of k(X, X) with respect to ``theta``; only returned when
-            ``eval_gradient`` is True.
+        K, K_gradient
+            As for :meth:`ARDRBF.__call__ <sklearn_gpcd.kernels.ARDRBF.__call__>`.
         """
         X = _as_2d(X)
         rows = np.flatnonzero(self.gate(X))

@@ -20,7 +20,7 @@ class ParametricKernel(Kernel):
     If :math:`f(x) = \phi(x) w` with :math:`w \sim N(m_w, \Sigma)`, the
     covariance of :math:`f` is the kernel of the parametric prior (paper,
     Sec. III-A "Parametric priors" and option (ii) of "Semi-Parametric
-    priors"; :math:`\phi` is e.g. the rigid-body regressor with the friction
+    priors"; :math:`\phi` is e.g. the rigid-body features with the friction
     columns of Eq. 8-10):
 
     .. math::
@@ -118,7 +118,7 @@ class ParametricKernel(Kernel):
         )
 
     def design_matrix(self, X, phi=None):
-        r"""The regressor matrix :math:`\Phi(X)`, validated.
+        r"""The feature matrix :math:`\Phi(X)`, validated.
 
         Parameters
         ----------
@@ -195,21 +195,13 @@ class ParametricKernel(Kernel):
 
         Parameters
         ----------
-        X : array-like of shape (n_samples_X, n_features)
-            Left argument of the returned kernel k(X, Y).
-        Y : array-like of shape (n_samples_Y, n_features), default=None
-            Right argument; if None, k(X, X) is evaluated instead.
-        eval_gradient : bool, default=False
-            Whether to return the gradient with respect to the log of the
-            hyperparameters. Only supported when Y is None.
+        X, Y, eval_gradient
+            As for :meth:`ARDRBF.__call__ <sklearn_gpcd.kernels.ARDRBF.__call__>`.
 
         Returns
         -------
-        K : ndarray of shape (n_samples_X, n_samples_Y)
-            Kernel k(X, Y).
-        K_gradient : ndarray of shape (n_samples_X, n_samples_X, n_dims), optional
-            Gradient of k(X, X) with respect to ``theta``; only returned when
-            ``eval_gradient`` is True.
+        K, K_gradient
+            As for :meth:`ARDRBF.__call__ <sklearn_gpcd.kernels.ARDRBF.__call__>`.
         """
         phi = self.feature_map(X)
         Phi = self.design_matrix(X, phi)

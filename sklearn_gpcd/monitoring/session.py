@@ -289,11 +289,11 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
     --------
     >>> import numpy as np
     >>> from sklearn.linear_model import LinearRegression
-    >>> from sklearn_gpcd.datasets import make_d1
+    >>> from sklearn_gpcd.datasets import simulate_d1
     >>> from sklearn_gpcd.detection import AlarmRule, CollisionDetector, stack_currents
     >>> from sklearn_gpcd.features import CausalFeatures
     >>> from sklearn_gpcd.monitoring import MonitorSession, recording_samples
-    >>> rec = make_d1("ur10e", n_targets=2, sample_rate=500.0, random_state=0)
+    >>> rec = simulate_d1("ur10e", n_targets=2, sample_rate=500.0, random_state=0)
     >>> features = CausalFeatures().fit([rec])
     >>> X = stack_currents(features.transform(rec), rec.current)
     >>> detector = CollisionDetector(LinearRegression(), n_joints=6, sample_time=0.002,

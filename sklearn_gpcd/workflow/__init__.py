@@ -78,20 +78,16 @@ from .training import (
     training_set,
 )
 
+# The public API: what a Python user of ``gpcd train`` / ``calibrate`` / ``teach``
+# calls. The other names imported above are the command line's and the
+# monitor's helpers (reports, option checks, rule texts, file kinds): public in
+# their modules, not here (tests/test_architecture.py).
 __all__ = [
-    "CHOICE_RULE", "DETECTOR_KIND", "DETECTOR_RULE", "FEEDBACK_LIMIT",
-    "FEEDBACK_MIN_WINDOWS", "FEEDBACK_RULE", "FEEDBACK_SPEED", "FEEDBACK_WINDOW",
-    "FOLD_SUPPORT", "INPUTS", "SIGNALS",
-    "MAX_TRAIN_ROWS", "MIN_CALIBRATION_SECONDS", "MIN_REGIME_SECONDS", "MODELS",
-    "MODEL_KIND", "MODEL_SIGNALS", "MOTION_ENVELOPE_SPEED", "OPTIMIZERS", "ROBOT_MODELS",
-    "SELECT_GRID", "TRAIN_RULE", "CalibratedDetector", "CalibrationWarning",
-    "ModelComparison", "TargetCurrentCheck", "TrainedModel", "TrainingSet",
-    "acceleration_limit", "band_label", "band_settings", "calibrate_detector",
-    "calibration_coverage", "calibration_report", "candidate_models",
-    "check_calibration_options", "check_signals", "check_target_current", "choose_model",
-    "fed_signal_check",
-    "compare_models", "input_signals", "load_detector",
-    "load_model", "recording_keys", "resolve_select", "save_detector", "save_model",
-    "signal_check", "split_recordings", "teach_report", "teach_task", "train_model", "update_task",
-    "training_report", "training_rows", "training_set", "untaught_detector",
+    "MODELS", "MODEL_SIGNALS", "SIGNALS",
+    "CalibratedDetector", "CalibrationWarning", "ModelComparison", "TargetCurrentCheck",
+    "TrainedModel", "TrainingSet",
+    "acceleration_limit", "calibrate_detector", "calibration_coverage", "candidate_models",
+    "check_signals", "check_target_current", "choose_model", "compare_models",
+    "input_signals", "load_detector", "load_model", "save_detector", "save_model",
+    "signal_check", "teach_task", "train_model", "update_task", "training_set", "untaught_detector",
 ]

@@ -47,7 +47,7 @@ __all__ = ["INPUTS", "MAX_TRAIN_ROWS", "MODELS", "MODEL_KIND", "MODEL_SIGNALS", 
 #: alone (SP_P's kernel on a constant mean, ``make_sp_p(None, ...)``: no
 #: rigid-body model).
 MODELS = ("sp_p", "sp_s", "p_f", "sp_c", "gp")
-#: Models whose mean is the rigid-body regressor: they need the robot's model
+#: Models whose mean is the rigid-body features: they need the robot's model
 #: (``gpcd train --robot``); SP_C and the GP alone need none.
 ROBOT_MODELS = ("sp_p", "sp_s", "p_f")
 #: Controller signals each model's inputs use (``CausalFeatures(signals=...)``):
@@ -307,21 +307,21 @@ class TrainedModel:
 
 def _build(model, robot, n_joints, params, coulomb_width=None):
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..dynamics import RigidBodyRegressor
+    from ..dynamics import RigidBodyFeatures
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
     if model not in ROBOT_MODELS and coulomb_width is not None:
-        raise ValueError(f"coulomb_width is a column of the rigid-body regressor; model "
+        raise ValueError(f"coulomb_width is a column of the rigid-body features; model "
                          f"{model!r} has none (use p_f, sp_s or sp_p)")
     if model == "sp_c":
         return make_sp_c(n_joints, **params)
     if model == "gp":
         return make_sp_p(None, n_joints, **params)
     if robot is None:
-        raise ValueError(f"model {model!r} needs the robot (its rigid-body regressor); "
+        raise ValueError(f"model {model!r} needs the robot (its rigid-body features); "
                          "models without one: 'sp_c', 'gp'")
-    phi = [RigidBodyRegressor(robot, joint=j, coulomb_width=coulomb_width)
+    phi = [RigidBodyFeatures(robot, joint=j, coulomb_width=coulomb_width)
            for j in range(n_joints)]
     return {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[model](
         phi, n_joints, **params)
@@ -395,7 +395,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
         Training recordings (emptied, see :func:`training_set`), or their
         inputs already computed (several models on the same data).
     robot : Robot or None, default=None
-        For the rigid-body regressor of P_f, SP_S and SP_P (:data:`ROBOT_MODELS`;
+        For the rigid-body features of P_f, SP_S and SP_P (:data:`ROBOT_MODELS`;
         SP_C and the GP alone need none).
     model : {"sp_p", "sp_s", "p_f", "sp_c", "gp"}, default="sp_p"
         The estimator (:func:`~sklearn_gpcd.gp.make_sp_p` and its peers;
@@ -425,7 +425,7 @@ def train_model(recordings, robot=None, model="sp_p", *, inputs="causal", n_supp
     coulomb_width : float > 0 or None, default=None
         Coulomb column ``tanh(qd / coulomb_width)`` of the rigid-body
         regressor instead of the paper's ``sign(qd)`` (P_f, SP_S, SP_P; see
-        :class:`~sklearn_gpcd.dynamics.RigidBodyRegressor`).
+        :class:`~sklearn_gpcd.dynamics.RigidBodyFeatures`).
     signals : "auto" or tuple of str, default="auto"
         Controller signals the inputs of SP_P, SP_C and the GP alone use
         (:class:`~sklearn_gpcd.features.CausalFeatures`): "auto", every one

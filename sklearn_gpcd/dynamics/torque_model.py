@@ -1,4 +1,4 @@
-"""The linear-in-parameters torque model and its regressor.
+"""The linear-in-parameters torque model and its features :math:`\\Phi`.
 
 The joint torques of a rigid serial arm with reflected rotor inertias,
 friction and offsets are linear in the parameters (paper Eq. 8-10):
@@ -102,8 +102,8 @@ def parameter_names(n_joints, rotor_inertia=True, friction=FRICTION_TERMS, offse
     return names
 
 
-def joint_torque_regressor(model, q, qd, qdd):
-    """Pinocchio's rigid-body regressor for a batch of states.
+def inertial_features(model, q, qd, qdd):
+    """Pinocchio's joint torque regressor, the inertial block of :math:`\\Phi`, for a batch.
 
     Parameters
     ----------
@@ -121,16 +121,16 @@ def joint_torque_regressor(model, q, qd, qdd):
     >>> import numpy as np
     >>> from sklearn_gpcd.robots import load_robot
     >>> model = load_robot("ur5").model
-    >>> joint_torque_regressor(model, *np.zeros((3, 2, 6))).shape
+    >>> inertial_features(model, *np.zeros((3, 2, 6))).shape
     (2, 6, 60)
     """
     return _joint_torque_rows(model, q, qd, qdd).copy()
 
 
 def _joint_torque_rows(model, q, qd, qdd, rows=None):
-    """Rows ``rows`` (default all) of :func:`joint_torque_regressor`, read-only.
+    """Rows ``rows`` (default all) of :func:`inertial_features`, read-only.
 
-    The regressor of the last batch is cached when it has at most
+    The features of the last batch are cached when it has at most
     :data:`CACHE_MAX_BYTES` bytes; a larger batch is computed for the
     requested rows only (so the feature map of one joint of D1, 80,000
     samples, needs 38 MB instead of 230 MB).
@@ -156,7 +156,7 @@ def _joint_torque_rows(model, q, qd, qdd, rows=None):
     return out
 
 
-#: The regressor of the last batch of states is kept when it has at most this
+#: The features of the last batch of states are kept when it has at most this
 #: many bytes (46,000 samples of a 6-joint arm), so that the feature maps of
 #: the joints of one recording, fitted one after the other, call pinocchio
 #: once per sample instead of once per joint and per call.
@@ -185,7 +185,7 @@ def _batch_key(model, q, qd, qdd):
 def _diagonal_block(values, rows=None):
     """(n, nv) per-joint values -> (n, len(rows), nv), ``values[:, l]`` at ``[l, l]``.
 
-    ``rows`` (default: all joints) are the joints whose regressor rows are kept.
+    ``rows`` (default: all joints) are the joints whose rows are kept.
     """
     n, nv = values.shape
     rows = np.arange(nv) if rows is None else rows
@@ -243,9 +243,9 @@ def friction_features(qd, term, sigma_v=None, coulomb_width=None):
     return values
 
 
-def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERMS,
+def torque_features(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERMS,
                    offset=False, sigma_v=None, joints=None, coulomb_width=None):
-    """Regressor of the full parameter vector for a batch of states.
+    """Torque features :math:`\\Phi` of the full parameter vector for a batch of states.
 
     Parameters
     ----------
@@ -259,7 +259,7 @@ def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERM
     sigma_v : float, default=None
         Velocity threshold of the friction gate (Eq. 17).
     joints : int or sequence of int, default=None
-        Keep only the regressor rows of these joints (all by default).
+        Keep only the rows of these joints (all by default).
     coulomb_width : float > 0, default=None
         Coulomb column :math:`\\tanh(\\dot q_l / w)` instead of the sign
         (see :func:`friction_features`).
@@ -273,9 +273,9 @@ def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERM
     Examples
     --------
     >>> import numpy as np
-    >>> full_regressor("ur10", *np.zeros((3, 4, 6))).shape
+    >>> torque_features("ur10", *np.zeros((3, 4, 6))).shape
     (4, 6, 78)
-    >>> full_regressor("ur10", *np.zeros((3, 4, 6)), joints=2).shape
+    >>> torque_features("ur10", *np.zeros((3, 4, 6)), joints=2).shape
     (4, 1, 78)
     """
     robot = resolve_robot(robot)
@@ -290,7 +290,7 @@ def full_regressor(robot, q, qd, qdd, rotor_inertia=True, friction=FRICTION_TERM
 
 def _assemble(torque_rows, qd, qdd, rows, rotor_inertia, friction, offset, sigma_v,
               coulomb_width=None):
-    """The blocks of :func:`full_regressor` after pinocchio's rows ``torque_rows``."""
+    """The blocks of :func:`torque_features` after pinocchio's rows ``torque_rows``."""
     blocks = [torque_rows]
     if rotor_inertia:
         blocks.append(_diagonal_block(qdd, rows))
@@ -349,8 +349,8 @@ def parameter_vector(robot, friction=None, rotor_inertia=True, offset=None):
     return np.concatenate(parts)
 
 
-class SampleRegressor:
-    """:func:`full_regressor` of one state at a time, for per-tick use.
+class SampleTorqueFeatures:
+    """:func:`torque_features` of one state at a time, for per-tick use.
 
     Keeps one pinocchio ``Data`` and skips the batch validation, so one call
     costs one ``computeJointTorqueRegressor`` plus the rotor-inertia,
@@ -363,16 +363,16 @@ class SampleRegressor:
     ----------
     robot : Robot or str
     rotor_inertia, friction, offset, sigma_v, coulomb_width
-        As in :func:`full_regressor`.
+        As in :func:`torque_features`.
 
     Examples
     --------
     >>> import numpy as np
     >>> q, qd, qdd = np.random.default_rng(0).normal(size=(3, 6))
-    >>> one = SampleRegressor("ur10", sigma_v=0.01)(q, qd, qdd)
+    >>> one = SampleTorqueFeatures("ur10", sigma_v=0.01)(q, qd, qdd)
     >>> one.shape
     (6, 78)
-    >>> bool(np.allclose(one, full_regressor("ur10", q, qd, qdd, sigma_v=0.01)[0]))
+    >>> bool(np.allclose(one, torque_features("ur10", q, qd, qdd, sigma_v=0.01)[0]))
     True
     """
 
