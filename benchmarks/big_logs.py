@@ -2,7 +2,7 @@
 
 Writes UR RTDE CSV logs of 1M and 10M rows (500 Hz: 33 min and 5.6 h) in a
 temporary folder, made of the package's simulator: one collision-free UR10e
-run (``make_d1``) played forward then backward (velocities negated), so
+run (``simulate_d1``) played forward then backward (velocities negated), so
 that the tiles join without a jump, tiled with time stamps going on; the
 columns a model reads (timestamp, actual_q, actual_qd, actual_current,
 target_current) with ur_rtde's fixed 6 decimals, about 225 bytes a row. A model
@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.io import Recording, write_rtde_csv
 from sklearn_gpcd.io.rtde import rtde_columns
 
@@ -76,7 +76,7 @@ def measured(argv):
 
 def tile(seed=0):
     """Names and rows (without time) of the tile: a run forward then backward."""
-    rec = make_d1("ur10e", n_targets=6, sample_rate=RATE, random_state=seed)
+    rec = simulate_d1("ur10e", n_targets=6, sample_rate=RATE, random_state=seed)
     rec = Recording(time=rec.time, q=rec.q, qd=rec.qd, current=rec.current,
                     target_current=rec.target_current)  # what the model reads
     names, blocks = rtde_columns(rec)
@@ -130,7 +130,7 @@ def main(argv=None):
         return 1
     results = []
     try:
-        train = write_rtde_csv(make_d1("ur10e", n_targets=20, sample_rate=RATE,
+        train = write_rtde_csv(simulate_d1("ur10e", n_targets=20, sample_rate=RATE,
                                        random_state=1), root / "train.csv")
         model = root / "model.skops"
         status = subprocess.run(gpcd("train", train, "--model", "sp_c", "--n-support", "200",

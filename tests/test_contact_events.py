@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.contact import contact_point
-from sklearn_gpcd.datasets import Contact, JointTrajectory, make_d1, simulate
+from sklearn_gpcd.datasets import Contact, JointTrajectory, simulate_d1, simulate
 from sklearn_gpcd.detection import stack_currents
 from sklearn_gpcd.features import contiguous_segments
 from sklearn_gpcd.monitoring import MonitorSession
@@ -36,7 +36,7 @@ def pushed_arm():
     free = [simulate(reference, robot, random_state=s, name=f"free{s}") for s in (1, 2)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # small simulated runs: coverage warnings
-        trained = train_model([make_d1("ur10", n_targets=6, random_state=0), free[0]], robot,
+        trained = train_model([simulate_d1("ur10", n_targets=6, random_state=0), free[0]], robot,
                               "p_f", n_support=200)
         calibrated = calibrate_detector(trained, free, robot=robot, select=False)
     return robot, calibrated, pushed

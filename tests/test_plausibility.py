@@ -247,7 +247,7 @@ def test_simulated_runs_the_model_never_saw_give_no_finding(work):
     """False warnings: runs of other seeds (the same simulator) pass every check."""
     calibrated = load_detector(work["detector"])
     for seed in (7, 8, 9):
-        rec = make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=seed)
+        rec = simulate_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=seed)
         found = check_signals(rec, calibrated, accept=("range",), name=f"seed{seed}")
         assert [f for f in found if f.kind != "range"] == [], found
 

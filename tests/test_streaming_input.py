@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sklearn_gpcd.cli import main
-from sklearn_gpcd.datasets import make_d1
+from sklearn_gpcd.datasets import simulate_d1
 from sklearn_gpcd.io import (
     JOINT_SIGNALS,
     iter_recording_chunks,
@@ -27,9 +27,9 @@ def work(tmp_path_factory):
     """Three collision-free 500 Hz UR10e runs, a run with a bump on joint 2, an SP_C
     model and a detector calibrated by the CLI (the whole-read path)."""
     folder = tmp_path_factory.mktemp("streaming")
-    free = [write_rtde_csv(make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=s),
+    free = [write_rtde_csv(simulate_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=s),
                            folder / f"free{s}.csv") for s in range(3)]
-    rec = make_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=7)
+    rec = simulate_d1("ur10e", n_targets=2, sample_rate=RATE, random_state=7)
     t = rec.time - rec.time[0]
     current = rec.current.copy()
     current[(t >= 1.5) & (t < 1.9), 1] += 1.0
@@ -75,7 +75,7 @@ def test_chunks_are_the_whole_read_cut_in_pieces(work, tmp_path):
 
 
 def test_rows_out_of_order_across_a_chunk_boundary_are_dropped(tmp_path):
-    rec = make_d1("ur10e", n_targets=1, sample_rate=RATE, random_state=0)
+    rec = simulate_d1("ur10e", n_targets=1, sample_rate=RATE, random_state=0)
     path = write_rtde_csv(rec, tmp_path / "a.csv")
     lines = path.read_text().splitlines()
     data = "".join(line + "\n" for line in lines[1:])
