@@ -187,6 +187,12 @@ def test_calibrate_streams_a_big_file_with_the_same_detector(work, monkeypatch, 
         monkeypatch.undo()
     whole, chunked = (load_detector(outputs[m]) for m in ("whole", "streamed"))
     assert np.array_equal(chunked.detector.thresholds_, whole.detector.thresholds_)
+    # the same summary; the current's noise floor (check_signals) is, per
+    # recording, the median of its chunks' median steps when streamed (bounded
+    # memory), the median step when read whole
+    streamed_noise = chunked.calibration["signal_ranges"].pop("current_noise")
+    whole_noise = whole.calibration["signal_ranges"].pop("current_noise")
+    np.testing.assert_allclose(streamed_noise, whole_noise, rtol=0.1)
     assert chunked.calibration == whole.calibration
     capsys.readouterr()
     monkeypatch.setattr(chunks_module, "STREAM_BYTES", 10_000)

@@ -268,18 +268,31 @@ def calibrate_detector_streamed(trained, paths, folder, *, reader=None, split=No
     options = {**CALIBRATION_DEFAULTS, **options}
     features, folder = trained.features, Path(folder)
     ranges = [trained.training.get("signal_ranges")]
+    known_noise = (ranges[0] or {}).get("current_noise")
+    noises, chunk_noises = [], []
 
     def on_chunk(chunk):
         check_recordings([chunk], "the model", n_joints=features.n_joints_,
                          units=trained.training.get("units"))
         ranges[0] = signal_ranges([chunk], ranges[0])
+        noise = signal_ranges([chunk]).get("current_noise")
+        if noise is not None:
+            chunk_noises.append(noise)
 
     spools = []
     for i, path in enumerate(paths):
         spools.append(RecordingSpool(folder / f"recording{i}",
                                      iter_recording_chunks(path, **(reader or {})), on_chunk))
+        if chunk_noises:  # a recording's median step: the median of its chunks' (bounded)
+            noises.append(np.median(chunk_noises, axis=0))
+            chunk_noises.clear()
         if on_read is not None:
             on_read()
+    if noises:
+        noise = np.min(noises, axis=0)
+        if known_noise is not None:
+            noise = np.fmin(noise, known_noise)
+        ranges[0]["current_noise"] = [float(v) for v in noise]
     _check_files(2, split, {spool.units for spool in spools})
     bounds = {}
     for key, spool in zip(recording_keys(spools), spools):
