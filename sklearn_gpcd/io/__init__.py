@@ -1,28 +1,28 @@
 """Robot recordings: one :class:`Recording` type, readers and writers.
 
-==========================  ==================================================
-:func:`load_recording`      any format, detected from suffix and content
-:func:`load_recordings`     many files, folders or glob patterns
-:func:`iter_recording_chunks` one long text recording, chunk by chunk
-:func:`read_rtde_csv`       UR RTDE CSV (ur_rtde / UR ``record.py``)
-:func:`write_rtde_csv`      the same format, exact float round trip
-:func:`read_csv`            any delimited text through a column map or preset
-:func:`read_npz`            ``.npz`` archives through a key map
-:func:`read_value_files`    one value per line, one file per signal (the
-                            Franka Emika Panda logs, preset ``panda_gaz``)
-:func:`read_rosbag`         ROS 1 / ROS 2 ``sensor_msgs/JointState`` (optional
-                            ``rosbags`` package)
-:class:`RTDEClient`         live UR controller data (RTDE protocol 2);
-                            :class:`LoopbackRTDEServer` replays a recording
-                            (and injects link faults); what can end a
-                            stream: :class:`RTDEProtocolError`,
-                            :class:`MalformedPackage`, :class:`StreamPaused`
-:func:`degrees_note`        unit sanity checks of a recording's signals,
-:func:`units_note`          as sentences for warnings;
-:func:`recording_problems`  all of them (and too short) for a loaded one;
-:class:`SignalCheck`        signals against what a model knows, chunk by chunk
-                            (:func:`signal_ranges`, :class:`Finding`)
-==========================  ==================================================
+================================  ==================================================
+:func:`load_recording`            any format, detected from suffix and content
+:func:`load_recordings`           many files, folders or glob patterns
+:func:`iter_recording_chunks`     one long text recording, chunk by chunk
+:func:`read_rtde_csv`             UR RTDE CSV (ur_rtde / UR ``record.py``)
+:func:`write_rtde_csv`            the same format, exact float round trip
+:func:`read_csv`                  any delimited text through a column map or preset
+:func:`read_npz`                  ``.npz`` archives through a key map
+:func:`read_value_files`          one value per line, one file per signal (the
+                                  Franka Emika Panda logs, preset ``panda_gaz``)
+:func:`read_rosbag`               ROS 1 / ROS 2 ``sensor_msgs/JointState`` (optional
+                                  ``rosbags`` package)
+:class:`RTDEClient`               live UR controller data (RTDE protocol 2);
+                                  :class:`LoopbackRTDEServer` replays a recording
+                                  (and injects link faults); what can end a
+                                  stream: :class:`RTDEProtocolError`,
+                                  :class:`MalformedPackage`, :class:`StreamPaused`
+:func:`degrees_note`              unit sanity checks of a recording's signals,
+:func:`units_note`                as sentences for warnings;
+:func:`recording_problems`        all of them (and too short) for a loaded one;
+:class:`SignalCheck`              signals against what a model knows, chunk by chunk
+                                  (:func:`signal_ranges`, :class:`Finding`)
+================================  ==================================================
 
 All readers keep the logged (irregular) sampling, drop malformed rows,
 exact duplicates, absurd values, out-of-order time stamps and kinematic
