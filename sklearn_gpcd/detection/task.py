@@ -82,8 +82,8 @@ LOCAL_NEIGHBOURS = 10
 BREAKAWAY_S = 0.25
 #: Taught states kept for the novelty search (every k-th row beyond this).
 MAX_TAUGHT_STATES = 20_000
-#: A monitored cycle teaches the drift only if its largest taught ratio
-#: (signal over threshold) stayed at or below this.
+#: A monitored cycle teaches the drift only if, once its own drift fit is
+#: taken away, its largest taught ratio (signal over threshold) is at most this.
 LEARN_BELOW = 0.8
 #: Bound of the learned drift ``|a_l| + |b_l|``, as a share of each joint's
 #: threshold: what learning may take in of a slowly growing contact.
@@ -514,10 +514,10 @@ class TaughtTask(BaseEstimator):
         units = _cycle_units(starts, len(X), int(round(self.period_ / self.sample_time_)))
         verdicts, bad = self._learning_verdicts(res, units, starts)
         before = self.drift_.copy()
-        pending = getattr(self, "pending_drift_", None)
+        pending = self.pending_drift_
         if pending is not None and not bad[0]:   # the cycle after it was clean too
             self._learn_drift(pending)
-        if getattr(self, "last_cycle_alarm_", False) and verdicts[0] == "candidate":
+        if self.last_cycle_alarm_ and verdicts[0] == "candidate":
             verdicts[0] = "beside an alarm"
         self.pending_drift_ = None
         qd = X[:, block_columns("qd", n)]
@@ -948,15 +948,10 @@ class TaskStream:
         general_alarm = np.asarray(general_alarm, bool)
         fast = np.abs(inputs[self._qd]) >= self._sigma_v
         self._sliding_run = np.where(fast, self._sliding_run + 1, 0)
-        joints = self._sliding_run >= self._hold if taught else np.zeros_like(fast)
-        self.joints = joints
-        if taught:
-            alarm = np.where(joints, debounced > task.thresholds_, general_alarm)
-            self.ratio = float(np.where(joints, debounced / task.thresholds_,
-                                        2.0 * general_alarm).max())
-        else:
-            alarm = general_alarm
-            self.ratio = 2.0 * bool(alarm.any())
+        self.joints = joints = (self._sliding_run >= self._hold) & taught
+        alarm = np.where(joints, debounced > task.thresholds_, general_alarm)
+        self.ratio = float(np.where(joints, debounced / task.thresholds_,
+                                    2.0 * general_alarm).max())
         self.event = self._events.step(self.ratio, self._first)
         self._first = False
         return alarm, taught

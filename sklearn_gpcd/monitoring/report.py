@@ -191,7 +191,7 @@ class _SessionReport:
         signal, regime = np.asarray(s["signal"]), np.asarray(s["regime"], dtype=int)
         alarms = np.asarray(s["alarms"], dtype=bool)
         n = signal.shape[2] if signal.ndim == 3 else 0
-        protected = np.asarray(s.get("protected", []), dtype=float)
+        protected = np.asarray(s["protected"], dtype=float)
         extra = int(protected.size == t.size and np.isfinite(protected).any())
         fig, axes = plt.subplots(max(n, 1) + extra, 1,
                                  figsize=(9, 1.6 * (max(n, 1) + extra) + 0.8),

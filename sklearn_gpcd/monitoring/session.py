@@ -75,6 +75,7 @@ class _Protection:
 
     def __init__(self, robot, sample_time):
         self.robot = robot
+        self.torque_constants = np.asarray(robot.torque_constants, dtype=float)
         self.every = max(1, int(round(1.0 / (PROTECTION_RATE * sample_time))))
         self.start()
 
@@ -94,7 +95,7 @@ class _Protection:
         # deferred: the contact part loads pinocchio (gpcd starts without it)
         from ..contact import protected_force
 
-        kt = 1.0 if units != "A" else np.asarray(self.robot.torque_constants, dtype=float)
+        kt = 1.0 if units != "A" else self.torque_constants
         self.last = protected_force(self.robot, q, monitor.applied_thresholds * kt)
         if not math.isfinite(self.last):
             self.never += 1
@@ -368,7 +369,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self.monitor.reset()
         self.name, self.t0, self.cross_start, self.open = name, None, None, None
         self.n_samples = self.n_faults = 0
-        self.series = {"t": [], "stamp": [], "signal": [], "regime": [], "alarms": []}
+        self.series = {"t": [], "stamp": [], "signal": [], "regime": [], "alarms": [],
+                       "protected": []}
         self.recordings.append({"name": name})
         self.state, self._warm = MONITORING, 0
         self._last_stamp = self._last_rel = None
@@ -455,7 +457,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                      self.protection.add(mon, fields["q"], self.units))
         if self.keep_series:
             s = self.series
-            s.setdefault("protected", []).append(protected)
+            s["protected"].append(protected)
             s["t"].append(rel)
             s["stamp"].append(t)
             s["signal"].append([band.signal.copy() for band in self.bands])
