@@ -5,6 +5,7 @@ the controller's model as a mean; batch == streaming on a simulated
 recording; input checks.
 """
 
+import copy
 import warnings
 
 import numpy as np
@@ -207,6 +208,57 @@ def test_streaming_with_regimes_and_reference_equals_batch():
     np.testing.assert_allclose(out.signal, batch.signal, rtol=1e-12, atol=1e-12)
     assert np.array_equal(out.prediction, det.predict(Z))
     assert (out.prediction == -1).any()
+
+
+def _settling_relaxation(current):
+    """The current relaxing after the stop at row 600 (6 A, 0.1 s), over by rest entry."""
+    relaxed = current.copy()
+    relaxed[600:650] += 6.0 * np.exp(-np.arange(50) / 10.0)[:, None]
+    return relaxed
+
+
+def _rest_band_detector():
+    """Calibrated on 3 recordings whose stiction offsets at rest differ (0.4, 0.3, 0.5)
+    and whose current relaxes after the stop (wide settling thresholds)."""
+    blocks, groups = [], []
+    for seed, scale in enumerate((1.0, 0.75, 1.25)):
+        qd, current = _still_then_moving(seed=seed)
+        current = _settling_relaxation(current * np.where(qd == 0, scale, 1.0))
+        blocks.append(stack_currents(qd, current))
+        groups.append(np.full(len(qd), seed))
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.0, filter_cutoff=2.0,
+                     min_duration=3, regimes=Regimes(settle_time=0.5, rest_reference=2.0))
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rule)
+    return det.fit(np.concatenate(blocks), groups=np.concatenate(groups)), blocks
+
+
+def test_the_rest_band_bounds_what_rest_entry_takes_in_and_clips_no_calibration_entry():
+    det, blocks = _rest_band_detector()
+    rule = det.rules_[0]
+    band = rule.rest_band_
+    assert band.shape == (2,) and np.all((band > 0.3) & (band < 2.0))
+    unbounded = copy.deepcopy(det)
+    unbounded.rules_[0].rest_band_ = None
+    for X in blocks:  # left out or not, no calibration entry reaches the band
+        np.testing.assert_array_equal(det.monitoring_signal(X).signal,
+                                      unbounded.monitoring_signal(X).signal)
+    # a push of 3 bands on joint 0, under the settling threshold, that starts while
+    # settling and is still on at rest entry: bounded, it alarms while it acts,
+    # with its own sign, and the reference is taken once it has let go; unbounded,
+    # the reference takes it in and only its release (the mirror image) alarms
+    qd, current = _still_then_moving(seed=0)
+    pushed = _settling_relaxation(current)
+    pushed[630:700, 0] += 3.0 * band[0]  # still from ~598, rest from ~648
+    assert 3.0 * band[0] < det.thresholds_[1, 0]  # settling
+    X = stack_currents(qd, pushed)
+    bounded = np.flatnonzero(det.monitoring_signal(X).alarms[:, 0])
+    assert 640 <= bounded[0] and bounded[-1] < 710  # while it acts (+ the filter's lag)
+    assert np.all(det.monitoring_signal(X).signal[bounded, 0] > 0)
+    out = unbounded.monitoring_signal(X)
+    mirror = np.flatnonzero(out.alarms[:, 0])
+    assert mirror[0] >= 700 and np.all(out.signal[mirror, 0] < 0)
+    assert StreamingMonitor(det).replay(X).signal == pytest.approx(det.monitoring_signal(X).signal)
 
 
 @pytest.mark.parametrize("alarm_hold, n_events", [(1.0, 1), (0.0, 2)])

@@ -6,7 +6,9 @@ rest"). Per sample the arm is ``moving`` (some :math:`|\\dot q_\\ell| \\ge
 it stopped), at ``rest`` (still for longer, or since the stream started) or,
 with a braking limit, ``braking`` (for ``hold`` samples after some
 :math:`|\\ddot q_\\ell|` exceeds it). At rest the monitoring signal is
-re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
+re-referenced: at rest entry, or once :math:`|m_\\ell| \\le B_\\ell` has held for
+``EVENT_HOLD_S`` after it, :math:`b_\\ell = m_\\ell` (before that,
+:math:`b_\\ell = \\mathrm{clip}(m_\\ell, -B_\\ell, B_\\ell)`), then
 
 .. math::
 
@@ -15,7 +17,13 @@ re-referenced: at rest entry :math:`b_\\ell = m_\\ell`, then
     \\beta = 1 - e^{-T/\\tau},
 
 so a contact shows in full while the slow relaxation of the current held
-after a stop does not. :class:`AlarmState`: one band's per-sample decision,
+after a stop does not. :math:`B_\\ell`, the rest band, is the largest
+:math:`|m_\\ell|` at a rest entry of the collision-free recordings, times
+their leave-one-recording-out factor (``AlarmRule.rest_band_``): the held
+current static friction can leave is taken into the reference; a push that
+is on at rest entry beyond that band is not: what exceeds the band shows,
+with its own sign, and the reference is taken once the push has let go (no
+mirror image at its release). :class:`AlarmState`: one band's per-sample decision,
 shared by batch and streaming. :class:`EventHold`: one event per contact, the
 same on every path.
 """
@@ -102,11 +110,14 @@ class RegimeState:
     ``brake_limit`` [rad/s^2]: the arm brakes above it, and ``brake_hold``
     samples more (None: no braking regime; with a limit, :meth:`step` reads
     the accelerations after the velocities); ``alarm_hold``: samples at most
-    that an alarm holds the regime of its onset (0: no hold).
+    that an alarm holds the regime of its onset (0: no hold); ``rest_band``:
+    per joint, the largest reference taken at rest entry (None: no bound);
+    ``entry_hold``: samples within the band before a joint that entered rest
+    beyond it takes its reference.
     """
 
     def __init__(self, sigma_v, settle, beta, n_joints, brake_limit=None, brake_hold=0,
-                 alarm_hold=0):
+                 alarm_hold=0, rest_band=None, entry_hold=0):
         self.sigma_v = float(sigma_v)
         self.settle = int(settle)
         self.beta = beta
@@ -114,7 +125,11 @@ class RegimeState:
         self.brake_limit = None if brake_limit is None else float(brake_limit)
         self.brake_hold = int(brake_hold)
         self.alarm_hold = int(alarm_hold)
+        self.rest_band = None if rest_band is None else np.asarray(rest_band, dtype=float)
+        self.entry_hold = int(entry_hold)
         self.reference = np.zeros(n_joints)
+        self._taken = np.zeros(n_joints, dtype=bool)
+        self._inside_for = np.zeros(n_joints, dtype=np.intp)
         self._step = np.zeros(n_joints)
         self.reset()
 
@@ -168,6 +183,8 @@ class RegimeState:
         self._held_for = self._held_for + 1 if hold is not None else 0
         if hold is not None and self._held_for <= self.alarm_hold:
             if hold == REST and self._referenced:
+                if not self._taken.all():
+                    self._take(signal)
                 np.subtract(signal, self.reference, out=signal)
             return hold
         self._reference(regime, signal)
@@ -182,15 +199,40 @@ class RegimeState:
             self.reference[:] = 0.0
             return
         if not self._referenced:
-            self.reference[:] = signal
+            self._taken[:] = False
+            self._inside_for[:] = self.entry_hold  # at entry: in band, taken at once
             self._referenced = True
-        np.subtract(signal, self.reference, out=signal)  # m~ = m - b
-        np.multiply(signal, self.beta, out=self._step)
-        self.reference += self._step  # b += beta m~
+        if self._taken.all():
+            np.subtract(signal, self.reference, out=signal)  # m~ = m - b
+            np.multiply(signal, self.beta, out=self._step)
+            self.reference += self._step  # b += beta m~
+            return
+        self._take(signal)
+        np.subtract(signal, self.reference, out=signal)
+        self.reference[self._taken] += self.beta * signal[self._taken]
+
+    def _take(self, signal):
+        """Take ``b_l = m_l`` for each joint not yet referenced once ``|m_l| <= B_l``
+        for ``entry_hold`` samples (a push letting go has passed); until then
+        ``b_l`` is the nearest value static friction can hold (the excess shows,
+        with its sign)."""
+        new = ~self._taken
+        if self.rest_band is None:
+            take = new
+        else:
+            inside = np.abs(signal) <= self.rest_band
+            self._inside_for = np.where(new & inside, self._inside_for + 1, 0)
+            take = new & (self._inside_for > self.entry_hold)
+        self.reference[take] = signal[take]
+        self._taken |= take
+        wait = new & ~take
+        if wait.any():
+            self.reference[wait] = np.clip(signal[wait], -self.rest_band[wait],
+                                           self.rest_band[wait])
 
 
 def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
-                brake_hold=0, alarm_hold=0):
+                brake_hold=0, alarm_hold=0, rest_band=None, entry_hold=0):
     """:class:`RegimeState` over a batch, restarting at every segment start.
 
     Returns ``(referenced, regimes, reference)``: a copy of the signal
@@ -198,7 +240,8 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
     outside rest). No alarm, so ``alarm_hold`` is not used.
     """
     settings = dict(sigma_v=sigma_v, settle=settle, beta=beta, brake_limit=brake_limit,
-                    brake_hold=brake_hold, alarm_hold=alarm_hold)
+                    brake_hold=brake_hold, alarm_hold=alarm_hold, rest_band=rest_band,
+                    entry_hold=entry_hold)
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     bounds = np.append(starts, signal.shape[0])
@@ -207,6 +250,24 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
         for k in range(lo, hi):
             regimes[k] = state.step(motion[k], out[k])
     return out, regimes, signal - out
+
+
+def rest_entry_peaks(reference, regimes, starts):
+    """Largest ``|b_l|`` taken at a rest entry, per recording: (n_recordings, n_joints).
+
+    ``reference``, ``regimes``: those of :func:`regime_pass`; ``starts``: the
+    recordings' first rows. A recording with no rest entry gives zeros.
+    """
+    rest = regimes == REST
+    entry = rest & ~np.r_[False, rest[:-1]]
+    entry[np.asarray(starts, dtype=np.intp)] = rest[np.asarray(starts, dtype=np.intp)]
+    bounds = np.append(starts, len(regimes))
+    out = np.zeros((len(starts), reference.shape[1]))
+    for r, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+        rows = np.flatnonzero(entry[lo:hi]) + lo
+        if rows.size:
+            out[r] = np.abs(reference[rows]).max(axis=0)
+    return out
 
 
 class AlarmState:

@@ -143,3 +143,18 @@ def shared_margin(factors, rule="global"):
     if rule == "global":
         return np.full_like(margin, margin.max())
     return margin
+
+
+def rest_band(peaks):
+    """The rest band :math:`B_\\ell`: the largest reference at a rest entry, per joint,
+    times the leave-one-recording-out factor of those peaks (shared by the joints).
+
+    ``peaks``: :func:`~sklearn_gpcd.detection._regimes.rest_entry_peaks`, one row
+    per recording. None (no bound) with fewer than 2 recordings that enter
+    rest: a band needs a recording left out to be checked against.
+    """
+    peaks = peaks[peaks.any(axis=1)]
+    if peaks.shape[0] < 2:
+        return None
+    factor = float(loro_factors(peaks[:, None, :], "global").max())
+    return np.maximum(factor * peaks.max(axis=0), np.finfo(float).tiny)

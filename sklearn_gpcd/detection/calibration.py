@@ -26,7 +26,7 @@ from sklearn.utils import Bunch
 
 from ..metrics import alarm_onsets
 from ._envelope import envelope_features, fit_envelope, over_envelope, window_peaks
-from ._regimes import MOVING
+from ._regimes import MOVING, rest_entry_peaks
 from ._thresholds import (
     _LEVEL_MARGIN,
     MARGIN_RULES,
@@ -34,6 +34,7 @@ from ._thresholds import (
     loro_factors,
     peak_levels,
     recording_peaks,
+    rest_band,
     shared_margin,
 )
 from .detector import reads_currents
@@ -616,14 +617,16 @@ class _SeriesFiles(Mapping):
         self.folder, self.n_rows = Path(folder), n_rows
         self.folder.mkdir(parents=True, exist_ok=True)
         self.peaks, self.counts, self._files = {}, {}, {}
+        self.rest_entries = {}
 
-    def add(self, key, debounced, regime, peaks):
+    def add(self, key, debounced, regime, peaks, rest_entries=None):
         stem = self.folder / f"{len(self._files)}"
         np.save(f"{stem}_m.npy", debounced)
         np.save(f"{stem}_g.npy", regime)
         self._files[key] = stem
         self.peaks[key] = peaks
         self.counts[key] = np.bincount(regime, minlength=self.n_rows)
+        self.rest_entries[key] = rest_entries
 
     def __getitem__(self, key):
         stem = self._files[key]
@@ -659,7 +662,9 @@ def _streamed_series(base, rules, candidates, blocks, times, folder):
     for key in keys:
         u, motion = _blocked_residuals(base, first if key == keys[0] else blocks[key])
         for r, store in zip(band_rules, stores):
-            store.add(key, *_excursion(r, *r.signal(u, motion=motion)[:2]))
+            signal, regime, reference = r.signal(u, motion=motion)
+            entries = None if reference is None else rest_entry_peaks(reference, regime, [0])[0]
+            store.add(key, *_excursion(r, signal, regime), rest_entries=entries)
         first = None
     return band_rules, stores
 
@@ -694,4 +699,6 @@ def _rule_from_peaks(rule, series, keys, timing):
     rule.margin_ = np.broadcast_to(margin, np.shape(rule.scale_)).copy()
     rule.offset_ = -1.0
     rule.thresholds_ = 1.0 * rule.scale_
+    if rule.regimes is not None and rule.regimes.rest_reference is not None:
+        rule.rest_band_ = rest_band(np.stack([series.rest_entries[k] for k in keys]))
     return rule

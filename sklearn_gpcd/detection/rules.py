@@ -34,7 +34,7 @@ from ._envelope import (
     window_peaks,
 )
 from ._regimes import (BRAKING, EVENT_HOLD_S, MOVING, REGIME_NAMES, held_regime_pass,
-                       regime_pass)
+                       regime_pass, rest_entry_peaks)
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
@@ -42,6 +42,7 @@ from ._thresholds import (
     fill_absent_regimes,
     loro_factors,
     recording_peaks,
+    rest_band,
     rms_scale,
 )
 
@@ -293,6 +294,7 @@ class AlarmRule(BaseEstimator):
             self.filter_coefficients_ = lowpass_coefficients(
                 self.filter_cutoff, self.sample_time_, self.filter_order)
         self.regime_names_ = self.regimes.names if self.regimes is not None else ("all",)
+        self.rest_band_ = None
         return self
 
     def regime_settings(self):
@@ -303,7 +305,9 @@ class AlarmRule(BaseEstimator):
         settings : dict or None
             ``sigma_v`` (``DEFAULT_SIGMA_V`` when the detector gives none); ``settle``,
             ``brake_hold`` and ``alarm_hold`` in samples; ``beta`` (the rest
-            reference's smoothing factor, None without it) and ``brake_limit``.
+            reference's smoothing factor, None without it), ``brake_limit``,
+            ``rest_band`` (``rest_band_``) and ``entry_hold`` (samples of
+            ``EVENT_HOLD_S``).
         """
         regimes, dt = self.regimes, self.sample_time_
         if regimes is None:
@@ -318,6 +322,9 @@ class AlarmRule(BaseEstimator):
             "brake_limit": regimes.brake_limit,
             "brake_hold": int(round(regimes.brake_hold / dt)),
             "alarm_hold": int(round(regimes.alarm_hold / dt)),
+            # files saved before the rest band have none: no bound, as they were
+            "rest_band": getattr(self, "rest_band_", None),
+            "entry_hold": self.event_hold_samples(),
         }
 
     def signal(self, u, starts=None, motion=None):
@@ -495,7 +502,7 @@ class AlarmRule(BaseEstimator):
         self.prepare(sample_time, sigma_v)
         starts = _starts(u, starts)
         n_joints = u.shape[1]
-        signal, regimes, _ = self.signal(u, starts, motion)
+        signal, regimes, reference = self.signal(u, starts, motion)
         margin = 1.0
         if self.threshold == "std":
             if std is None and not normalized:
@@ -522,6 +529,33 @@ class AlarmRule(BaseEstimator):
         self.margin_ = np.broadcast_to(margin, np.shape(self.scale_)).copy()
         self.offset_ = -gamma
         self.thresholds_ = gamma * self.scale_
+        self.learn_rest_band(reference, regimes, starts)
+        return self
+
+    def learn_rest_band(self, reference, regimes, starts):
+        """Set ``rest_band_`` from a regime pass of collision-free recordings.
+
+        :func:`~sklearn_gpcd.detection._thresholds.rest_band` of the references
+        taken at their rest entries (None without a rest reference). The
+        factor is at least each recording's peak over the others' largest, so
+        no calibration recording is clipped, left out or not: the thresholds
+        it calibrated stand.
+
+        Parameters
+        ----------
+        reference : ndarray of shape (n_samples, n_joints) or None
+            The rest reference of :meth:`signal` (None without regimes).
+        regimes : ndarray of int of shape (n_samples,)
+        starts : ndarray of int
+            First row of each recording.
+
+        Returns
+        -------
+        self : AlarmRule
+        """
+        self.rest_band_ = None
+        if reference is not None and self.regimes.rest_reference is not None:
+            self.rest_band_ = rest_band(rest_entry_peaks(reference, regimes, starts))
         return self
 
     def _enveloped(self, debounced, regimes, starts, motion):

@@ -29,7 +29,7 @@ from ..persistence import MalformedFileError, load
 #: Fields that must be positive wherever they occur in a loaded file.
 POSITIVE_FIELDS = ("thresholds_", "scale_", "margin_", "sample_time_", "filter_cutoff",
                    "y_std", "length_scale", "constant_value", "torque_constants", "level_",
-                   "feature_scale_", "cutoff", "period_")
+                   "feature_scale_", "cutoff", "period_", "rest_band_")
 #: Fields that may be ``+inf`` (``rest_reference``: the arm is never at rest).
 INFINITE_FIELDS = ("rest_reference",)
 #: Deepest nesting of objects walked in a loaded file.
