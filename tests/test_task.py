@@ -117,6 +117,22 @@ def test_untaught_motion_falls_back_to_the_detector(taught):
     np.testing.assert_array_equal(res.alarms[untaught], res.general_alarms[untaught])
 
 
+def test_an_untaught_contact_is_the_detectors_event(taught):
+    """Where nothing is taught the events are the detector's own: an event holds
+    on its ratio until released, not only while it alarms."""
+    det, task = taught
+    a, b = Q0 + [0.2, 0.4, -0.2, 0.3, 0.6, 0.2], Q0 + [0.5, 0.1, -0.5, 0.6, 0.2, 1.0]
+    push = Contact(link=3, start=4.0, duration=1.0, force=[0.0, 0.0, -150.0])
+    X = _block(simulate(_cycles(2, a=a, b=b, move=3.5), "ur10", contacts=[push],
+                        random_state=6), skip=0)
+    res = task.monitoring_signal(X)
+    general = det.monitoring_signal(X)
+    assert not res.joints.any() and general.event.any()
+    assert general.event.sum() > general.alarms.any(axis=1).sum()  # held past the alarm
+    np.testing.assert_array_equal(res.event, general.event)
+    _assert_stream_equals_batch(task, X)
+
+
 def test_streaming_equals_batch(taught):
     det, task = taught
     push = Contact(link=3, start=5.4, duration=0.5, force=[0.0, 0.0, -60.0])
@@ -131,7 +147,7 @@ def _assert_stream_equals_batch(task, X):
     n = task.n_joints_
     for i in range(len(X)):
         alarm, is_taught = stream.step(X[i, :-n], X[i, -n:], batch.general_alarms[i],
-                                       moving=batch.moving[i])
+                                       batch.general_ratio[i], moving=batch.moving[i])
         assert is_taught == batch.taught[i]
         np.testing.assert_allclose(stream.signal, batch.signal[i], rtol=1e-9, atol=1e-12)
         np.testing.assert_array_equal(alarm, batch.alarms[i])

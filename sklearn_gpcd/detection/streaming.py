@@ -14,7 +14,7 @@ from ..features.inputs import as_recordings
 from ..gp import compile_predictor
 from ._regimes import MOVING, AlarmState, EventHold
 from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning, reads_currents
-from .task import TaughtTask
+from .task import TaughtTask, general_ratio
 
 
 class MonitorStatus(str, Enum):
@@ -563,8 +563,8 @@ class StreamingMonitor(VersionedStateMixin):
         thresholds where the arm moves through taught states, the bands' elsewhere."""
         general = self.bands[0].alarms if len(self.bands) == 1 else self.alarms
         alarm, self.taught = self._task_stream.step(
-            self._inputs, self._current, general, moving=self.regime == MOVING,
-            predicted=self.predicted)
+            self._inputs, self._current, general, general_ratio(self.bands),
+            moving=self.regime == MOVING, predicted=self.predicted)
         self.alarms[:] = alarm
         return bool(alarm.any())
 

@@ -281,6 +281,15 @@ def _held(moving, starts, hold):
     return held[:, 0] > 0
 
 
+def general_ratio(bands):
+    """Per joint, the detector's ratio over its band's level, the largest over its
+    bands: above 1 where it alarms, what its own events hold on (``bands``: those
+    of :meth:`CollisionDetector.monitoring_signal`, or of a streaming monitor)."""
+    tiny = np.finfo(float).tiny
+    return np.max([np.asarray(band.ratio, dtype=float) / max(float(band.level), tiny)
+                   for band in bands], axis=0)
+
+
 def drift_features(qd):
     """Columns ``[1, tanh(qd_l / DRIFT_WIDTH)]`` of the drift, shape (2, n, n_joints)."""
     qd = np.atleast_2d(qd)
@@ -733,14 +742,14 @@ class TaughtTask(BaseEstimator):
             ``novelty``, ``moving`` (the detector's regime), ``taught``
             (``novelty <= 1`` after ``BREAKAWAY_S`` of motion), ``joints``
             (n, n_joints: where each joint's taught threshold applies),
-            ``taught_alarms`` and
-            ``general_alarms`` (n, n_joints) and ``alarms``: the taught ones
+            ``taught_alarms``,
+            ``general_alarms`` and ``general_ratio`` (n, n_joints) and ``alarms``: the taught ones
             where taught and the joint has slid (``|qd_l| >= sigma_v_``) for
             ``BREAKAWAY_S``, the
             general ones elsewhere; ``ratio``, the largest of the debounced
-            ``|m_l| / threshold_l`` where taught (2 or 0 by the detector's
-            alarms elsewhere), and ``event`` (bool): the rows of contact
-            events (:class:`EventHold`).
+            ``|m_l| / threshold_l`` where taught and of the detector's
+            ratio over its level elsewhere (:func:`general_ratio`), and
+            ``event`` (bool): the rows of contact events (:class:`EventHold`).
         """
         check_is_fitted(self, "coef_")
         X = np.asarray(X, dtype=float)
@@ -759,13 +768,15 @@ class TaughtTask(BaseEstimator):
         general_alarms = np.asarray(general.alarms, dtype=bool).reshape(len(X), -1)
         joints = taught[:, None] & _sliding(inputs, n, self._sigma_v(), starts, self._hold())
         alarms = np.where(joints, taught_alarms, general_alarms)
-        ratio = np.where(joints, debounced / self.thresholds_, 2.0 * general_alarms).max(axis=1)
+        over = general_ratio(general.bands).reshape(len(X), -1)
+        ratio = np.where(joints, debounced / self.thresholds_, over).max(axis=1)
         events = EventHold(self._hold_rows(EVENT_HOLD_S))
         event = np.array([events.step(r, start) for r, start in zip(
             ratio, np.isin(np.arange(len(X)), starts))], dtype=bool)
         return Bunch(residual=residual, signal=m, novelty=novelty, moving=moving,
                      taught=taught, joints=joints, taught_alarms=taught_alarms,
-                     general_alarms=general_alarms, alarms=alarms, ratio=ratio, event=event)
+                     general_alarms=general_alarms, general_ratio=over, alarms=alarms,
+                     ratio=ratio, event=event)
 
     def predict(self, X, groups=None):
         """+1 normal, -1 collision, per row.
@@ -849,8 +860,9 @@ class TaskStream:
     ...                         sample_time=0.01).fit(X)
     >>> task = TaughtTask(det).fit(X)
     >>> stream = task.stream()
+    >>> quiet = np.zeros(1, bool), np.zeros(1)   # the detector's alarms and ratio
     >>> for row in X[:30]:        # taught after BREAKAWAY_S (0.25 s) of motion
-    ...     alarm, taught = stream.step(row[:-1], row[-1:], general_alarm=np.zeros(1, bool))
+    ...     alarm, taught = stream.step(row[:-1], row[-1:], *quiet)
     >>> bool(alarm.any()), bool(taught)
     (False, True)
     """
@@ -903,7 +915,8 @@ class TaskStream:
         self.ratio = 0.0
         self.event = False
 
-    def step(self, inputs, current, general_alarm, moving=True, predicted=None):
+    def step(self, inputs, current, general_alarm, general_ratio, moving=True,
+             predicted=None):
         """One sample.
 
         Parameters
@@ -912,6 +925,9 @@ class TaskStream:
         current : ndarray of shape (n_joints,)
         general_alarm : ndarray of bool, shape (n_joints,)
             The detector's per-joint alarm at this sample.
+        general_ratio : ndarray of shape (n_joints,)
+            The detector's per-joint ratio over its level (:func:`general_ratio`):
+            the event of an untaught joint holds on it, as the detector's own.
         moving : bool, default=True
             Whether the detector's regime is "moving" (the taught thresholds
             apply after ``BREAKAWAY_S`` of it)
@@ -951,7 +967,7 @@ class TaskStream:
         self.joints = joints = (self._sliding_run >= self._hold) & taught
         alarm = np.where(joints, debounced > task.thresholds_, general_alarm)
         self.ratio = float(np.where(joints, debounced / task.thresholds_,
-                                    2.0 * general_alarm).max())
+                                    general_ratio).max())
         self.event = self._events.step(self.ratio, self._first)
         self._first = False
         return alarm, taught
