@@ -24,7 +24,8 @@ with effects each, and 9351-9362, twelve null cases with nothing
 concealed; fixed in this commit, before any diagnosis change of that round
 and before any of its cases was drawn) is generated, diagnosed in two
 stages and scored once, at the end of that round, and reported whatever it
-gives. ``score3`` (9201-9240), ``score`` (9101-9140) and ``score1``
+gives (it was, on 94efb85, on the first 30 cases of an order fixed before
+running: ``docs/_static/results/blind_protocol_score4.txt``). ``score3`` (9201-9240), ``score`` (9101-9140) and ``score1``
 (7001-7036) have been seen and are kept only to reproduce their rounds'
 figures.
 

@@ -67,3 +67,46 @@ def test_resample_keeps_the_total_number_of_blocks():
     # equal blocks (30 samples each): a resample has as many rows as the data
     assert rs.counts.sum() == st.counts.sum() and rs.gram.shape[0] == 5
     assert rs.counts[0].sum() != st.counts.sum() / 5 or not np.allclose(rs.rss, 0)
+
+
+def test_thresholded_selection_names_the_true_term_and_nothing_on_noise():
+    from sklearn_gpcd.diagnosis.stability import thresholded_selection
+
+    settings = {"min_gain": 0.02, "min_t": 3.0, "min_share": 0.01}
+    *_, cands, _, _, _, stats = _case(0.3)
+    assert [st.candidate.label for st in thresholded_selection(stats, cands, settings)] == \
+        ["coulomb_friction[joint 2]"]
+    *_, cands, _, _, _, stats = _case(0.0)
+    assert thresholded_selection(stats, cands, settings) == []
+
+
+def test_thresholded_selection_drops_the_weaker_of_two_rival_terms():
+    # a Coulomb step on joint 2 and no viscous term: both variants of joint 2 do well alone
+    # (sign(qd) and qd correlate) but given the Coulomb term the viscous one adds nothing
+    from sklearn_gpcd.diagnosis.stability import best_variants, thresholded_selection
+
+    *_, cands, _, _, _, stats = _case(0.3)
+    start = {c.label for c in best_variants(stats, cands, stats)}
+    assert {"coulomb_friction[joint 2]", "viscous_friction[joint 2]"} <= start
+    kept = thresholded_selection(stats, cands, {"min_gain": 0.02, "min_t": 3.0,
+                                                "min_share": 0.01})
+    assert [st.candidate.label for st in kept] == ["coulomb_friction[joint 2]"]
+
+
+def test_recording_gains_are_high_where_the_effect_is_and_nil_where_it_is_not():
+    from types import SimpleNamespace
+
+    from sklearn_gpcd.diagnosis.selection import FoldStatistics
+    from sklearn_gpcd.diagnosis.stability import recording_gains
+
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(60, 25))
+    r = 0.1 * rng.normal(size=x.shape)
+    r[:30] += 0.5 * x[:30]  # the effect is in the first recording only...
+    stats = FoldStatistics((x * x).sum(1)[:, None, None, None], (x * r).sum(1)[:, None, None],
+                           (r * r).sum(1)[:, None], np.full((60, 1), 25.0), np.ones(1))
+    term = SimpleNamespace(columns=np.array([0]), joints=(0,))
+    first, second = recording_gains(stats, [np.arange(30), np.arange(30, 60)], 5, [term])[0]
+    # ... fitted on both, it removes most of the first recording's error and makes the
+    # second one's worse (the pooled coefficient, about half the true one, is wrong there)
+    assert first > 0.5 and second < 0.0
