@@ -26,7 +26,7 @@ from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
 from .selection import EXCITATION, MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, \
     build_candidates, expand_composites, fold_index, fold_statistics, forward_selection, \
-    given_others, plausibility_check
+    given_others, plausibility_check, separating_excitation
 
 #: Times the selection is rerun after effects were dropped by the joint fit.
 MAX_RESELECTIONS = 2
@@ -70,6 +70,36 @@ def _inseparable_friction(effects):
                               f"({va:.3g} and {vb:.3g} rad/s): the recordings cannot separate "
                               "a peak from a softening there"))
     return out
+
+
+def _group_words(row):
+    """``" (any of X 70 %, Y 30 %)"``: the members of a group of confounded alternatives."""
+    if len(row["group"]) < 2:
+        return ""
+    return " (any of " + ", ".join(
+        f"{row['labels'][f]} {100 * p:.0f} %" for f, p in sorted(
+            row["group"].items(), key=lambda kv: -kv[1])) + ")"
+
+
+def _group_ambiguity(chosen, row, table):
+    """An ``ambiguities_`` entry for a kept group: "cannot tell X from Y", each share."""
+    others = [f for f in row["group"] if f != chosen.family]
+    rival = max(others, key=lambda f: (row["group"][f], row["correlations"].get(f, 0.0)))
+    alternative = table.get(rival, {}).get("candidate")
+    joints = sorted(int(j) for j in set(chosen.joints) | set(getattr(alternative, "joints",
+                                                                     ())))
+    return {"chosen": chosen.label, "effect": chosen.effect.name,
+            "alternative": row["labels"][rival], "alternative_effect": rival[0],
+            "joints": joints,
+            "correlation": max(row["correlations"].get(f, 0.0) for f in others),
+            "inclusion": row["group_inclusion"],
+            "shares": {row["labels"][f]: p for f, p in row["group"].items()},
+            "text": f"cannot tell {chosen.label} from "
+                    + " or ".join(row["labels"][f] for f in others)
+                    + " in these recordings: the group is named in "
+                      f"{100 * row['group_inclusion']:.0f} % of the resamples"
+                    + _group_words(row),
+            "excitation": separating_excitation(chosen.effect.name, rival[0], joints)}
 
 
 def _fallback_variant(step, fitted, candidates):
@@ -465,12 +495,18 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
 
         :func:`~sklearn_gpcd.diagnosis.stability.stability` runs the
         per-resample selection on ``N_RESAMPLES`` block-bootstrap resamples;
-        an effect named on all data but in fewer than ``MIN_INCLUSION`` of
-        them is dropped (recorded in ``rejected_effects_``), one the all-data
-        selection missed but the resamples name in at least
-        ``ADD_INCLUSION`` of them is added (in the variant they picked most
-        often), and the set is refitted jointly (:meth:`_final_fit`: the same
-        plausibility, share and Wald checks).
+        an effect named on all data whose group of confounded alternatives
+        (itself and the unnamed families the recordings cannot tell it from)
+        is named in fewer than ``MIN_INCLUSION`` of them is dropped (recorded
+        in ``rejected_effects_``); a kept group is represented by its member
+        named most often (when that is not the all-data pick, it replaces it,
+        and ``ambiguities_`` says "cannot tell X from Y" with each member's
+        share). One the all-data selection missed, in no kept group, but
+        that the resamples name in at least ``ADD_INCLUSION`` of them is
+        added (in the variant they picked most often), and the set is
+        refitted jointly (:meth:`_final_fit`: the same plausibility, share
+        and Wald checks), so that an effect conditioned on the group (a delay
+        next to a payload) is tested with the group's member in the model.
         """
         self.stability_ = stability(
             candidates, design, residual, masks, signals, signals.current, self.nominal_,
@@ -479,22 +515,35 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
              "min_share": self.min_share, "check": check,
              "n_resamples": N_RESAMPLES}, picked)
         steps, effects = self._kept_steps, self.model_.effects
-        inclusion = [self.stability_[(f.name, f.target)]["inclusion"] for f in effects]
-        for f, p in zip(effects, inclusion):
-            if p < MIN_INCLUSION:
+        rows = [self.stability_[(f.name, f.target)] for f in effects]
+        for f, row in zip(effects, rows):
+            if row["group_inclusion"] < MIN_INCLUSION:
                 self.rejected_effects_.append({
                     "name": f.name if f.target is None else f"{f.name}[joint {f.target + 1}]",
                     "effect": f.name, "joints": [int(j) for j in f.joints],
-                    "reason": f"named in {100 * p:.0f} % of {N_RESAMPLES} block-bootstrap "
-                              f"resamples (needs {100 * MIN_INCLUSION:.0f} %)",
+                    "reason": f"named in {100 * row['group_inclusion']:.0f} % of "
+                              f"{N_RESAMPLES} block-bootstrap resamples"
+                              f"{_group_words(row)} "
+                              f"(needs {100 * MIN_INCLUSION:.0f} %)",
                     "implausible": False})
-        kept = [getattr(s, "candidate", s) for s, p in zip(steps, inclusion)
-                if p >= MIN_INCLUSION]
+        kept, swapped = [], False
+        for step, row in zip(steps, rows):
+            if row["group_inclusion"] < MIN_INCLUSION:
+                continue
+            cand = getattr(step, "candidate", step)
+            other = self.stability_.get(row["member"], {}).get("candidate")
+            if row["member"] != cand.family and other is not None:
+                cand, swapped = other, True
+            kept.append(cand)
+            if len(row["group"]) > 1:
+                self.ambiguities_.append(_group_ambiguity(cand, row, self.stability_))
         families = {c.family for c in kept} | {(f.name, f.target) for f in effects}
+        families |= {g for row in rows if row["group_inclusion"] >= MIN_INCLUSION
+                     for g in row["group"]}
         added = [row["candidate"] for family, row in self.stability_.items()
                  if family not in families and row["inclusion"] >= ADD_INCLUSION
                  and row["candidate"] is not None]
-        if not added and len(kept) == len(steps):
+        if not added and len(kept) == len(steps) and not swapped:
             return
         chosen = kept + sorted(added, key=lambda c: c.order)
         on = stats[1] if any(c.effect.rest_guard for c in chosen) else stats[0]

@@ -432,6 +432,10 @@ class DiagnosisReport:
             lines += ["", "   Not separable on these recordings:"]
             pairs = {}
             for a in self.ambiguities:
+                if "text" in a:  # a group of confounded alternatives (stability.py)
+                    lines.append(f"   - {a['text']}; {a['chosen']} is reported as the one "
+                                 f"named most often. To separate them: {a['excitation']}.")
+                    continue
                 pairs.setdefault((a["effect"], a["alternative_effect"]), []).append(a)
             for (first, second), group in pairs.items():
                 joints = sorted({j for a in group for j in a["joints"]})

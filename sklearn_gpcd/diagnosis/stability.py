@@ -28,12 +28,35 @@ for the resamples that name it the percentiles of its first parameter and
 of its held-out gain. An effect named on all data is kept only when its
 inclusion probability reaches ``MIN_INCLUSION``: a term that a few blocks of
 the recording bring in or out is not a finding.
+
+*Confounded alternatives are included as a group* (stability selection with
+grouped variables). Families whose columns the recordings cannot tell apart
+(:func:`~sklearn_gpcd.diagnosis.identifiability.confounded_families`: an
+absolute correlation of at least ``CONFOUNDED_CORRELATION`` in the weighted
+information matrix :math:`A = \\sum_\\ell w_\\ell D_\\ell^T D_\\ell` of the
+shortlist, :math:`w_\\ell` the inverse mean squared residual of joint
+:math:`\\ell`) compete in a resample as the settings of one family do: one
+of them stands for the group. Otherwise a resample's fit splits the effect
+between them at random (a concealed payload named as a forearm mass in some
+resamples) and each alone falls under the cut although every resample names
+one of them. The group of a named family :math:`F` is
+:math:`G(F) = \\{F\\} \\cup \\{H \\text{ confounded with } F, H \\text{ not named}\\}`;
+its inclusion probability is
+
+.. math::
+
+    \\hat\\Pi_{G} = \\frac{1}{B} \\sum_{b=1}^{B}
+        \\mathbb{1}\\left[\\hat S_b \\cap G \\neq \\emptyset\\right],
+
+:math:`\\hat S_b` the families resample :math:`b` names, and the member
+reported is the one named most often (the named one on a tie).
 """
 
 from dataclasses import replace
 
 import numpy as np
 
+from .identifiability import CONFOUNDED_CORRELATION, confounded_families
 from .selection import FoldStatistics, given_others, one_standard_error, score_additions
 
 #: Block length [s] of the bootstrap (several times the residual's correlation time);
@@ -184,7 +207,12 @@ def _family_key(candidate):
     return frozenset(p.family for p in (candidate.parts or (candidate,)))
 
 
-def best_variants(stats, candidates, guarded_stats, check=None, always=()):
+def _clashes(key, families, confounded):
+    """True when a family of ``key`` is in ``families`` or confounded with one there."""
+    return bool(key & families) or any(set(confounded.get(f, ())) & families for f in key)
+
+
+def best_variants(stats, candidates, guarded_stats, check=None, always=(), confounded=None):
     """Per family (or composite), its plausible variant that does best alone.
 
     Every candidate is scored alone (a rest-guarded one on ``guarded_stats``);
@@ -197,7 +225,10 @@ def best_variants(stats, candidates, guarded_stats, check=None, always=()):
     ``always`` (the all-data selection's picks) enter even when they show
     nothing alone.
     Then, strongest first, a composite enters only if none of its parts'
-    families is in already (and a part only if its composite is not).
+    families is in already (and a part only if its composite is not), and a
+    family only if none it is ``confounded`` with is in (confounded
+    alternatives compete as settings of one family do: the stronger alone
+    stands for the group).
 
     Returns
     -------
@@ -218,37 +249,54 @@ def best_variants(stats, candidates, guarded_stats, check=None, always=()):
             check is None or check(st.candidate, st.theta) is None)]
         if good:
             picks.append(one_standard_error(good)[0])
+    confounded = confounded or {}
     chosen, families = [], set()
     for step in sorted(picks, key=lambda st: -st.gain):
         key = _family_key(step.candidate)
-        if key & families:
+        if _clashes(key, families, confounded):
             continue
         families |= key
         chosen.extend(step.candidate.parts or (step.candidate,))
     # the proposals of the all-data selection enter whatever they show alone: a term
-    # may show only given the others (a friction peak next to an unmodelled payload)
-    chosen.extend(c for c in always if c.family not in families)
+    # may show only given the others (a friction peak next to an unmodelled payload);
+    # not when an alternative it is confounded with (not itself proposed) stands in
+    named = {c.family for c in always}
+    for c in always:
+        rivals = {f: v for f, v in confounded.get(c.family, {}).items() if f not in named}
+        if c.family not in families and not _clashes({c.family}, families, rivals):
+            chosen.append(c)
     return chosen
 
 
-def _variants_given_others(stats, guarded_stats, chosen, candidates, check):
+def _variants_given_others(stats, guarded_stats, chosen, candidates, check, confounded=None):
     """Each chosen term's variant picked again given all the other chosen terms.
 
     A variant chosen alone may fit what another effect explains (a Stribeck
     velocity scale picked next to an unmodelled payload); given the others,
     the simplest variant within one standard error of the best positive
     plausible gain (:func:`~sklearn_gpcd.diagnosis.selection.one_standard_error`)
-    replaces it, and a family with none leaves the set.
+    replaces it, and a family with none leaves the set. The families the
+    term is ``confounded`` with (and no other chosen term holds) compete
+    with its own: per family its variant as above, and of those the one
+    with the largest held-out gain given the others stands for the group.
     """
+    confounded = confounded or {}
     out = list(chosen)
     for k, term in enumerate(chosen):
-        variants = [c for c in candidates if not c.parts and c.family == term.family]
         others = [c for c in out[:k] + out[k + 1:] if c is not None]
+        taken = {c.family for c in others}
+        members = {term.family} | (set(confounded.get(term.family, ())) - taken)
+        variants = [c for c in candidates if not c.parts and c.family in members]
         base = np.concatenate([c.columns for c in others]) if others else np.zeros(0, int)
-        on = guarded_stats if any(c.effect.rest_guard for c in (*others, term)) else stats
+        on = guarded_stats if any(c.effect.rest_guard for c in (*others, *variants)) \
+            else stats
         steps = [st for st in score_additions(on, variants, base, others)
                  if st.gain > 0 and (check is None or check(st.candidate, st.theta) is None)]
-        out[k] = one_standard_error(steps)[0].candidate if steps else None
+        per_family = {}
+        for st in steps:
+            per_family.setdefault(st.candidate.family, []).append(st)
+        picks = [one_standard_error(group)[0] for group in per_family.values()]
+        out[k] = max(picks, key=lambda st: st.gain).candidate if picks else None
     return [c for c in out if c is not None]
 
 
@@ -269,8 +317,11 @@ def thresholded_selection(stats, candidates, settings, guarded_stats=None):
     candidates : list of Candidate
     settings : dict
         ``min_gain``, ``min_t``, ``min_share``, ``check`` (plausibility of
-        a variant's fit, or None) and ``always`` (terms that enter whatever
-        they show alone; default none).
+        a variant's fit, or None), ``always`` (terms that enter whatever
+        they show alone; default none) and ``confounded`` (per family the
+        families it cannot be told from,
+        :func:`~sklearn_gpcd.diagnosis.identifiability.confounded_families`;
+        they enter as alternatives, one at a time; default none).
 
     Returns
     -------
@@ -301,10 +352,11 @@ def thresholded_selection(stats, candidates, settings, guarded_stats=None):
     ['viscous_friction[joint 3]']
     """
     guarded_stats = stats if guarded_stats is None else guarded_stats
+    confounded = settings.get("confounded")
     chosen = best_variants(stats, candidates, guarded_stats, settings.get("check"),
-                           settings.get("always", ()))
+                           settings.get("always", ()), confounded)
     chosen = _variants_given_others(stats, guarded_stats, chosen, candidates,
-                                    settings.get("check"))
+                                    settings.get("check"), confounded)
     bar = (settings["min_gain"], settings["min_t"], settings["min_share"])
     while chosen:
         on = guarded_stats if any(c.effect.rest_guard for c in chosen) else stats
@@ -446,7 +498,11 @@ def stability(candidates, design, residual, masks, signals, current, nominal, na
     Returns
     -------
     table : dict
-        ``{(effect name, target): {"inclusion", "size" (2.5, 50, 97.5
+        ``{(effect name, target): {"inclusion", "group_inclusion" (share of
+        resamples naming the family or an alternative of its group, module
+        docstring), "group" (``{family: inclusion}`` of the group's members,
+        itself included), "labels" (their labels), "correlations" (of the
+        others with it), "member" (the member named most often), "size" (2.5, 50, 97.5
         percentiles of the first parameter), "gain" (the same of the
         held-out relative gain), "recording_gains" (per recording, the
         held-out share of its error on the effect's joints that the effect
@@ -472,8 +528,13 @@ def stability(candidates, design, residual, masks, signals, current, nominal, na
     original = {id(r): c for r, c in zip(reduced, base)}
     named_terms = [reduced[k] for k, c in enumerate(base)
                    if any(c is part for pick in picked for part in (pick.parts or (pick,)))]
-    settings = {**settings, "always": named_terms}
-    found = {}
+    weights = 1.0 / np.maximum(plain.rss.sum(0) / np.maximum(plain.counts.sum(0), 1), 1e-300)
+    weights[plain.counts.sum(0) == 0] = 0.0
+    confounded = confounded_families(reduced, plain.gram.sum(0), weights,
+                                     settings.get("confounded_correlation",
+                                                  CONFOUNDED_CORRELATION))
+    settings = {**settings, "always": named_terms, "confounded": confounded}
+    found, named_sets = {}, []
     for _ in range(n_resamples):
         state = rng.bit_generator.state
         stats = resample(plain, per_recording, settings["n_splits"], rng)
@@ -482,6 +543,8 @@ def stability(candidates, design, residual, masks, signals, current, nominal, na
             rng.bit_generator.state = state  # the same blocks
             guarded_stats = resample(guarded, per_recording, settings["n_splits"], rng)
         selected = thresholded_selection(stats, reduced, settings, guarded_stats)
+        named_sets.append({p.family for st in selected for p in (st.candidate.parts
+                                                                 or (st.candidate,))})
         for step in selected:
             for part in (step.candidate.parts or (step.candidate,)):
                 entry = found.setdefault(part.family, {"n": 0, "size": [], "gain": [],
@@ -510,4 +573,20 @@ def stability(candidates, design, residual, masks, signals, current, nominal, na
             [None if not np.isfinite(g) else float(g) for g in per_term[family]],
             "candidate": max(picks, key=lambda c: sum(p is c for p in picks))
             if picks else None}
+    labels = {c.family: c.label for c in reduced if not c.parts}
+    for family, row in table.items():
+        row.update(_group_inclusion(family, families, confounded, named_sets, labels))
     return table
+
+
+def _group_inclusion(family, named, confounded, named_sets, labels):
+    """The group of ``family`` (module docstring): its inclusion, members' shares, member."""
+    group = {family} | {f for f in confounded.get(family, ()) if f not in named}
+    n = max(len(named_sets), 1)
+    shares = {f: sum(f in s for s in named_sets) / n for f in sorted(group, key=str)}
+    member = max(shares, key=lambda f: (shares[f], f == family))
+    return {"group_inclusion": sum(bool(s & group) for s in named_sets) / n,
+            "group": shares, "member": member,
+            "labels": {f: labels.get(f, f[0]) for f in group},
+            "correlations": {f: float(c) for f, c in confounded.get(family, {}).items()
+                             if f in group}}
