@@ -352,6 +352,11 @@ def diagnose(out, cases=None, stage=1):
             "needs": [n["reason"] for n in diag.needs_],
             "inclusion": {f"{k[0]}" + ("" if k[1] is None else f"[{k[1]}]"): v["inclusion"]
                           for k, v in diag.stability_.items() if v["inclusion"] >= 0.1},
+            "group_inclusion": {  # groups of confounded alternatives (diagnosis/stability.py)
+                f"{k[0]}" + ("" if k[1] is None else f"[{k[1]}]"):
+                {v["labels"][f]: share for f, share in v["group"].items()}
+                for k, v in diag.stability_.items() if len(v.get("group", ())) > 1
+                and v["group_inclusion"] >= 0.1},
             "nmse_before": scores["nmse_before"], "nmse_after": scores["nmse_after"],
             "seconds": time.perf_counter() - t0}
         print(f"diagnosed {folder.name}: "

@@ -110,3 +110,33 @@ def test_recording_gains_are_high_where_the_effect_is_and_nil_where_it_is_not():
     # ... fitted on both, it removes most of the first recording's error and makes the
     # second one's worse (the pooled coefficient, about half the true one, is wrong there)
     assert first > 0.5 and second < 0.0
+
+
+def test_confounded_alternatives_enter_a_resample_one_at_a_time():
+    # told that the two terms of joint 2 cannot be told apart, only the stronger alone
+    # (the Coulomb step that is there) enters; without that, both enter (test above)
+    from sklearn_gpcd.diagnosis.stability import best_variants
+
+    *_, cands, _, _, _, stats = _case(0.3)
+    pair = {("coulomb_friction", 1): {("viscous_friction", 1): 0.95},
+            ("viscous_friction", 1): {("coulomb_friction", 1): 0.95}}
+    start = {c.label for c in best_variants(stats, cands, stats, confounded=pair)}
+    assert "coulomb_friction[joint 2]" in start
+    assert "viscous_friction[joint 2]" not in start
+
+
+def test_group_inclusion_counts_a_resample_naming_any_member():
+    from sklearn_gpcd.diagnosis.stability import _group_inclusion
+
+    payload, forearm, delay = ("payload", None), ("link_mass", 2), ("time_delay", None)
+    confounded = {payload: {forearm: 0.98}, forearm: {payload: 0.98}}
+    resamples = [{payload, delay}, {forearm, delay}, {forearm, delay}, {delay}]
+    labels = {payload: "payload", forearm: "link_mass[link 3]"}
+    row = _group_inclusion(payload, {payload, delay}, confounded, resamples, labels)
+    # each alone under a 60 % cut (25 % and 50 %), the group in 75 % of the resamples
+    assert row["group_inclusion"] == 0.75
+    assert row["group"] == {forearm: 0.5, payload: 0.25}
+    assert row["member"] == forearm and row["correlations"] == {forearm: 0.98}
+    # a named family is not an alternative of another named one
+    both = _group_inclusion(payload, {payload, forearm}, confounded, resamples, labels)
+    assert both["group"] == {payload: 0.25} and both["group_inclusion"] == 0.25

@@ -499,10 +499,11 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         (itself and the unnamed families the recordings cannot tell it from)
         is named in fewer than ``MIN_INCLUSION`` of them is dropped (recorded
         in ``rejected_effects_``); a kept group is represented by its member
-        named most often (when that is not the all-data pick, it replaces it,
-        and ``ambiguities_`` says "cannot tell X from Y" with each member's
-        share). One the all-data selection missed, in no kept group, but
-        that the resamples name in at least ``ADD_INCLUSION`` of them is
+        named most often (when that is not the all-data pick, it replaces it),
+        and when the resamples named more than one member ``ambiguities_``
+        says "cannot tell X from Y" with each member's share. One the
+        all-data selection missed, in no kept group, but that the resamples
+        name in at least ``ADD_INCLUSION`` of them is
         added (in the variant they picked most often), and the set is
         refitted jointly (:meth:`_final_fit`: the same plausibility, share
         and Wald checks), so that an effect conditioned on the group (a delay
@@ -535,7 +536,9 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             if row["member"] != cand.family and other is not None:
                 cand, swapped = other, True
             kept.append(cand)
-            if len(row["group"]) > 1:
+            if sum(share > 0 for share in row["group"].values()) > 1:
+                # the resamples did not settle on one member (a member every resample
+                # names beats an alternative the fit rejects by its sign or size)
                 self.ambiguities_.append(_group_ambiguity(cand, row, self.stability_))
         families = {c.family for c in kept} | {(f.name, f.target) for f in effects}
         families |= {g for row in rows if row["group_inclusion"] >= MIN_INCLUSION
