@@ -533,7 +533,8 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                 continue
             cand = getattr(step, "candidate", step)
             other = self.stability_.get(row["member"], {}).get("candidate")
-            if row["member"] != cand.family and other is not None:
+            if row["member"] != cand.family and other is not None and \
+                    all(k.family != other.family for k in kept):  # (not twice)
                 cand, swapped = other, True
             kept.append(cand)
             if sum(share > 0 for share in row["group"].values()) > 1:
