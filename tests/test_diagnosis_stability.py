@@ -1,5 +1,7 @@
 """Block-bootstrap stability of the selection (``diagnosis/stability.py``)."""
 
+import json
+
 import numpy as np
 
 from sklearn_gpcd.diagnosis import NominalModel, Signals, effect_library, forward_selection
@@ -140,3 +142,29 @@ def test_group_inclusion_counts_a_resample_naming_any_member():
     # a named family is not an alternative of another named one
     both = _group_inclusion(payload, {payload, forearm}, confounded, resamples, labels)
     assert both["group"] == {payload: 0.25} and both["group_inclusion"] == 0.25
+
+
+def test_a_payload_confounded_with_a_link_mass_is_kept_as_a_group():
+    # the case of tests/test_diagnosis.py::test_delay_next_to_a_payload_is_named_as_a_delay:
+    # the payload's columns correlate with a link mass's by 0.9 or more; its group is
+    # named in most resamples and reported with each member's share
+    from sklearn_gpcd.datasets import Payload, default_friction, simulate_d1
+    from sklearn_gpcd.datasets._extra_effects import delay_logged_current
+    from sklearn_gpcd.datasets.plant import drive_parameters
+    from sklearn_gpcd.diagnosis import DynamicsDiagnosis
+    from sklearn_gpcd.robots import load_robot
+
+    robot = load_robot("ur10")
+    k, rotor = drive_parameters(robot)
+    train = delay_logged_current(simulate_d1(
+        "ur10", n_targets=8, effects=[Payload(3.0, com=(0.0, 0.03, 0.06))], random_state=1),
+        0.032)
+    diag = DynamicsDiagnosis(load_robot("ur10", torque_constants=k, rotor_inertias=rotor),
+                             friction=default_friction(robot)).fit(train)
+    row = diag.stability_[("payload", None)]
+    assert any(f[0] == "link_mass" and c >= 0.9 for f, c in row["correlations"].items())
+    assert row["group_inclusion"] >= 0.6 and row["member"] == ("payload", None)
+    report = json.loads(json.dumps(diag.report().to_dict()))  # JSON-ready
+    entry = next(e for e in report["effects"] if e["name"] == "payload")
+    assert set(entry["stability"]["group"][0]) >= {"payload"}
+    assert entry["stability"]["group_inclusion"][0] == row["group_inclusion"]

@@ -265,6 +265,10 @@ class DiagnosisReport:
             rows = [stable.get((f.name, f.target), {}) for f in
                     sorted(group, key=lambda f: -1 if f.target is None else f.target)]
             e["stability"] = {"inclusion": [r.get("inclusion") for r in rows],
+                              # its group of confounded alternatives (stability.py)
+                              "group_inclusion": [r.get("group_inclusion") for r in rows],
+                              "group": [{r["labels"][f]: p for f, p in r["group"].items()}
+                                        if r.get("group") else None for r in rows],
                               "size_interval": [r.get("size") for r in rows],
                               "heldout_gain_interval": [r.get("gain") for r in rows],
                               "heldout_gain_per_recording": [r.get("recording_gains")
