@@ -29,7 +29,7 @@ running: ``docs/_static/results/blind_protocol_score4.txt``). ``score5`` (seeds 
 its run order ``ORDER`` and its subset, the first ``SCORE5_FIRST`` = 25
 positions, before any of its cases was drawn, after the grouped inclusion
 of confounded alternatives) is run once with ``run --set score5 --first
-25``. ``score3`` (9201-9240), ``score`` (9101-9140) and ``score1``
+25`` (it was, on 5cc2d40: ``docs/_static/results/blind_protocol_score5.txt``). ``score3`` (9201-9240), ``score`` (9101-9140) and ``score1``
 (7001-7036) have been seen and are kept only to reproduce their rounds'
 figures.
 
