@@ -25,13 +25,14 @@ concealed; fixed in this commit, before any diagnosis change of that round
 and before any of its cases was drawn) is generated, diagnosed in two
 stages and scored once, at the end of that round, and reported whatever it
 gives (it was, on 94efb85, on the first 30 cases of an order fixed before
-running: ``docs/_static/results/blind_protocol_score4.txt``). ``score5`` (seeds 9501-9540 with effects, 9551-9562 null; fixed with
-its run order ``ORDER`` and its subset, the first ``SCORE5_FIRST`` = 25
-positions, before any of its cases was drawn, after the grouped inclusion
-of confounded alternatives) is run once with ``run --set score5 --first
-25`` (it was, on 5cc2d40: ``docs/_static/results/blind_protocol_score5.txt``). ``score3`` (9201-9240), ``score`` (9101-9140) and ``score1``
-(7001-7036) have been seen and are kept only to reproduce their rounds'
-figures.
+running: ``docs/_static/results/blind_protocol_score4.txt``). ``score5``
+(seeds 9501-9540 with effects, 9551-9562 null; fixed with its run order
+``ORDER`` and its subset, the first ``SCORE5_FIRST`` = 25 positions, before
+any of its cases was drawn, after the grouped inclusion of confounded
+alternatives) is run once with ``run --set score5 --first 25`` (it was, on
+5cc2d40: ``docs/_static/results/blind_protocol_score5.txt``). ``score3``
+(9201-9240), ``score`` (9101-9140) and ``score1`` (7001-7036) have been
+seen and are kept only to reproduce their rounds' figures.
 
 Two stages (issue 48). Stage 1 diagnoses the training run and writes, per
 case, the excitation it asks for (``OUT/plans/<case>.csv``: ``timestamp,
