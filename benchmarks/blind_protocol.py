@@ -24,9 +24,15 @@ with effects each, and 9351-9362, twelve null cases with nothing
 concealed; fixed in this commit, before any diagnosis change of that round
 and before any of its cases was drawn) is generated, diagnosed in two
 stages and scored once, at the end of that round, and reported whatever it
-gives. ``score3`` (9201-9240), ``score`` (9101-9140) and ``score1``
-(7001-7036) have been seen and are kept only to reproduce their rounds'
-figures.
+gives (it was, on 94efb85, on the first 30 cases of an order fixed before
+running: ``docs/_static/results/blind_protocol_score4.txt``). ``score5``
+(seeds 9501-9540 with effects, 9551-9562 null; fixed with its run order
+``ORDER`` and its subset, the first ``SCORE5_FIRST`` = 25 positions, before
+any of its cases was drawn, after the grouped inclusion of confounded
+alternatives) is run once with ``run --set score5 --first 25`` (it was, on
+5cc2d40: ``docs/_static/results/blind_protocol_score5.txt``). ``score3``
+(9201-9240), ``score`` (9101-9140) and ``score1`` (7001-7036) have been
+seen and are kept only to reproduce their rounds' figures.
 
 Two stages (issue 48). Stage 1 diagnoses the training run and writes, per
 case, the excitation it asks for (``OUT/plans/<case>.csv``: ``timestamp,
@@ -86,9 +92,20 @@ SEEDS = {"dev": list(range(100, 140)), "dev2": list(range(200, 260)),
          "dev_null": list(range(300, 320)), "dev_small": list(range(400, 420)),
          "score1": list(range(7001, 7037)), "score": list(range(9101, 9141)),
          "score3": list(range(9201, 9241)),
-         "score4": list(range(9301, 9341)) + list(range(9351, 9363))}
+         "score4": list(range(9301, 9341)) + list(range(9351, 9363)),
+         "score5": list(range(9501, 9541)) + list(range(9551, 9563))}
 #: Seeds whose case conceals nothing (the plant is the nominal one).
-NULL_SEEDS = frozenset(range(300, 320)) | frozenset(range(9351, 9363))
+NULL_SEEDS = (frozenset(range(300, 320)) | frozenset(range(9351, 9363))
+              | frozenset(range(9551, 9563)))
+#: ``run --in-order``: the order a set's cases are run in, one case through both
+#: stages at a time, so that a run cut for time scores a prefix fixed in advance
+#: (effect seeds in seed order, a null seed after every fourth).
+ORDER = {"score5": [seed for k in range(10) for seed in
+                    (*range(9501 + 4 * k, 9505 + 4 * k), 9551 + k)] + [9561, 9562]}
+#: ``score5`` is scored on the first ``SCORE5_FIRST`` positions of its order (20 cases
+#: with effects, 5 null cases), fixed before any of its cases was drawn (time: about
+#: 2.5 min per case on 2 shared cores).
+SCORE5_FIRST = 25
 #: Seeds whose case conceals one effect, its sizes in the lowest third of their ranges.
 SMALL_SEEDS = frozenset(range(400, 420))
 ENGINES = ("mujoco", "pybullet")
@@ -351,6 +368,11 @@ def diagnose(out, cases=None, stage=1):
             "needs": [n["reason"] for n in diag.needs_],
             "inclusion": {f"{k[0]}" + ("" if k[1] is None else f"[{k[1]}]"): v["inclusion"]
                           for k, v in diag.stability_.items() if v["inclusion"] >= 0.1},
+            "group_inclusion": {  # groups of confounded alternatives (diagnosis/stability.py)
+                f"{k[0]}" + ("" if k[1] is None else f"[{k[1]}]"):
+                {v["labels"][f]: share for f, share in v["group"].items()}
+                for k, v in diag.stability_.items() if len(v.get("group", ())) > 1
+                and v["group_inclusion"] >= 0.1},
             "nmse_before": scores["nmse_before"], "nmse_after": scores["nmse_after"],
             "seconds": time.perf_counter() - t0}
         print(f"diagnosed {folder.name}: "
@@ -478,6 +500,17 @@ def score(out, stage=1):
     return summary
 
 
+def run_in_order(seeds, out):
+    """Each case through both stages before the next (a run cut for time scores a prefix)."""
+    for seed in seeds:
+        generate([seed], out)
+        diagnose(out, [f"case{seed}"], stage=1)
+        simulate_plans([seed], out)
+        diagnose(out, [f"case{seed}"], stage=2)
+    score(out, stage=1)
+    score(out, stage=2)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("step", choices=["generate", "diagnose", "plan", "score", "run"])
@@ -486,6 +519,9 @@ def main(argv=None):
     parser.add_argument("--set", default="dev", choices=sorted(SEEDS))
     parser.add_argument("--out", required=True)
     parser.add_argument("--cases", default=None, help="comma-separated case names (diagnose)")
+    parser.add_argument("--first", type=int, default=None,
+                        help="run: only the first N positions of the set's ORDER, one case "
+                             "through both stages at a time")
     args = parser.parse_args(argv)
     try:
         import mujoco  # noqa: F401
@@ -494,6 +530,9 @@ def main(argv=None):
         print("mujoco and pybullet are needed (pip install mujoco pybullet): skipped")
         return 0
     seeds = SEEDS[args.set]
+    if args.step == "run" and args.first is not None:
+        run_in_order(ORDER.get(args.set, seeds)[:args.first], args.out)
+        return 0
     if args.step in ("generate", "run"):
         generate(seeds, args.out)
     cases = None if args.cases is None else args.cases.split(",")

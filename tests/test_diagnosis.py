@@ -246,6 +246,10 @@ def test_report_json_and_text(nominal, tmp_path):
     assert data["nmse_heldout"] is True
     text = report.text()
     assert "payload of 2" in text and "held-out" in text
+    # the evidence per recording: the payload's held-out gain on the training run
+    gains = effect["stability"]["heldout_gain_per_recording"][0]
+    assert len(gains) == 1 and gains[0] > 0.5
+    assert "Held-out gain per recording (given the other effects):" in text
 
 
 def test_report_plot(nominal, tmp_path):

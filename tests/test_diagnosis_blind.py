@@ -35,6 +35,16 @@ def test_seed_sets_are_disjoint_and_large_enough(bp):
     assert len(score - bp.NULL_SEEDS) >= 40 and len(score & bp.NULL_SEEDS) >= 10
 
 
+def test_score5_is_new_and_its_scored_prefix_fixed(bp):
+    new = set(bp.SEEDS["score5"])
+    assert all(not new & set(seeds) for name, seeds in bp.SEEDS.items() if name != "score5")
+    assert len(new - bp.NULL_SEEDS) == 40 and len(new & bp.NULL_SEEDS) == 12
+    order = bp.ORDER["score5"]
+    assert sorted(order) == sorted(new)
+    first = order[:bp.SCORE5_FIRST]
+    assert len(set(first) - bp.NULL_SEEDS) == 20 and len(set(first) & bp.NULL_SEEDS) == 5
+
+
 def test_null_and_small_cases(bp):
     assert all(bp.draw_case(s)["truth"] == {} for s in bp.SEEDS["dev_null"])
     small = [bp.draw_case(s) for s in bp.SEEDS["dev_small"]]

@@ -169,3 +169,53 @@ def test_round_trip_whole_library(nominal, name):
     scores = diag.evaluate(test)
     before, after = np.array(scores["nmse_before"]), np.array(scores["nmse_after"])
     assert after[loaded].sum() < 0.8 * before[loaded].sum(), (before, after)
+
+
+def test_no_effect_name_branches_outside_the_effects_module():
+    """Each effect owns its behaviour (issue 48, item 4): the diagnosis modules other than
+    ``effects.py`` never branch on an effect's name (``name == "payload"``); they ask the
+    effect (``Effect.implausible_among``, ``unresolved``, ``composite_partners``, ...)."""
+    import re
+    from pathlib import Path
+
+    folder = Path(sklearn_gpcd.__file__).parent / "diagnosis"
+    names = "|".join(cls.name for cls in EFFECTS)
+    branch = re.compile(r"""name\s*(==|!=)\s*["']|name\s+(not\s+)?in\s*[\(\{\[]\s*["']"""
+                        rf"""|(==|!=|\bin)\s*[\(\{{\[]?\s*["']({names})["']""")
+    offences = [f"{path.name}:{k}: {line.strip()}"
+                for path in sorted(folder.glob("*.py")) if path.name != "effects.py"
+                for k, line in enumerate(path.read_text().splitlines(), 1)
+                if branch.search(line)]
+    assert offences == []
+
+
+def test_effects_lead_the_composites_the_selection_tries():
+    """Coulomb + viscous of each joint, and each Stribeck peak with every softening of its
+    joint at least PAIR_SEPARATION times slower: the pairs each effect asks for."""
+    from sklearn_gpcd.diagnosis import NominalModel, Signals, effect_library
+    from sklearn_gpcd.diagnosis.effects import PAIR_SEPARATION
+    from sklearn_gpcd.diagnosis.selection import build_candidates
+
+    nominal = NominalModel("ur10")
+    rng = np.random.default_rng(0)
+    signals = Signals.from_states(nominal, np.c_[rng.uniform(-1, 1, (50, 12)),
+                                                 np.zeros((50, 6))])
+    candidates, _ = build_candidates(signals, nominal, effect_library(
+        ["coulomb_friction", "viscous_friction", "stribeck_friction", "friction_softening"]))
+    pairs = [c for c in candidates if c.parts]
+    singles = [c for c in candidates if not c.parts]
+    kinds = {(p.parts[0].effect.name, p.parts[1].effect.name) for p in pairs}
+    assert kinds == {("coulomb_friction", "viscous_friction"),
+                     ("stribeck_friction", "friction_softening")}
+    peaks = [c for c in singles if c.effect.name == "stribeck_friction"]
+    softs = [c for c in singles if c.effect.name == "friction_softening"]
+    expected = 6 + sum(1 for p in peaks for s in softs if s.target == p.target
+                       and s.settings["stribeck_velocity"] * PAIR_SEPARATION
+                       <= p.settings["stribeck_velocity"])
+    assert len(pairs) == expected
+    for pair in pairs:
+        lead, partner = pair.parts
+        assert lead.target == partner.target == pair.target
+        assert list(pair.columns) == [*lead.columns, *partner.columns]
+        if lead.effect.name == "stribeck_friction":
+            assert pair.settings["softening_velocity"] == partner.settings["stribeck_velocity"]

@@ -18,16 +18,15 @@ from ..robots import Robot
 from ..io import degrees_note, units_note
 from ..metrics import nmse
 from .align import align_recordings
-from .effects import effect_library
+from .effects import IDENTIFIABLE_SE, effect_library, sample_period  # noqa: F401
 from .identifiability import identifiability, needs, variance_inflation
 from .locate import residual_breakdown
-from .stability import MIN_INCLUSION, N_RESAMPLES, stability
+from .stability import ADD_INCLUSION, MIN_INCLUSION, N_RESAMPLES, stability
 from .model import joint_fit
 from .nominal import NominalModel, Signals, check_recordings
 from .selection import EXCITATION, MIN_GAIN, MIN_SHARE, MIN_T, PAIR_SEPARATION, \
     build_candidates, expand_composites, fold_index, fold_statistics, forward_selection, \
-    plausibility_check
-from ..dynamics.friction import stribeck_peak
+    given_others, plausibility_check, separating_excitation
 
 #: Times the selection is rerun after effects were dropped by the joint fit.
 MAX_RESELECTIONS = 2
@@ -36,17 +35,12 @@ MAX_RESELECTIONS = 2
 #: zero at this level.
 WALD_LEVEL = 1e-3
 #: A torque-constant change that the recordings could not show on a joint
-#: (:func:`_torque_constant_limits`) is reported as not identifiable from
+#: (:meth:`TorqueConstantEffect.smallest_changes`) is reported as not identifiable from
 #: them when it is larger than this (a 10 % error of a motor constant
 #: matters for force estimation).
 IDENTIFIABLE_CHANGE = 0.1
-#: Standard errors a change must reach to count as shown.
-IDENTIFIABLE_SE = 3.0
 #: How far [rad] a plan may go beyond the range the recordings covered.
 PLAN_MARGIN = 0.7
-#: Velocity scales [rad/s] of the low-speed friction columns a torque-constant
-#: change competes with (softening and peak, next to Coulomb and viscous).
-_LOW_SPEED = (0.004, 0.02, 0.08)
 
 
 def _inseparable_friction(effects):
@@ -56,8 +50,8 @@ def _inseparable_friction(effects):
     (the refit may move the two scales together, where their difference is
     only a reshaping of the friction curve), else an empty list.
     """
-    velocity = {"stribeck_friction": "stribeck_velocity",
-                "friction_softening": "softening_velocity"}
+    velocity = {f.name: f.effect.velocity_parameter for f in effects
+                if getattr(f.effect, "velocity_parameter", None)}
     by_joint = {}
     for k, f in enumerate(effects):
         if f.name in velocity:
@@ -78,91 +72,50 @@ def _inseparable_friction(effects):
     return out
 
 
-def _gaussian_softening(step, fitted, candidates):
-    """The Gaussian-shape softening in place of an implausible one of another shape, or None."""
-    if fitted.name != "friction_softening" or \
-            fitted.settings.get("shape", "gaussian") == "gaussian":
+def _group_words(row):
+    """``" (any of X 70 %, Y 30 %)"``: the members of a group of confounded alternatives."""
+    if len(row["group"]) < 2:
+        return ""
+    return " (any of " + ", ".join(
+        f"{row['labels'][f]} {100 * p:.0f} %" for f, p in sorted(
+            row["group"].items(), key=lambda kv: -kv[1])) + ")"
+
+
+def _group_ambiguity(chosen, row, table):
+    """An ``ambiguities_`` entry for a kept group: "cannot tell X from Y", each share."""
+    others = [f for f in row["group"] if f != chosen.family]
+    rival = max(others, key=lambda f: (row["group"][f], row["correlations"].get(f, 0.0)))
+    alternative = table.get(rival, {}).get("candidate")
+    joints = sorted(int(j) for j in set(chosen.joints) | set(getattr(alternative, "joints",
+                                                                     ())))
+    return {"chosen": chosen.label, "effect": chosen.effect.name,
+            "alternative": row["labels"][rival], "alternative_effect": rival[0],
+            "joints": joints,
+            "correlation": max(row["correlations"].get(f, 0.0) for f in others),
+            "inclusion": row["group_inclusion"],
+            "shares": {row["labels"][f]: p for f, p in row["group"].items()},
+            "text": f"cannot tell {chosen.label} from "
+                    + " or ".join(row["labels"][f] for f in others)
+                    + " in these recordings: the group is named in "
+                      f"{100 * row['group_inclusion']:.0f} % of the resamples"
+                    + _group_words(row),
+            "excitation": separating_excitation(chosen.effect.name, rival[0], joints)}
+
+
+def _fallback_variant(step, fitted, candidates):
+    """The variant the effect falls back on when ``fitted`` is implausible, or None.
+
+    :meth:`~sklearn_gpcd.diagnosis.Effect.fallback_variant` picks it among
+    the candidates of the same effect and target (a softening of another
+    shape falls back on the Gaussian one).
+    """
+    variants = [c for c in candidates if c.effect.name == fitted.name and not c.parts
+                and c.target == fitted.target]
+    k = fitted.effect.fallback_variant(fitted.settings, [c.settings for c in variants])
+    if k is None:
         return None
-    v0 = fitted.settings.get("stribeck_velocity", 0.004)
-    gaussian = [c for c in candidates if c.effect.name == "friction_softening" and not c.parts
-                and c.target == fitted.target
-                and c.settings.get("shape", "gaussian") == "gaussian"]
-    if not gaussian:
-        return None
-    best = min(gaussian, key=lambda c: abs(np.log(c.settings["stribeck_velocity"] / v0)))
+    best = variants[k]
     return replace(step, candidate=best, theta=None) if hasattr(step, "candidate") else best
-
-
-def _sample_period(signals):
-    """Median sample period of the recordings [s] (0 without time stamps)."""
-    if signals.time is None or signals.n_samples < 2:
-        return 0.0
-    steps = [np.diff(signals.time[signals.segment == seg]) for seg in np.unique(signals.segment)]
-    steps = np.concatenate([d for d in steps if d.size]) if steps else np.zeros(0)
-    return float(np.median(steps)) if steps.size else 0.0
-
-
-def _below_resolution(delay, period):
-    """Why a lead of the current shorter than half the sample period is not reported, or None.
-
-    The current of one control cycle drives the motion up to the next
-    sample, so a logged current may lead the logged state by a fraction of
-    a sample (which sample of the cycle each carries: the logger's or the
-    integrator's convention; PyBullet's current leads its state by about
-    1.4 ms at 125 Hz). That is no delay of the log; a lag (the current
-    logged late) is reported at any length.
-    """
-    if period > 0 and -0.5 * period < delay < 0:
-        return (f"the current leads the state by {-1000 * delay:.2g} ms, less than half the "
-                f"sample period ({1000 * period:.3g} ms): which sample of the control cycle "
-                "the current and the state carry, not a delay of the log")
-    return None
-
-
-def _torque_constant_limits(signals, residual, after, mask, min_share, min_gain):
-    """Per joint: the smallest torque-constant change the recordings could show.
-
-    A change ``c`` of joint ``l``'s constant scales its whole reference
-    current (:class:`~sklearn_gpcd.diagnosis.effects.TorqueConstantEffect`),
-    but the part of that current a friction change can mimic (Coulomb,
-    viscous, low-speed columns) is no evidence for it: only ``x_perp``, the
-    reference current with those columns regressed out on the joint's moving
-    rows, is. The change must (a) be ``IDENTIFIABLE_SE`` standard errors of
-    the regression of the remaining residual on ``x_perp`` (Newey-West,
-    Bartlett weights over 0.5 s: the residual is autocorrelated) and (b)
-    explain ``min_share`` of the nominal residual and ``min_gain`` of the
-    remaining one on the joint (what the selection asks of every effect).
-    Returns ``(joint, smallest change, share of the reference current the
-    friction columns reproduce)`` per joint.
-    """
-    out = []
-    dt = _sample_period(signals)
-    lags = int(round(0.5 / dt)) if dt > 0 else 0
-    for j in range(signals.n_joints):
-        rows = np.flatnonzero(mask[:, j])
-        if rows.size < 20:
-            continue
-        x = signals.reference[rows, j]
-        qd = signals.qd[rows, j]
-        friction = np.column_stack([np.sign(qd), qd]
-                                   + [stribeck_peak(qd, v) for v in _LOW_SPEED])
-        x_perp = x - friction @ np.linalg.lstsq(friction, x, rcond=None)[0]
-        power = float(x_perp @ x_perp)
-        if power <= 0:
-            out.append((j, np.inf, 1.0))
-            continue
-        r = after[rows, j]
-        u = x_perp * (r - x_perp * float(x_perp @ r) / power)
-        hac = float(u @ u)
-        for lag in range(1, min(lags, rows.size - 1) + 1):
-            hac += 2.0 * (1.0 - lag / (lags + 1)) * float(u[lag:] @ u[:-lag])
-        se = np.sqrt(max(hac, 0.0)) / power
-        practical = max(min_share * float(residual[rows, j] @ residual[rows, j]),
-                        min_gain * float(r @ r))
-        change = max(IDENTIFIABLE_SE * se, np.sqrt(practical / power))
-        mimicked = 1.0 - power / max(float(x @ x), 1e-300)
-        out.append((j, float(change), float(mimicked)))
-    return out
 
 
 def units_problem(recording):
@@ -446,7 +399,7 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         mask = self._mask(signals)
         units = self.units_ = check_recordings(recordings, self.nominal_.n_joints)[0].units
         residual = signals.current - signals.reference
-        self._sample_period = _sample_period(signals)
+        self._sample_period = sample_period(signals)
         self.breakdown_ = residual_breakdown(signals, residual, self.sigma_v, self.sigma_rest,
                                              units=units)
         prepared = _time.perf_counter()
@@ -467,8 +420,9 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             for name in (candidate.label, *(part.label for part in candidate.parts)):
                 if name in banned:
                     return f"dropped after the joint fit: {banned[name]}"
-            if candidate.effect.name == "time_delay" and theta is not None:
-                reason = _below_resolution(float(np.ravel(theta)[0]), self._sample_period)
+            if theta is not None and np.size(theta):
+                reason = candidate.effect.unresolved(float(np.ravel(theta)[0]),
+                                                     self._sample_period)
                 if reason:
                     return reason
             return plausible(candidate, theta)
@@ -486,13 +440,15 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             self.model_ = self._final_fit(signals, selected, mask, guarded_mask, candidates)
             # (a friction peak or softening flipping sign in the refit is left dropped: the
             # other friction terms of the joint cover it)
+            final = {e.name for e in library if e.refit_drop_is_final}
             dropped = [r for r in self.rejected_effects_[n_rejected:] if r["implausible"]
-                       and r["effect"] not in ("stribeck_friction", "friction_softening")]
+                       and r["effect"] not in final]
             if not dropped:
                 break
             banned.update({r["name"]: r["reason"] for r in dropped})
         self._stable(signals, candidates, design, residual, (mask, guarded_mask), check,
-                     [step.candidate for step in selected])
+                     [step.candidate for step in selected],
+                     (stats, stats if guarded is None else guarded))
         selection_done = _time.perf_counter()
         self.effects_ = self.model_.effects
         kept = {f.effect.name for f in self.effects_}
@@ -500,17 +456,18 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         if any(f.effect.rest_guard for f in self.effects_):
             mask = guarded_mask
         after = signals.current - self.model_.predict_signals(signals)
-        named_tc = {f.target for f in self.effects_ if f.name == "torque_constant"}
         self.unidentifiable_ = []
-        if "torque_constant" in {e.name for e in library}:
-            for j, change, mimicked in _torque_constant_limits(
-                    signals, residual, after, mask, self.min_share, self.min_gain):
-                if j in named_tc or change <= IDENTIFIABLE_CHANGE:
+        for effect in library:
+            limits = effect.smallest_changes(signals, residual, after, mask, self.min_share,
+                                             self.min_gain)
+            named = {f.target for f in self.effects_ if f.name == effect.name}
+            for j, change, mimicked in limits or ():
+                if j in named or change <= IDENTIFIABLE_CHANGE:
                     continue
                 self.unidentifiable_.append({
-                    "effect": "torque_constant", "joints": [int(j)],
+                    "effect": effect.name, "joints": [int(j)],
                     "smallest_change": change, "friction_share": mimicked,
-                    "excitation": EXCITATION["torque_constant"]})
+                    "excitation": EXCITATION[effect.name]})
         self.identifiability_ = self._identifiability(candidates, stats, after, mask)
         self.needs_ = needs(self.identifiability_)
         self._poses = (np.median(signals.q, axis=0), signals.q.min(0), signals.q.max(0))
@@ -532,34 +489,70 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
         }
         return self
 
-    def _stable(self, signals, candidates, design, residual, masks, check, picked):
-        """Keep the effects a block bootstrap of the selection names often enough.
+    def _stable(self, signals, candidates, design, residual, masks, check, picked,
+                stats):
+        """Keep and add the effects a block bootstrap of the selection names often enough.
 
-        :func:`~sklearn_gpcd.diagnosis.stability.stability` reruns the
-        selection on ``N_RESAMPLES`` block-bootstrap resamples; an effect
-        named on all data but in fewer than ``MIN_INCLUSION`` of them is
-        dropped (recorded in ``rejected_effects_``) and the rest refitted.
+        :func:`~sklearn_gpcd.diagnosis.stability.stability` runs the
+        per-resample selection on ``N_RESAMPLES`` block-bootstrap resamples;
+        an effect named on all data whose group of confounded alternatives
+        (itself and the unnamed families the recordings cannot tell it from)
+        is named in fewer than ``MIN_INCLUSION`` of them is dropped (recorded
+        in ``rejected_effects_``); a kept group is represented by its member
+        named most often (when that is not the all-data pick, it replaces it),
+        and when the resamples named more than one member ``ambiguities_``
+        says "cannot tell X from Y" with each member's share. One the
+        all-data selection missed, in no kept group, but that the resamples
+        name in at least ``ADD_INCLUSION`` of them is
+        added (in the variant they picked most often), and the set is
+        refitted jointly (:meth:`_final_fit`: the same plausibility, share
+        and Wald checks), so that an effect conditioned on the group (a delay
+        next to a payload) is tested with the group's member in the model.
         """
         self.stability_ = stability(
             candidates, design, residual, masks, signals, signals.current, self.nominal_,
             self.model_.effects, self.history_,
             {"n_splits": self.n_splits, "min_gain": self.min_gain, "min_t": self.min_t,
-             "max_effects": self.max_effects, "min_share": self.min_share, "check": check,
+             "min_share": self.min_share, "check": check,
              "n_resamples": N_RESAMPLES}, picked)
         steps, effects = self._kept_steps, self.model_.effects
-        inclusion = [self.stability_[(f.name, f.target)]["inclusion"] for f in effects]
-        if all(p >= MIN_INCLUSION for p in inclusion):
-            return
-        for f, p in zip(effects, inclusion):
-            if p < MIN_INCLUSION:
+        rows = [self.stability_[(f.name, f.target)] for f in effects]
+        for f, row in zip(effects, rows):
+            if row["group_inclusion"] < MIN_INCLUSION:
                 self.rejected_effects_.append({
                     "name": f.name if f.target is None else f"{f.name}[joint {f.target + 1}]",
                     "effect": f.name, "joints": [int(j) for j in f.joints],
-                    "reason": f"named in {100 * p:.0f} % of {N_RESAMPLES} block-bootstrap "
-                              f"resamples (needs {100 * MIN_INCLUSION:.0f} %)",
+                    "reason": f"named in {100 * row['group_inclusion']:.0f} % of "
+                              f"{N_RESAMPLES} block-bootstrap resamples"
+                              f"{_group_words(row)} "
+                              f"(needs {100 * MIN_INCLUSION:.0f} %)",
                     "implausible": False})
-        kept = [s for s, p in zip(steps, inclusion) if p >= MIN_INCLUSION]
-        self.model_ = self._final_fit(signals, kept, masks[0], masks[1], candidates)
+        kept, swapped = [], False
+        for step, row in zip(steps, rows):
+            if row["group_inclusion"] < MIN_INCLUSION:
+                continue
+            cand = getattr(step, "candidate", step)
+            other = self.stability_.get(row["member"], {}).get("candidate")
+            if row["member"] != cand.family and other is not None and \
+                    all(k.family != other.family for k in kept):  # (not twice)
+                cand, swapped = other, True
+            kept.append(cand)
+            if sum(share > 0 for share in row["group"].values()) > 1:
+                # the resamples did not settle on one member (a member every resample
+                # names beats an alternative the fit rejects by its sign or size)
+                self.ambiguities_.append(_group_ambiguity(cand, row, self.stability_))
+        families = {c.family for c in kept} | {(f.name, f.target) for f in effects}
+        families |= {g for row in rows if row["group_inclusion"] >= MIN_INCLUSION
+                     for g in row["group"]}
+        added = [row["candidate"] for family, row in self.stability_.items()
+                 if family not in families and row["inclusion"] >= ADD_INCLUSION
+                 and row["candidate"] is not None]
+        if not added and len(kept) == len(steps) and not swapped:
+            return
+        chosen = kept + sorted(added, key=lambda c: c.order)
+        on = stats[1] if any(c.effect.rest_guard for c in chosen) else stats[0]
+        evidence = given_others(on, chosen) if chosen else []
+        self.model_ = self._final_fit(signals, evidence, masks[0], masks[1], candidates)
 
     def _identifiability(self, candidates, stats, after, mask):
         """The identifiability table of the candidates given the named effects."""
@@ -639,14 +632,14 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
             fitted = model.effects[k]
             label = selected[k].candidate.label if hasattr(selected[k], "candidate") else \
                 fitted.name
-            shape = fitted.settings.get("shape", "gaussian")
-            self.rejected_effects_.append({"name": label, "effect": fitted.name,
-                                           "joints": [int(j) for j in fitted.joints],
-                                           "reason": reason + (f" ({shape} shape)" if
-                                                               fitted.name == "friction_softening"
-                                                               else ""),
-                                           "implausible": k in implausible})
-            fallback = _gaussian_softening(selected[k], fitted, candidates) \
+            reason += fitted.effect.variant_note(fitted.settings)
+            if all(r["name"] != label or r["reason"] != reason
+                   for r in self.rejected_effects_):  # not the verdict of an earlier fit
+                self.rejected_effects_.append({
+                    "name": label, "effect": fitted.name,
+                    "joints": [int(j) for j in fitted.joints], "reason": reason,
+                    "implausible": k in implausible})
+            fallback = _fallback_variant(selected[k], fitted, candidates) \
                 if k in implausible else None
             if fallback is None:
                 del selected[k]
@@ -656,19 +649,25 @@ class DynamicsDiagnosis(VersionedStateMixin, BaseEstimator):
                 selected[k] = fallback
 
     def _implausible(self, fitted, effects):
-        """Why a jointly fitted effect is physically implausible, or None."""
-        if fitted.name == "time_delay":
-            reason = _below_resolution(fitted.parameters["delay"][0],
-                                       getattr(self, "_sample_period", 0.0))
+        """Why a jointly fitted effect is physically implausible, or None.
+
+        Finer than the recordings resolve (:meth:`Effect.unresolved`), or
+        implausible given what the other effects on its target tell it
+        (:meth:`Effect.implausible_among`, :meth:`Effect.context`).
+        """
+        first = fitted.effect.parameter_names[0] if fitted.effect.parameter_names else None
+        if first in fitted.parameters:
+            reason = fitted.effect.unresolved(fitted.parameters[first][0],
+                                              getattr(self, "_sample_period", 0.0))
             if reason:
                 return reason
-        if fitted.name == "friction_softening":
-            # the dry friction that softens includes a peak named on the same joint
-            peak = sum(f.parameters["delta_stribeck"][0] for f in effects
-                       if f.name == "stribeck_friction" and f.target == fitted.target)
-            return fitted.effect.implausible(fitted.parameters, fitted.target, self.nominal_,
-                                             peak=peak)
-        return fitted.effect.implausible(fitted.parameters, fitted.target, self.nominal_)
+        context = {}
+        for f in effects:
+            if f is not fitted and f.target == fitted.target:
+                for key, value in f.effect.context(f.parameters).items():
+                    context[key] = context.get(key, 0.0) + value
+        return fitted.effect.implausible_among(fitted.parameters, fitted.target, self.nominal_,
+                                               context)
 
     def _problem(self, fitted, effects=()):
         """Why a jointly fitted effect is not reported, or None."""

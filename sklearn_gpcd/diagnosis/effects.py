@@ -72,6 +72,15 @@ STRIBECK_VELOCITIES = tuple(np.geomspace(0.004, 0.25, 10).round(5))
 SOFTENING_SHAPES = ("gaussian", "exponential", "linear")
 #: Largest velocity scale [rad/s] tried for the shapes other than the Gaussian.
 SOFTENING_MAX_VELOCITY = 0.03
+#: Standard errors a change must reach to count as shown
+#: (:meth:`TorqueConstantEffect.smallest_changes`).
+IDENTIFIABLE_SE = 3.0
+#: Velocity scales [rad/s] of the low-speed friction columns a torque-constant
+#: change competes with (softening and peak, next to Coulomb and viscous).
+_LOW_SPEED = (0.004, 0.02, 0.08)
+#: A composite Stribeck peak + softening pairs a peak at ``v_s`` with a
+#: softening at ``v_0 <= v_s / PAIR_SEPARATION`` (apart enough to be told apart).
+PAIR_SEPARATION = 3.0
 #: Rated payload [kg] of the built-in robots (manufacturer data sheets); the
 #: ``payload`` bound is twice this. Other robots use :data:`DEFAULT_RATED_PAYLOAD`.
 RATED_PAYLOAD = {"ur3": 3.0, "ur5": 5.0, "ur10": 10.0, "ur3e": 3.0, "ur5e": 5.0,
@@ -147,6 +156,25 @@ def _per_joint_column(signals, joint, values):
     return {joint: values / signals.torque_constants[joint]}
 
 
+def sample_period(signals):
+    """Median sample period of the recordings [s] (0 without time stamps).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from types import SimpleNamespace
+    >>> s = SimpleNamespace(time=np.arange(0, 1, 0.008), segment=np.zeros(125, int),
+    ...                     n_samples=125)
+    >>> round(sample_period(s), 4)
+    0.008
+    """
+    if signals.time is None or signals.n_samples < 2:
+        return 0.0
+    steps = [np.diff(signals.time[signals.segment == seg]) for seg in np.unique(signals.segment)]
+    steps = np.concatenate([d for d in steps if d.size]) if steps else np.zeros(0)
+    return float(np.median(steps)) if steps.size else 0.0
+
+
 class Effect:
     """Base class of a named effect: a group of torque-feature columns.
 
@@ -173,6 +201,24 @@ class Effect:
         True for a trend in time from the start of each recording (its
         held-out test leaves out the first time block, where it has nothing
         to show).
+    target_kind : str
+        What a target is called in labels: ``"joint"`` or ``"link"``.
+    refit_drop_is_final : bool
+        True when an estimate the joint refit finds implausible (a friction
+        peak or softening whose sign flipped) stays dropped without a new
+        selection: the joint's other friction terms cover it.
+    excitation : str or None
+        What excites the effect, in words (a separating experiment).
+    plan_segment : str or None
+        The segment of a plan that shows it (:mod:`~sklearn_gpcd.diagnosis.plan`:
+        ``"low_speed"``, ``"gravity_load"``, ``"chirp"``, ``"steady"``; None:
+        a generic Fourier segment).
+
+    The methods below the physical ones are the effect's behaviour in the
+    diagnosis (plausibility given the other effects on its target, the
+    resolution of the recordings, the composites it leads, the variant to
+    fall back on, settings read from the linear fit, what recordings could
+    not show); their defaults do nothing, so that a new effect is one class.
 
     Examples
     --------
@@ -207,6 +253,10 @@ class Effect:
     needs_time = False
     rest_guard = False
     trend = False
+    target_kind = "joint"
+    refit_drop_is_final = False
+    excitation = None
+    plan_segment = None
 
     def targets(self, nominal):
         """What the effect may act on: joints for per-joint effects, else ``[None]``.
@@ -303,6 +353,51 @@ class Effect:
         """
         return None
 
+    def implausible_among(self, params, target, nominal, context):
+        """:meth:`implausible` given what other effects on the same target tell it.
+
+        ``context`` merges the :meth:`context` of the other effects fitted on
+        the target (summed per key). The default ignores it.
+        """
+        return self.implausible(params, target, nominal)
+
+    def context(self, params):
+        """What this fitted effect tells other effects on its target (``{}``)."""
+        return {}
+
+    def unresolved(self, value, sample_period):
+        """Why a first parameter ``value`` is finer than the recordings resolve, or None."""
+        return None
+
+    def settings_from_fit(self, settings, theta):
+        """Nonlinear settings read off the linear coefficients ``theta``, or None."""
+        return None
+
+    def variant_note(self, settings):
+        """Words naming the variant in a rejection reason (``""``)."""
+        return ""
+
+    def fallback_variant(self, settings, variants):
+        """Which of ``variants`` (settings of this effect on the same target) to try when
+        the fitted variant ``settings`` is implausible: an index, or None."""
+        return None
+
+    def composite_partners(self, candidate, candidates):
+        """``[(partner, settings)]``: composites this candidate leads.
+
+        A composite joins two terms of one target that can cancel each other
+        when tried one at a time; it shares their columns. The default leads none.
+        """
+        return []
+
+    def smallest_changes(self, signals, residual, after, mask, min_share, min_gain):
+        """Per target, the smallest change the recordings could show, or None (not assessed).
+
+        Returns ``[(target, smallest change, share of the signal other effects
+        mimic)]``; see :meth:`TorqueConstantEffect.smallest_changes`.
+        """
+        return None
+
     def size_that_matters(self, nominal, target):
         """Smallest size of the first parameter worth finding, or None (not assessed).
 
@@ -347,12 +442,21 @@ class CoulombFrictionEffect(Effect):
     """
 
     name = "coulomb_friction"
+    excitation = ("constant-speed sweeps in both directions at 3-4 speeds (0.05-1 rad/s),"
+                  " 5 s each")
+    plan_segment = "low_speed"
     title = "Coulomb (dry) friction"
     parameter_names = ("delta_coulomb",)
     units = ("Nm",)
 
     def design(self, signals, nominal, target, **settings):
         return _per_joint_column(signals, target, np.sign(signals.qd[:, target]))
+
+    def composite_partners(self, candidate, candidates):
+        """The viscous change of the joint: a Coulomb change of one sign and a viscous
+        change of the other cancel at some speed (one at a time neither explains much)."""
+        viscous = {c.target: c for c in candidates if c.effect.name == "viscous_friction"}
+        return [(viscous[candidate.target], {})] if candidate.target in viscous else []
 
     def implausible(self, params, target, nominal):
         total = nominal_friction_levels(nominal, target)[0] + params["delta_coulomb"][0]
@@ -382,6 +486,8 @@ class ViscousFrictionEffect(Effect):
     """
 
     name = "viscous_friction"
+    excitation = ("constant-speed sweeps at 5 speeds up to the joint's limit, 5 s each, "
+                  "both directions")
     title = "viscous friction"
     parameter_names = ("delta_viscous",)
     units = ("Nm s/rad",)
@@ -433,9 +539,14 @@ class StribeckFrictionEffect(Effect):
     """
 
     name = "stribeck_friction"
+    excitation = "slow sweeps through zero velocity (0.002-0.1 rad/s, 10 reversals)"
+    plan_segment = "low_speed"
     title = "Stribeck (low-speed) friction peak"
     parameter_names = ("delta_stribeck", "stribeck_velocity")
     units = ("Nm", "rad/s")
+    refit_drop_is_final = True
+    #: Its parameter of velocity scale (a peak and a softening too close to tell).
+    velocity_parameter = "stribeck_velocity"
 
     def __init__(self, velocities=STRIBECK_VELOCITIES):
         self.velocities = velocities
@@ -482,6 +593,26 @@ class StribeckFrictionEffect(Effect):
         if not lo <= vs <= hi:
             return f"Stribeck velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
         return None
+
+    def context(self, params):
+        """The peak [Nm]: the dry friction a softening of the joint acts on grows by it."""
+        return {"peak": params["delta_stribeck"][0]}
+
+    def composite_partners(self, candidate, candidates):
+        """Softenings of the joint at least ``PAIR_SEPARATION`` times slower: a peak
+        added to friction that softens at lower speed cancels part of the softening."""
+        vs = candidate.settings.get("stribeck_velocity")
+        out = []
+        for soft in candidates:
+            if soft.effect.name != "friction_softening":
+                continue
+            v0 = soft.settings.get("stribeck_velocity")
+            if soft.target != candidate.target or vs is None or v0 is None or \
+                    v0 * PAIR_SEPARATION > vs:
+                continue
+            out.append((soft, {**candidate.settings, "softening_velocity": v0,
+                               "softening_shape": soft.settings.get("shape", "gaussian")}))
+        return out
 
     def size_that_matters(self, nominal, target):
         level = nominal_friction_levels(nominal, target)[0]
@@ -579,9 +710,12 @@ class FrictionSofteningEffect(StribeckFrictionEffect):
     """
 
     name = "friction_softening"
+    excitation = None
+    plan_segment = "low_speed"
     title = "low-speed softening of dry friction"
     parameter_names = ("softening", "softening_velocity")
     units = ("Nm", "rad/s")
+    velocity_parameter = "softening_velocity"
 
     def __init__(self, velocities=STRIBECK_VELOCITIES, shapes=("gaussian",)):
         self.velocities = velocities
@@ -623,6 +757,29 @@ class FrictionSofteningEffect(StribeckFrictionEffect):
             return f"softening velocity {vs:.3g} rad/s outside [{lo:g}, {hi:g}] rad/s"
         return None
 
+    def implausible_among(self, params, target, nominal, context):
+        return self.implausible(params, target, nominal, peak=context.get("peak", 0.0))
+
+    def context(self, params):
+        return {}
+
+    def composite_partners(self, candidate, candidates):
+        return []
+
+    def variant_note(self, settings):
+        return f" ({settings.get('shape', 'gaussian')} shape)"
+
+    def fallback_variant(self, settings, variants):
+        """The Gaussian shape nearest in velocity scale, for a softening of another shape
+        that grew implausible in the refit (the joint's dry friction still softens)."""
+        if settings.get("shape", "gaussian") == "gaussian":
+            return None
+        v0 = settings.get("stribeck_velocity", 0.004)
+        gaussian = [k for k, v in enumerate(variants) if v.get("shape", "gaussian") == "gaussian"]
+        if not gaussian:
+            return None
+        return min(gaussian, key=lambda k: abs(np.log(variants[k]["stribeck_velocity"] / v0)))
+
     def size_that_matters(self, nominal, target):
         return None  # a shape of the dry friction, not a finding of its own
 
@@ -643,6 +800,9 @@ class RotorInertiaEffect(Effect):
     """
 
     name = "rotor_inertia"
+    excitation = ("fast small oscillations of the joint alone (amplitude 0.1 rad, 2-3 Hz,"
+                  " accelerations above 10 rad/s^2) at a fixed pose, 20 s")
+    plan_segment = "chirp"
     title = "reflected rotor (motor and gear) inertia"
     parameter_names = ("delta_rotor_inertia",)
     units = ("kg m^2",)
@@ -724,6 +884,9 @@ class PayloadEffect(Effect):
     """
 
     name = "payload"
+    excitation = ("slow moves of the wrist joints through many orientations (gravity "
+                  "torques), 60 s")
+    plan_segment = "gravity_load"
     title = "payload at the flange"
     per_joint = False
     parameter_names = ("mass", "com_x", "com_y", "com_z")
@@ -745,6 +908,12 @@ class PayloadEffect(Effect):
         link, mapping = self._mapping(nominal, com)
         Y = signals.rigid_body_features(nominal.robot.model)
         return _shared_columns(signals, Y[:, :, 10 * link:10 * link + 10], mapping)
+
+    def settings_from_fit(self, settings, theta):
+        """The centre of mass of the fitted first moment over the mass."""
+        if theta.size == 4 and abs(theta[0]) > 0:
+            return {**settings, "com": tuple(float(c) for c in theta[1:] / theta[0])}
+        return None
 
     def physical(self, theta, cov, target, settings, nominal):
         def convert(t):
@@ -811,6 +980,11 @@ class LinkMassEffect(Effect):
     """
 
     name = "link_mass"
+    excitation = ("slow moves of the joint through its whole range at several poses of "
+                  "the outer joints (gravity torques, accelerations below 1 rad/s^2), 60 "
+                  "s")
+    plan_segment = "gravity_load"
+    target_kind = "link"
     title = "link mass"
     per_joint = False
     parameter_names = ("delta_mass", "delta_first_moment_x", "delta_first_moment_y",
@@ -872,6 +1046,8 @@ class GravityTiltEffect(Effect):
     """
 
     name = "gravity_tilt"
+    excitation = ("slow moves of the base joint through a full turn with the arm "
+                  "stretched out, 60 s")
     title = "tilted robot base (gravity direction)"
     per_joint = False
     parameter_names = ("roll", "pitch")
@@ -930,6 +1106,9 @@ class TorqueConstantEffect(Effect):
     """
 
     name = "torque_constant"
+    excitation = ("moves at several payload-free torque levels: fast and slow "
+                  "accelerations at the same poses, 30 s")
+    plan_segment = "gravity_load"
     title = "torque constant"
     parameter_names = ("scale", "torque_constant")
     units = ("", "Nm/A")
@@ -949,6 +1128,50 @@ class TorqueConstantEffect(Effect):
             return (f"torque constant scale {scale:.3g} outside [{lo:g}, {hi:g}] (a motor that "
                     f"lost or gained {abs(100 * (scale - 1)):.0f} % of its torque)")
         return None
+
+    def smallest_changes(self, signals, residual, after, mask, min_share, min_gain):
+        """Per joint: the smallest torque-constant change the recordings could show.
+
+        A change ``c`` of joint ``l``'s constant scales its whole reference
+        current, but the part of that current a friction change can mimic
+        (Coulomb, viscous, low-speed columns) is no evidence for it: only ``x_perp``, the
+        reference current with those columns regressed out on the joint's moving
+        rows, is. The change must (a) be ``IDENTIFIABLE_SE`` standard errors of
+        the regression of the remaining residual on ``x_perp`` (Newey-West,
+        Bartlett weights over 0.5 s: the residual is autocorrelated) and (b)
+        explain ``min_share`` of the nominal residual and ``min_gain`` of the
+        remaining one on the joint (what the selection asks of every effect).
+        Returns ``(joint, smallest change, share of the reference current the
+        friction columns reproduce)`` per joint.
+        """
+        out = []
+        dt = sample_period(signals)
+        lags = int(round(0.5 / dt)) if dt > 0 else 0
+        for j in range(signals.n_joints):
+            rows = np.flatnonzero(mask[:, j])
+            if rows.size < 20:
+                continue
+            x = signals.reference[rows, j]
+            qd = signals.qd[rows, j]
+            friction = np.column_stack([np.sign(qd), qd]
+                                       + [stribeck_peak(qd, v) for v in _LOW_SPEED])
+            x_perp = x - friction @ np.linalg.lstsq(friction, x, rcond=None)[0]
+            power = float(x_perp @ x_perp)
+            if power <= 0:
+                out.append((j, np.inf, 1.0))
+                continue
+            r = after[rows, j]
+            u = x_perp * (r - x_perp * float(x_perp @ r) / power)
+            hac = float(u @ u)
+            for lag in range(1, min(lags, rows.size - 1) + 1):
+                hac += 2.0 * (1.0 - lag / (lags + 1)) * float(u[lag:] @ u[:-lag])
+            se = np.sqrt(max(hac, 0.0)) / power
+            practical = max(min_share * float(residual[rows, j] @ residual[rows, j]),
+                            min_gain * float(r @ r))
+            change = max(IDENTIFIABLE_SE * se, np.sqrt(practical / power))
+            mimicked = 1.0 - power / max(float(x @ x), 1e-300)
+            out.append((j, float(change), float(mimicked)))
+        return out
 
     def size_that_matters(self, nominal, target):
         return 0.1
@@ -970,6 +1193,8 @@ class CurrentOffsetEffect(Effect):
     """
 
     name = "current_offset"
+    excitation = "holds at several poses where the gravity torque changes sign, 5 s each"
+    plan_segment = "gravity_load"
     title = "current sensor offset"
     parameter_names = ("offset",)
     units = ("A",)
@@ -1011,6 +1236,8 @@ class TimeDelayEffect(Effect):
     """
 
     name = "time_delay"
+    excitation = "fast reversals (torque steps), 20 s"
+    plan_segment = "chirp"
     title = "time delay of the logged current"
     per_joint = False
     parameter_names = ("delay",)
@@ -1052,6 +1279,29 @@ class TimeDelayEffect(Effect):
             return f"a delay of {d:.3g} s (at least {BOUNDS['delay']:g} s)"
         return None
 
+    def unresolved(self, value, sample_period):
+        """Why a lead of the current shorter than half the sample period is not reported.
+
+        The current of one control cycle drives the motion up to the next
+        sample, so a logged current may lead the logged state by a fraction of
+        a sample (which sample of the cycle each carries: the logger's or the
+        integrator's convention; PyBullet's current leads its state by about
+        1.4 ms at 125 Hz). That is no delay of the log; a lag (the current
+        logged late) is reported at any length.
+        """
+        if sample_period > 0 and -0.5 * sample_period < value < 0:
+            return (f"the current leads the state by {-1000 * value:.2g} ms, less than half "
+                    f"the sample period ({1000 * sample_period:.3g} ms): which sample of the "
+                    "control cycle the current and the state carry, not a delay of the log")
+        return None
+
+    def settings_from_fit(self, settings, theta):
+        """The fitted delay (clipped to +-0.2 s) becomes the shift of the columns."""
+        if theta.size != 1:
+            return None
+        delay = float(np.clip(theta[0], -0.2, 0.2))
+        return {**settings, "delay": delay} if abs(delay) > 1e-4 else settings
+
     def size_that_matters(self, nominal, target):
         return 0.005
 
@@ -1087,6 +1337,8 @@ class JointSpringEffect(Effect):
     """
 
     name = "joint_spring"
+    excitation = ("slow moves over the joint's full range at a constant pose of the "
+                  "others, 60 s")
     title = "joint spring"
     parameter_names = ("stiffness", "rest_position")
     units = ("Nm/rad", "rad")
@@ -1152,6 +1404,8 @@ class FrictionDriftEffect(Effect):
     """
 
     name = "friction_drift"
+    excitation = "the same moves repeated over at least 20 minutes from a cold start"
+    plan_segment = "steady"
     title = "friction drifting with time"
     parameter_names = ("coulomb_rate", "viscous_rate")
     units = ("Nm/s", "Nm s/rad/s")

@@ -76,6 +76,91 @@ def variance_inflation(residual, mask, lags=LAGS):
     return float(np.mean(out)) if out else 1.0
 
 
+def column_correlation(gram, weights):
+    """Absolute correlations of the candidates' columns in the information matrix.
+
+    :math:`|A_{ab}| / \\sqrt{A_{aa} A_{bb}}` with
+    :math:`A = \\sum_\\ell w_\\ell D_\\ell^T D_\\ell` (uncentred: the columns
+    enter the current without an intercept).
+
+    Parameters
+    ----------
+    gram : ndarray of shape (n_joints, n_columns, n_columns)
+        :math:`D_\\ell^T D_\\ell` per joint.
+    weights : ndarray of shape (n_joints,)
+        :math:`w_\\ell`, per joint.
+
+    Returns
+    -------
+    corr : ndarray of shape (n_columns, n_columns)
+        Ones on the diagonal.
+
+    Examples
+    --------
+    Two columns that differ by a small ripple, and a third one:
+
+    >>> import numpy as np
+    >>> x = np.linspace(-1, 1, 50)
+    >>> D = np.c_[x, x + 0.01 * np.cos(9 * x), np.cos(9 * x)]
+    >>> np.round(column_correlation((D.T @ D)[None], np.ones(1)), 2)[0]
+    array([1., 1., 0.])
+    """
+    A = np.einsum("j,jab->ab", np.asarray(weights, dtype=float), gram)
+    d = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    return np.abs(A / np.outer(d, d))
+
+
+def confounded_families(candidates, gram, weights, limit=CONFOUNDED_CORRELATION):
+    """Per family, the other families the recordings cannot tell it from.
+
+    Two families (effect, target) are confounded when the largest
+    :func:`column_correlation` between the columns of any of their settings
+    reaches ``limit``: some setting of one moves the current as a setting of
+    the other does, and no fit on these recordings can tell which it was.
+    The relation is not made transitive (a Coulomb step confounded with a
+    torque constant that is confounded with a viscous term does not make the
+    Coulomb step and the viscous term alternatives).
+
+    Parameters
+    ----------
+    candidates : list of Candidate
+        Composites are skipped (their parts are judged).
+    gram : ndarray of shape (n_joints, n_columns, n_columns)
+    weights : ndarray of shape (n_joints,)
+    limit : float, default=CONFOUNDED_CORRELATION
+
+    Returns
+    -------
+    confounded : dict
+        ``{family: {other family: correlation}}``, only families with one.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from types import SimpleNamespace
+    >>> x = np.linspace(-1, 1, 50)
+    >>> D = np.c_[x, x + 0.01 * np.cos(9 * x), np.cos(9 * x)]
+    >>> cands = [SimpleNamespace(family=f, parts=(), columns=np.array([k]))
+    ...          for k, f in enumerate(["a", "b", "c"])]
+    >>> sorted(confounded_families(cands, (D.T @ D)[None], np.ones(1)))
+    ['a', 'b']
+    """
+    corr = column_correlation(gram, weights)
+    columns = {}
+    for cand in candidates:
+        if not cand.parts:
+            columns.setdefault(cand.family, []).extend(int(c) for c in cand.columns)
+    families = list(columns)
+    out = {}
+    for a, fa in enumerate(families):
+        for fb in families[a + 1:]:
+            c = float(corr[np.ix_(columns[fa], columns[fb])].max())
+            if c >= limit:
+                out.setdefault(fa, {})[fb] = c
+                out.setdefault(fb, {})[fa] = c
+    return out
+
+
 def _first_std(candidate, cov, nominal):
     """Standard deviation of the candidate's first physical parameter at zero."""
     theta = np.zeros(candidate.n_params)
@@ -183,8 +268,7 @@ def identifiability(candidates, gram, weights, named, nominal, inflation=1.0):
             best[row["candidate"].family] = row
     chosen = list(best.values())
     cols = [r["candidate"].columns for r in chosen]
-    d = np.sqrt(np.maximum(np.diag(A), 1e-300))
-    corr = np.abs(A / np.outer(d, d))
+    corr = column_correlation(gram, weights)
     table = []
     for row, own in zip(chosen, cols):
         cand = row["candidate"]

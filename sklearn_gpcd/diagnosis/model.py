@@ -526,11 +526,9 @@ def _joint_share(G, h, rr, weights, design, items, k, explained):
 
 def _refine(effect, settings, theta, design, k, G, h, rr, weights):
     """New nonlinear settings of item ``k`` (``settings`` itself when unchanged)."""
-    if effect.name == "payload" and theta.size == 4 and abs(theta[0]) > 0:
-        return {**settings, "com": tuple(float(c) for c in theta[1:] / theta[0])}
-    if effect.name == "time_delay" and theta.size == 1:
-        delay = float(np.clip(theta[0], -0.2, 0.2))
-        return {**settings, "delay": delay} if abs(delay) > 1e-4 else settings
+    read = effect.settings_from_fit(settings, theta)
+    if read is not None:  # settings the linear fit gives (a payload's centre of mass)
+        return read
     if effect.settings_grid() == [{}]:
         return settings
     target = design.joints[k][0] if effect.per_joint else None

@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .effects import EFFECTS
+
 #: Longest plan [s].
 PLAN_SECONDS = 180.0
 #: Peak speed of the low-speed sweeps [rad/s].
@@ -48,13 +50,8 @@ LIMIT_SHARE = 0.8
 MAX_ACCELERATION = 2.0
 #: Duration of the window's ramps at each end of a segment [s].
 RAMP = 2.0
-#: Segment per effect, and its duration [s].
-SEGMENTS = {
-    "stribeck_friction": "low_speed", "friction_softening": "low_speed",
-    "coulomb_friction": "low_speed", "torque_constant": "gravity_load",
-    "payload": "gravity_load", "link_mass": "gravity_load", "current_offset": "gravity_load",
-    "time_delay": "chirp", "rotor_inertia": "chirp", "friction_drift": "steady",
-}
+#: Segment per effect (the effects' own ``plan_segment``), and its duration [s].
+SEGMENTS = {cls.name: cls.plan_segment for cls in EFFECTS if cls.plan_segment}
 DURATIONS = {"low_speed": 30.0, "gravity_load": 30.0, "chirp": 20.0, "steady": 60.0,
              "fourier": 30.0}
 

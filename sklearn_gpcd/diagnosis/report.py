@@ -126,7 +126,7 @@ def _entry(group):
         "description": "; ".join(f.effect.sentence(f.parameters, [f.target] if f.effect.per_joint
                                                     else f.joints) for f in group),
     }
-    if effect.name == "link_mass":
+    if effect.target_kind == "link":
         entry["link"] = int(first.target)
     ts = [f.evidence.t for f in group if f.evidence is not None]
     entry["confidence"] = confidence(min(ts)) if ts else None
@@ -149,7 +149,27 @@ def _stability_lines(entry):
         if gain:
             text += f", held-out gain {100 * gain[0]:.0f}-{100 * gain[2]:.0f} %"
         parts.append(text)
-    return ["      Block bootstrap (95 % intervals): " + "; ".join(parts) + "."]
+    lines = ["      Block bootstrap (95 % intervals): " + "; ".join(parts) + "."]
+    return lines + _recording_gain_lines(entry, joints)
+
+
+def _recording_gain_lines(entry, joints):
+    """One line: the held-out gain of the effect on each training recording."""
+    names = entry["stability"].get("recordings") or []
+    per = entry["stability"].get("heldout_gain_per_recording") or []
+    parts = []
+    for j, gains in zip(joints, per):
+        if not gains:
+            continue
+        where = "" if j is None or len(joints) == 1 else f"joint {j + 1}: "
+        parts.append(where + ", ".join(
+            f"{name} {'-' if g is None else f'{100 * g:.0f} %'}"
+            for name, g in zip(names or [f"recording {k + 1}" for k in range(len(gains))],
+                               gains)))
+    if not parts:
+        return []
+    return ["      Held-out gain per recording (given the other effects): "
+            + "; ".join(parts) + "."]
 
 
 @dataclass
@@ -245,8 +265,15 @@ class DiagnosisReport:
             rows = [stable.get((f.name, f.target), {}) for f in
                     sorted(group, key=lambda f: -1 if f.target is None else f.target)]
             e["stability"] = {"inclusion": [r.get("inclusion") for r in rows],
+                              # its group of confounded alternatives (stability.py)
+                              "group_inclusion": [r.get("group_inclusion") for r in rows],
+                              "group": [{r["labels"][f]: p for f, p in r["group"].items()}
+                                        if r.get("group") else None for r in rows],
                               "size_interval": [r.get("size") for r in rows],
-                              "heldout_gain_interval": [r.get("gain") for r in rows]}
+                              "heldout_gain_interval": [r.get("gain") for r in rows],
+                              "heldout_gain_per_recording": [r.get("recording_gains")
+                                                             for r in rows],
+                              "recordings": diagnosis.training_summary_["recordings"]}
         effects.sort(key=lambda e: -(e["explained_variance"] or 0.0))
         if scores is None:
             before, after = diagnosis.nmse_train_before_, diagnosis.nmse_train_after_
@@ -409,6 +436,10 @@ class DiagnosisReport:
             lines += ["", "   Not separable on these recordings:"]
             pairs = {}
             for a in self.ambiguities:
+                if "text" in a:  # a group of confounded alternatives (stability.py)
+                    lines.append(f"   - {a['text']}; {a['chosen']} is reported as the one "
+                                 f"named most often. To separate them: {a['excitation']}.")
+                    continue
                 pairs.setdefault((a["effect"], a["alternative_effect"]), []).append(a)
             for (first, second), group in pairs.items():
                 joints = sorted({j for a in group for j in a["joints"]})

@@ -77,7 +77,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import linalg
 
-from .effects import _joint_list
+from .effects import EFFECTS, PAIR_SEPARATION, _joint_list  # noqa: F401 (PAIR_SEPARATION: API)
 
 #: Default minimum share of the held-out loss (of the joints an effect acts
 #: on) that an effect must remove to be selected.
@@ -91,29 +91,9 @@ MIN_SHARE = 0.01
 #: not separable on the given recordings.
 AMBIGUOUS_CORRELATION = 0.9
 
-#: What excites each effect (for proposing a separating experiment).
-EXCITATION = {
-    "coulomb_friction": "constant-speed sweeps in both directions at 3-4 speeds "
-                        "(0.05-1 rad/s), 5 s each",
-    "viscous_friction": "constant-speed sweeps at 5 speeds up to the joint's limit, "
-                        "5 s each, both directions",
-    "stribeck_friction": "slow sweeps through zero velocity (0.002-0.1 rad/s, 10 reversals)",
-    "rotor_inertia": "fast small oscillations of the joint alone (amplitude 0.1 rad, 2-3 Hz, "
-                     "accelerations above 10 rad/s^2) at a fixed pose, 20 s",
-    "payload": "slow moves of the wrist joints through many orientations "
-               "(gravity torques), 60 s",
-    "link_mass": "slow moves of the joint through its whole range at several poses of the "
-                 "outer joints (gravity torques, accelerations below 1 rad/s^2), 60 s",
-    "gravity_tilt": "slow moves of the base joint through a full turn with the arm "
-                    "stretched out, 60 s",
-    "torque_constant": "moves at several payload-free torque levels: fast and slow "
-                       "accelerations at the same poses, 30 s",
-    "current_offset": "holds at several poses where the gravity torque changes sign, 5 s each",
-    "time_delay": "fast reversals (torque steps), 20 s",
-    "joint_spring": "slow moves over the joint's full range at a constant pose of the "
-                    "others, 60 s",
-    "friction_drift": "the same moves repeated over at least 20 minutes from a cold start",
-}
+#: What excites each effect (for proposing a separating experiment): the
+#: effects' own ``excitation`` (:class:`~sklearn_gpcd.diagnosis.Effect`).
+EXCITATION = {cls.name: cls.excitation for cls in EFFECTS if cls.excitation}
 
 
 @dataclass
@@ -172,7 +152,7 @@ class Candidate:
         name = "+".join(p.effect.name for p in self.parts) or self.effect.name
         if self.target is None:
             return name
-        kind = "link" if self.effect.name == "link_mass" else "joint"
+        kind = self.effect.target_kind
         return f"{name}[{kind} {self.target + 1}]"
 
 
@@ -211,44 +191,21 @@ def build_candidates(signals, nominal, effects):
     return candidates + _friction_pairs(candidates), design
 
 
-#: A composite Stribeck peak + softening pairs a peak at ``v_s`` with a
-#: softening at ``v_0 <= v_s / PAIR_SEPARATION`` (apart enough to be told apart).
-PAIR_SEPARATION = 3.0
-
-
 def _friction_pairs(candidates):
-    """Composites of two friction terms of one joint that can cancel each other.
+    """Composites of two terms of one target that can cancel each other.
 
-    A Stribeck peak added to friction that softens at lower speed cancels
-    part of the softening, and a Coulomb change of one sign part of a viscous
-    change of the other: tried one at a time, neither lowers the error much.
-    A composite shares the columns of its two parts (no new columns).
+    Each candidate's effect names the partners it leads a composite with
+    (:meth:`~sklearn_gpcd.diagnosis.Effect.composite_partners`: a Coulomb
+    change with the viscous change of its joint, a Stribeck peak with a
+    slower softening). A composite shares the columns of its two parts (no
+    new columns).
     """
-    peaks = [c for c in candidates if c.effect.name == "stribeck_friction"]
-    softenings = [c for c in candidates if c.effect.name == "friction_softening"]
-    viscous = {c.target: c for c in candidates if c.effect.name == "viscous_friction"}
     pairs = []
-    for coulomb in candidates:
-        # a Coulomb and a viscous change of opposite signs cancel at some speed: tried one
-        # at a time neither explains much, together they do
-        if coulomb.effect.name == "coulomb_friction" and coulomb.target in viscous:
-            visc = viscous[coulomb.target]
-            pairs.append(Candidate(coulomb.effect, coulomb.target, {}, coulomb.joints,
-                                   np.concatenate([coulomb.columns, visc.columns]),
-                                   coulomb.order, parts=(coulomb, visc)))
-    for peak in peaks:
-        vs = peak.settings.get("stribeck_velocity")
-        for soft in softenings:
-            v0 = soft.settings.get("stribeck_velocity")
-            if soft.target != peak.target or vs is None or v0 is None or \
-                    v0 * PAIR_SEPARATION > vs:
-                continue
-            pairs.append(Candidate(peak.effect, peak.target,
-                                   {**peak.settings, "softening_velocity": v0,
-                                    "softening_shape": soft.settings.get("shape", "gaussian")},
-                                   peak.joints,
-                                   np.concatenate([peak.columns, soft.columns]), peak.order,
-                                   parts=(peak, soft)))
+    for lead in candidates:
+        for partner, settings in lead.effect.composite_partners(lead, candidates):
+            pairs.append(Candidate(lead.effect, lead.target, settings, lead.joints,
+                                   np.concatenate([lead.columns, partner.columns]),
+                                   lead.order, parts=(lead, partner)))
     return pairs
 
 
@@ -399,6 +356,22 @@ def _solve(A, b):
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
+def _solve_many(A, b):
+    """:func:`_solve` of a stack of systems ``A[f] x = b[f]``, one LAPACK call when regular."""
+    if A.shape[-1] == 0:
+        return np.zeros(b.shape)
+    k = A.shape[-1]
+    scale = np.trace(A, axis1=-2, axis2=-1) / k
+    ridged = A + (1e-12 * scale)[:, None, None] * np.eye(k)
+    try:
+        theta = np.linalg.solve(ridged, b[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        theta = None
+    if theta is None or not np.all(np.isfinite(theta)):
+        theta = np.stack([_solve(a, v) for a, v in zip(A, b)])
+    return theta
+
+
 def cv_losses(stats, columns, weights):
     """Held-out nMSE per fold and joint of the model with ``columns``.
 
@@ -415,35 +388,43 @@ def cv_losses(stats, columns, weights):
     losses : ndarray of shape (n_folds, n_joints)
         Held-out SSE / (rows * variance of the current).
     """
-    F, J = stats.rss.shape
     gram_all, cross_all = stats.totals()[:2]
     c = np.asarray(columns, dtype=int)
-    losses = np.empty((F, J))
     sub_gram = stats.gram[:, :, c[:, None], c[None, :]]  # (F, J, k, k)
     sub_cross = stats.cross[:, :, c]
     all_gram = gram_all[:, c[:, None], c[None, :]]
     all_cross = cross_all[:, c]
-    for f in range(F):
-        A = np.einsum("j,jab->ab", weights, all_gram - sub_gram[f])
-        b = weights @ (all_cross - sub_cross[f])
-        theta = _solve(A, b)
-        sse = (stats.rss[f] - 2.0 * sub_cross[f] @ theta
-               + np.einsum("a,jab,b->j", theta, sub_gram[f], theta))
-        losses[f] = np.maximum(sse, 0.0) / np.maximum(stats.counts[f] * stats.variance, 1e-300)
+    A = np.einsum("j,fjab->fab", weights, all_gram[None] - sub_gram)
+    b = np.einsum("j,fja->fa", weights, all_cross[None] - sub_cross)
+    theta = _solve_many(A, b)  # (F, k): fitted without fold f
+    sse = (stats.rss - 2.0 * np.einsum("fja,fa->fj", sub_cross, theta)
+           + np.einsum("fa,fjab,fb->fj", theta, sub_gram, theta))
+    losses = np.maximum(sse, 0.0) / np.maximum(stats.counts * stats.variance, 1e-300)
     # a joint that never moves (no rows, NaN variance) has nothing to explain
     return np.where(np.isfinite(losses), losses, 0.0)
 
 
 def in_sample_mse(stats, columns, weights, return_theta=False):
-    """Per-joint training MSE of the model fitted on all folds (and its coefficients)."""
-    gram, cross, rss, counts = stats.totals()
+    """Per-joint training MSE of the model fitted on all folds (and its coefficients).
+
+    Memoised per columns and weights (a base set is scored against every candidate).
+    """
     c = np.asarray(columns, dtype=int)
+    key = ("in_sample", c.tobytes(), np.asarray(weights, dtype=float).tobytes())
+    if key not in stats._cache:
+        stats._cache[key] = _in_sample_fit(stats, c, weights)
+    mse, theta = stats._cache[key]
+    return (mse, theta) if return_theta else mse
+
+
+def _in_sample_fit(stats, c, weights):
+    """(per-joint MSE, coefficients) of the columns ``c`` fitted on all folds."""
+    gram, cross, rss, counts = stats.totals()
     A = np.einsum("j,jab->ab", weights, gram[:, c[:, None], c[None, :]])
     theta = _solve(A, weights @ cross[:, c])
     sse = rss - 2.0 * cross[:, c] @ theta + np.einsum(
         "a,jab,b->j", theta, gram[:, c[:, None], c[None, :]], theta)
-    mse = np.maximum(sse, 0.0) / np.maximum(counts, 1)
-    return (mse, theta) if return_theta else mse
+    return np.maximum(sse, 0.0) / np.maximum(counts, 1), theta
 
 
 @dataclass
@@ -691,11 +672,11 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
         guarded_now = _uses_guard(selected)
         pool = [c for c in candidates if id(c) not in banned
                 and not {c.family, *(p.family for p in c.parts)} & families]
-        steps = _score(guarded_stats if guarded_now else stats, pool, base, selected)
+        steps = score_additions(guarded_stats if guarded_now else stats, pool, base, selected)
         pick = None
         if not guarded_now and any(c.effect.rest_guard for c in pool):
             # guard effects compete with the others on the same (guarded) rows
-            on_guarded = _score(guarded_stats, pool, base, selected)
+            on_guarded = score_additions(guarded_stats, pool, base, selected)
             guard_steps = [s for s in on_guarded if s.candidate.effect.rest_guard]
             other = max((s.gain for s in on_guarded if not s.candidate.effect.rest_guard),
                         default=-np.inf)
@@ -712,7 +693,7 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
             eligible = [s for s in steps if s.eligible(min_gain, min_t, min_share)
                         and (guarded_now or not s.candidate.effect.rest_guard)]
             while eligible:
-                pick, close = _one_standard_error(eligible)
+                pick, close = one_standard_error(eligible)
                 if acceptable(pick):
                     break
                 eligible.remove(pick)
@@ -727,7 +708,7 @@ def forward_selection(stats, candidates, min_gain=MIN_GAIN, min_t=MIN_T, max_eff
 
     # backward pass: drop the weakest effect that no longer earns its place
     while selected:
-        evidence = _given_others(guarded_stats if _uses_guard(selected) else stats, selected)
+        evidence = given_others(guarded_stats if _uses_guard(selected) else stats, selected)
         # the same held-out test as when it was picked (gain, consistency), now given
         # every other effect: a small term picked next to a large one is re-tested
         failing = [s for s in evidence if not s.eligible(min_gain, min_t)]
@@ -825,7 +806,7 @@ def _yardstick(stats, chosen):
     return np.minimum(mse * np.maximum(stats.counts.sum(0), 1), rss)
 
 
-def _score(stats, candidates, base, chosen=()):
+def score_additions(stats, candidates, base, chosen=()):
     """Evidence of adding each candidate to the columns ``base`` (of ``chosen``)."""
     weights = _weights(stats, base)
     base_losses = cv_losses(stats, base, weights)
@@ -835,7 +816,7 @@ def _score(stats, candidates, base, chosen=()):
             for c in candidates]
 
 
-def _one_standard_error(eligible):
+def one_standard_error(eligible):
     """The simplest eligible step not worse than the best by one paired standard error.
 
     Simplest: fewest parameters, then library order, then the default softening shape
@@ -957,31 +938,30 @@ def plausibility_check(nominal):
     'torque constant scale 0.05 outside [0.5, 1.5] (a motor that lost or gained 95 % of its torque)'
     """
 
-    def check(candidate, theta, peak=0.0):
+    def check(candidate, theta):
         if theta is None:
             return None
         theta = np.asarray(theta, dtype=float)
-        if candidate.parts:
-            start, peak = 0, 0.0
-            for part in candidate.parts:
-                if part.effect.name == "stribeck_friction":
-                    peak = float(theta[start])
-                reason = check(part, theta[start:start + part.n_params], peak)
-                if reason is not None:
-                    return f"{part.effect.name.replace('_', ' ')}: {reason}"
-                start += part.n_params
-            return None
-        effect = candidate.effect
-        params = effect.physical(theta, np.zeros((theta.size, theta.size)), candidate.target,
-                                 candidate.settings, nominal)
-        if effect.name == "friction_softening":  # on top of a peak of its composite
-            return effect.implausible(params, candidate.target, nominal, peak=peak)
-        return effect.implausible(params, candidate.target, nominal)
+        context, start = {}, 0
+        # the parts of a composite in order: each is judged given what the earlier ones
+        # tell it (a softening acts on the dry friction plus a peak before it)
+        for part in candidate.parts or (candidate,):
+            sub = theta[start:start + part.n_params]
+            params = part.effect.physical(sub, np.zeros((sub.size, sub.size)), part.target,
+                                          part.settings, nominal)
+            reason = part.effect.implausible_among(params, part.target, nominal, context)
+            if reason is not None:
+                return (f"{part.effect.name.replace('_', ' ')}: {reason}" if candidate.parts
+                        else reason)
+            for key, value in part.effect.context(params).items():
+                context[key] = context.get(key, 0.0) + value
+            start += part.n_params
+        return None
 
     return check
 
 
-def _given_others(stats, selected):
+def given_others(stats, selected):
     """Evidence of each selected candidate given all the others."""
     out = []
     all_cols = np.concatenate([c.columns for c in selected])
