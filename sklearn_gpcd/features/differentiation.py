@@ -192,10 +192,8 @@ def lowpass(time, x, cutoff=7.5, order=5):
 
     Parameters
     ----------
-    time : array-like of shape (n_samples,)
-        Strictly increasing time stamps [s].
-    x : array-like of shape (n_samples,) or (n_samples, k)
-        Signal(s) to filter, one column per channel.
+    time, x
+        As for :func:`differentiate`; ``x`` is the signal(s) to filter.
     cutoff : float, default=7.5
         Cutoff frequency [Hz] of the one-way filter; must be below the Nyquist
         frequency of the median sampling period.
