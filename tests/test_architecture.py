@@ -272,10 +272,6 @@ MANY_PARAMETERS = {
         "under scikit-learn's names (batch_size, max_iter, learning_rate, tol, "
         "n_iter_no_change, as MLPRegressor), so that GridSearchCV and users reach them "
         "flat; the five minibatch ones are the part to split out when the API may change",
-    "RigidBodyFeatures":
-        "each parameter picks columns of the feature matrix or its identification; "
-        "the friction terms and coulomb_width are the part to split out (one friction "
-        "part) when the API may change",
     "RobotSimulator":
         "a plant's physical settings; the sensor ones (current_noise_std, "
         "velocity_noise_std, position_resolution) are the part to split out when the "

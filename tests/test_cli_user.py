@@ -323,7 +323,7 @@ def test_train_coulomb_width_reaches_every_joint_and_is_recorded(sims, tmp_path,
     assert "Coulomb tanh(qd / 0.02)" in capsys.readouterr().out
     trained = load_model(out, trust_pickle=True)
     assert trained.training["coulomb_width"] == 0.02
-    assert [mean.features.coulomb_width for mean in trained.regressor.mean] == [0.02] * 6
+    assert [mean.features.friction.coulomb_width for mean in trained.regressor.mean] == [0.02] * 6
     sign = main(["train", str(sims["rtde"]), "--model", "p_f", "--n-support", "50", "-q",
                  "-o", str(tmp_path / "sign.joblib")])
     signed = load_model(tmp_path / "sign.joblib", trust_pickle=True)  # our own pickle

@@ -642,7 +642,7 @@ def test_frozen_sp_p_gets_the_compiled_path(rng):
 @pytest.mark.parametrize("coulomb_width", [None, 0.01])
 def test_compiled_rigid_body_mean_shares_one_regressor_per_tick(coulomb_width, rng):
     """SP_P with RigidBodyFeatures means: one pinocchio evaluation per tick, same numbers."""
-    from sklearn_gpcd.dynamics import RigidBodyFeatures
+    from sklearn_gpcd.dynamics import FrictionColumns, RigidBodyFeatures
     from sklearn_gpcd.gp import make_sp_p
 
     n_joints = 6
@@ -650,7 +650,8 @@ def test_compiled_rigid_body_mean_shares_one_regressor_per_tick(coulomb_width, r
     X[::3, n_joints : 2 * n_joints] *= 1e-3  # quasi-static rows: phi-bar zeroes friction
     y = np.sin(X[:, :n_joints]) + 0.1 * np.sign(X[:, n_joints : 2 * n_joints])
     features = [RigidBodyFeatures("ur10e", joint=j, sigma_v=SIGMA_V, currents=True,
-                                   coulomb_width=coulomb_width) for j in range(n_joints)]
+                                   friction=FrictionColumns(coulomb_width=coulomb_width))
+                for j in range(n_joints)]
     gp = make_sp_p(features, n_joints, sigma_v=SIGMA_V, optimizer=None).fit(X, y)
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)  # no fallback

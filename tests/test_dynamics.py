@@ -9,6 +9,7 @@ from sklearn.exceptions import NotFittedError
 
 from sklearn_gpcd.layout import column_names
 from sklearn_gpcd.dynamics import (
+    FrictionColumns,
     RigidBodyFeatures,
     base_parameters,
     torque_features,
@@ -157,7 +158,8 @@ def test_coulomb_width_smooths_the_coulomb_column_only(rng):
     qd[::3] *= 1e-4  # velocity jitter of a still joint
     X = np.hstack([q, qd, qdd])
     sign = RigidBodyFeatures("ur10", joint=2).fit(X)
-    smooth = RigidBodyFeatures("ur10", joint=2, coulomb_width=0.01).fit(X)
+    smooth = RigidBodyFeatures("ur10", joint=2,
+                               friction=FrictionColumns(coulomb_width=0.01)).fit(X)
     names = smooth.get_feature_names_out()
     assert np.array_equal(names, sign.get_feature_names_out())
     A, B = sign.transform(X), smooth.transform(X)
@@ -170,8 +172,50 @@ def test_coulomb_width_smooths_the_coulomb_column_only(rng):
     assert np.abs(B[jitter][:, coulomb]).max() < 0.1  # the sign is +-1 there
     np.testing.assert_allclose(B[fast][:, coulomb], A[fast][:, coulomb], atol=1e-15)
     # the velocity gate (Eq. 17) still zeroes it at rest
-    gated = RigidBodyFeatures("ur10", joint=2, coulomb_width=0.01, sigma_v=0.01).fit(X)
+    gated = RigidBodyFeatures("ur10", joint=2, friction=FrictionColumns(coulomb_width=0.01),
+                              sigma_v=0.01).fit(X)
     np.testing.assert_array_equal(gated.transform(X)[jitter][:, coulomb], 0.0)
+
+
+def test_the_friction_part_is_one_nested_parameter(rng, tmp_path):
+    """FrictionColumns is reached, cloned, gridded and saved as part of the features;
+    a tuple of terms is short for FrictionColumns(terms=...)."""
+    pytest.importorskip("skops")
+    from sklearn.base import clone
+
+    from sklearn_gpcd.persistence import load, save
+
+    X = np.hstack(random_states(rng, 40))
+    est = RigidBodyFeatures("ur10", joint=2, friction=FrictionColumns(("viscous",)))
+    assert est.get_params()["friction__terms"] == ("viscous",)
+    est.set_params(friction__coulomb_width=0.02, friction__terms=("coulomb", "viscous"))
+    twin = clone(est)
+    assert twin.friction is not est.friction
+    assert twin.get_params()["friction__coulomb_width"] == 0.02
+    fitted = twin.fit(X)
+    assert (fitted.friction_, fitted.coulomb_width_) == (("coulomb", "viscous"), 0.02)
+    short = RigidBodyFeatures("ur10", joint=2, friction=("viscous", "coulomb")).fit(X)
+    assert (short.friction_, short.coulomb_width_) == (("coulomb", "viscous"), None)
+    names = fitted.get_feature_names_out()
+    coulomb = names == "coulomb_2"
+    np.testing.assert_allclose(fitted.transform(X)[:, coulomb].ravel(),
+                               np.tanh(X[:, 8] / 0.02), rtol=1e-12)
+    back = load(save(fitted, tmp_path / "phi.skops"))
+    assert isinstance(back.friction, FrictionColumns)
+    np.testing.assert_array_equal(back.transform(X), fitted.transform(X))
+
+
+def test_a_state_from_before_the_friction_part_loads(rng):
+    """A fitted state with a ``coulomb_width`` parameter (before FrictionColumns)
+    loads into the split class and transforms as before."""
+    X = np.hstack(random_states(rng, 20))
+    now = RigidBodyFeatures("ur10", joint=1, friction=FrictionColumns(coulomb_width=0.01)).fit(X)
+    old = now.__getstate__()
+    old["friction"], old["coulomb_width"] = ("coulomb", "viscous"), old.pop("coulomb_width_")
+    loaded = RigidBodyFeatures.__new__(RigidBodyFeatures)
+    loaded.__setstate__(old)
+    assert loaded.get_params()["friction__coulomb_width"] == 0.01
+    np.testing.assert_array_equal(loaded.transform(X), now.transform(X))
 
 
 def test_currents_divides_by_torque_constants(rng):
@@ -325,9 +369,10 @@ def test_nan_is_named(rng):
         ({"joint": 1.5}, TypeError, "joint"),
         ({"sigma_v": -0.1}, ValueError, "sigma_v"),
         ({"rank_tol": 0.0}, ValueError, "rank_tol"),
-        ({"coulomb_width": 0.0}, ValueError, "coulomb_width"),
-        ({"coulomb_width": np.inf}, ValueError, "coulomb_width"),
-        ({"coulomb_width": "0.1"}, ValueError, "coulomb_width"),
+        ({"friction": FrictionColumns(coulomb_width=0.0)}, ValueError, "coulomb_width"),
+        ({"friction": FrictionColumns(coulomb_width=np.inf)}, ValueError, "coulomb_width"),
+        ({"friction": FrictionColumns(coulomb_width="0.1")}, ValueError, "coulomb_width"),
+        ({"friction": FrictionColumns(terms=("stribeck",))}, ValueError, "stribeck"),
         ({"friction": 3}, ValueError, "friction"),
         ({"robot": "ur99"}, ValueError, "ur99"),
         ({"robot": 3}, TypeError, "robot"),

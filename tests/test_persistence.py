@@ -32,7 +32,7 @@ from sklearn_gpcd.detection import (
     stack_currents,
 )
 from sklearn_gpcd.diagnosis import DiagnosedModel, DynamicsDiagnosis, NominalModel
-from sklearn_gpcd.dynamics import RigidBodyFeatures
+from sklearn_gpcd.dynamics import FrictionColumns, RigidBodyFeatures
 from sklearn_gpcd.features import InverseDynamicsFeatures
 from sklearn_gpcd.gp import (
     ParametricMean,
@@ -246,6 +246,7 @@ def stateful_objects(detector):
                              {"rules__min_duration": [1, 3]}),
         InverseDynamicsFeatures(),
         RigidBodyFeatures("ur10"),
+        FrictionColumns(coulomb_width=0.01),
         DynamicsDiagnosis(),
         DiagnosedModel(NominalModel("ur10"), []),
         StreamingMonitor(detector),

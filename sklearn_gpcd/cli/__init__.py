@@ -108,7 +108,7 @@ def main(argv=None):
     Parameters
     ----------
     argv : list of str, default=None
-        Arguments without the program name; ``None`` reads ``sys.argv``.
+        As for :func:`parse_args`.
 
     Returns
     -------

@@ -19,12 +19,13 @@ from .torque_model import (
     parameter_vector,
 )
 from .observer import UR_OBSERVER_GAINS, MomentumObserver, MomentumObserverStream
-from .rigid_body import RigidBodyFeatures
+from .rigid_body import FrictionColumns, RigidBodyFeatures
 
 __all__ = [
     "ControllerCurrent",
     "ControllerFeatures",
     "RigidBodyFeatures",
+    "FrictionColumns",
     "MomentumObserver",
     "MomentumObserverStream",
     "UR_OBSERVER_GAINS",

@@ -63,7 +63,7 @@ from ..layout import block_columns
 from ..robots import Robot
 from ..robots.loading import resolve_robot
 from .torque_model import torque_features, parameter_vector
-from .rigid_body import RigidBodyFeatures
+from .rigid_body import FrictionColumns, RigidBodyFeatures
 
 __all__ = ["MomentumObserver", "MomentumObserverStream", "UR_OBSERVER_GAINS"]
 
@@ -399,9 +399,9 @@ class MomentumObserver(VersionedStateMixin, BaseEstimator):
 
     def _identify_all(self, X, tau, pi0):
         n = self.n_joints_
-        phi = RigidBodyFeatures(self.robot_, friction=("coulomb", "viscous"),
-                                 coulomb_width=self.coulomb_width, offset=self.offset,
-                                 random_state=self.random_state).fit(X[:, :3 * n])
+        friction = FrictionColumns(("coulomb", "viscous"), self.coulomb_width)
+        phi = RigidBodyFeatures(self.robot_, friction=friction, offset=self.offset,
+                                random_state=self.random_state).fit(X[:, :3 * n])
         K = phi.parameter_mapping_
         start = pi0 if self.offset else pi0[:-n]
         beta = self._weighted_solve(phi.transform(X[:, :3 * n]), tau, K @ start)

@@ -8,7 +8,7 @@ from numbers import Integral, Real
 import numpy as np
 from sklearn.base import BaseEstimator, TransformerMixin, _fit_context
 from sklearn.utils import Bunch, check_random_state
-from sklearn.utils._param_validation import Interval
+from sklearn.utils._param_validation import Interval, validate_parameter_constraints
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..layout import block_columns
@@ -107,6 +107,59 @@ def _identification(robot, p, regressor, n_states, random_state, reduce, rank_to
     return _copies(*_IDENTIFICATION_CACHE[key])
 
 
+class FrictionColumns(VersionedStateMixin, BaseEstimator):
+    """The friction part of :class:`RigidBodyFeatures`: which columns, which Coulomb law.
+
+    Per joint :math:`l`, a Coulomb column :math:`\\mathrm{sign}(\\dot q_l)`
+    (or its smooth form) and/or a viscous column :math:`\\dot q_l` (paper
+    Eq. 10), always in that order. Pass it as ``RigidBodyFeatures(friction=...)``;
+    a tuple of terms there is short for ``FrictionColumns(terms=...)``. Its
+    parameters are reached as ``friction__terms`` and ``friction__coulomb_width``
+    (``get_params``, ``set_params``, ``GridSearchCV``).
+
+    Parameters
+    ----------
+    terms : tuple of str or None, default=("coulomb", "viscous")
+        Any of ``"coulomb"``, ``"viscous"``; None or ``()`` adds no friction column.
+    coulomb_width : float > 0, default=None
+        Smooth Coulomb column :math:`\\tanh(\\dot q_l / w)` with this
+        velocity scale :math:`w` [rad/s] instead of the sign (ours, not the
+        paper's: a still joint's logged velocity jitters around zero and
+        flips the sign; see
+        :func:`~sklearn_gpcd.dynamics.torque_model.friction_features`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.dynamics import FrictionColumns, RigidBodyFeatures
+    >>> X = np.random.default_rng(0).normal(size=(5, 18))
+    >>> smooth = FrictionColumns(coulomb_width=0.01)
+    >>> phi = RigidBodyFeatures("ur10", joint=2, friction=smooth).fit(X)
+    >>> phi.get_feature_names_out()[-2:].tolist()
+    ['coulomb_2', 'viscous_2']
+    >>> phi.get_params()["friction__coulomb_width"]
+    0.01
+    """
+
+    _parameter_constraints = {
+        "terms": [None, str, list, tuple],
+        "coulomb_width": [None, Interval(Real, 0, np.inf, closed="neither")],
+    }
+
+    def __init__(self, terms=FRICTION_TERMS, coulomb_width=None):
+        self.terms = terms
+        self.coulomb_width = coulomb_width
+
+
+def _friction_part(friction):
+    """``(terms in column order, coulomb_width)`` of a ``friction`` parameter, checked."""
+    if not isinstance(friction, FrictionColumns):
+        return check_friction(friction), None
+    validate_parameter_constraints(FrictionColumns._parameter_constraints,
+                                   friction.get_params(deep=False), "FrictionColumns")
+    return check_friction(friction.terms), friction.coulomb_width
+
+
 class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
     """Torque features :math:`\\phi(x)` of the physical torque model.
 
@@ -129,15 +182,10 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         shape ``(n * n_joints, p)``, row ``l * n + k`` is joint ``l`` of
         sample ``k`` (pair it with ``Y.ravel(order="F")`` for a target array
         ``Y`` of shape ``(n, n_joints)``).
-    friction : tuple of str or None, default=("coulomb", "viscous")
-        Friction columns per joint: Coulomb :math:`\\mathrm{sign}(\\dot q_l)`
-        and/or viscous :math:`\\dot q_l` (always in that order).
-    coulomb_width : float > 0, default=None
-        Smooth Coulomb column :math:`\\tanh(\\dot q_l / w)` with this
-        velocity scale :math:`w` [rad/s] instead of the sign (ours, not the
-        paper's: a still joint's logged velocity jitters around zero and
-        flips the sign; see
-        :func:`~sklearn_gpcd.dynamics.torque_model.friction_features`).
+    friction : FrictionColumns, tuple of str or None, default=("coulomb", "viscous")
+        Friction columns per joint (:class:`FrictionColumns`: the terms and
+        the Coulomb law); a tuple of terms is short for
+        ``FrictionColumns(terms=...)``, None adds no friction column.
     rotor_inertia : bool, default=True
         Add a :math:`\\ddot q_l` column per joint (reflected rotor inertia,
         Eq. 4). pinocchio's regressor lacks this term, ``rnea`` includes it.
@@ -188,6 +236,10 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         @ pi)`` are the torques (currents) of the selected joint(s).
     friction_columns_ : ndarray of int
         Output columns holding friction terms (to apply Eq. 17 elsewhere).
+    friction_ : tuple of str
+        The friction terms, in column order.
+    coulomb_width_ : float or None
+        The smooth Coulomb law's velocity scale (None: the sign).
 
     Notes
     -----
@@ -209,7 +261,7 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
     _parameter_constraints = {
         "robot": [str, os.PathLike, Robot],
         "joint": [None, Interval(Integral, 0, None, closed="left")],
-        "friction": [None, str, list, tuple],
+        "friction": [None, str, list, tuple, FrictionColumns],
         "rotor_inertia": ["boolean"],
         "offset": ["boolean"],
         "base_parameters": ["boolean"],
@@ -217,16 +269,14 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         "sigma_v": [None, SIGMA_V_CONSTRAINT],
         "currents": ["boolean"],
         "random_state": ["random_state"],
-        "coulomb_width": [None, Interval(Real, 0, np.inf, closed="neither")],
     }
 
     def __init__(self, robot="ur10", joint=None, friction=FRICTION_TERMS, rotor_inertia=True,
                  offset=False, base_parameters=True, rank_tol=None, sigma_v=None,
-                 currents=False, random_state=0, coulomb_width=None):
+                 currents=False, random_state=0):
         self.robot = robot
         self.joint = joint
         self.friction = friction
-        self.coulomb_width = coulomb_width
         self.rotor_inertia = rotor_inertia
         self.offset = offset
         self.base_parameters = base_parameters
@@ -246,7 +296,7 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
                 f"currents=True needs torque constants, robot {robot.name!r} has none: "
                 "use load_robot(name, torque_constants=[...])"
             )
-        return check_friction(self.friction)
+        return _friction_part(self.friction)
 
     def _check_columns(self, X, n):
         if X.shape[1] in (3 * n, 6 * n):
@@ -269,7 +319,7 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
     def _regressor(self, q, qd, qdd, sigma_v, joints=None):
         return torque_features(self.robot_, q, qd, qdd, rotor_inertia=self.rotor_inertia,
                               friction=self.friction_, offset=self.offset, sigma_v=sigma_v,
-                              joints=joints, coulomb_width=self.coulomb_width)
+                              joints=joints, coulomb_width=self.coulomb_width_)
 
     # ---------------------------------------------------------------- API
     @_fit_context(prefer_skip_nested_validation=True)
@@ -290,7 +340,7 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         """
         X = validate_data(self, X, dtype=np.float64)
         self.robot_ = resolve_robot(self.robot)
-        self.friction_ = self._check_params(self.robot_)
+        self.friction_, self.coulomb_width_ = self._check_params(self.robot_)
         n = self.n_joints_ = self.robot_.n_joints
         self._check_columns(X, n)
         self.parameter_names_ = parameter_names(n, self.rotor_inertia, self.friction_, self.offset)
@@ -298,7 +348,7 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
 
         n_states = max(_MIN_IDENTIFICATION_STATES, -(-3 * p // n))
         options = (bool(self.rotor_inertia), self.friction_, bool(self.offset),
-                   self.coulomb_width)
+                   self.coulomb_width_)
         Phi, info = _identification(self.robot_, p, self._regressor, n_states,
                                     self.random_state, self.base_parameters, self.rank_tol,
                                     options)
@@ -377,7 +427,7 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
         if self.currents:
             scale = 1.0 / np.asarray(self.robot_.torque_constants, dtype=float)[rows]
         options = (bool(self.rotor_inertia), tuple(self.friction_), bool(self.offset),
-                   self.sigma_v, self.coulomb_width)
+                   self.sigma_v, self.coulomb_width_)
         return Bunch(
             full=SampleTorqueFeatures(self.robot_, *options),
             key=(_robot_key(self.robot_),) + options,
@@ -386,6 +436,17 @@ class RigidBodyFeatures(VersionedStateMixin, TransformerMixin, BaseEstimator):
             scale=scale,
             **{name: _as_slice(block_columns(name, n)) for name in ("q", "qd", "qdd")},
         )
+
+    def __setstate__(self, state):
+        """Load a state; one written before the friction part (a ``coulomb_width``
+        parameter beside ``friction``) gets its :class:`FrictionColumns`."""
+        if "coulomb_width" in state:
+            width = state.pop("coulomb_width")
+            if width is not None:
+                state["friction"] = FrictionColumns(state.get("friction"), width)
+            if "friction_" in state:
+                state["coulomb_width_"] = width
+        super().__setstate__(state)
 
     def get_feature_names_out(self, input_features=None):
         """Names of the output columns (full-parameter names, e.g. ``link2_mx``).

@@ -42,6 +42,37 @@ _DEFAULTS = {
 _UNIFORM_RTOL = 1e-6
 
 
+def check_finite(values, what, column="column"):
+    """Raise a ValueError naming the first NaN or inf of ``values``, if any.
+
+    Parameters
+    ----------
+    values : ndarray of shape (n_samples,) or (n_samples, k)
+    what : str
+        What ``values`` is, in the user's words (e.g. ``"recording 'a.csv': qd"``).
+    column : str, default="column"
+        The word for a column of ``values`` (e.g. ``"joint"``).
+
+    Raises
+    ------
+    ValueError
+        ``"{what} is NaN or inf at row r, {column} c (n non-finite values)"``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn_gpcd.features.differentiation import check_finite
+    >>> check_finite(np.array([[0.0, 1.0], [2.0, np.inf]]), "qd", "joint")
+    Traceback (most recent call last):
+    ...
+    ValueError: qd is NaN or inf at row 1, joint 1 (1 non-finite values)
+    """
+    bad = np.argwhere(~np.isfinite(values))
+    if bad.size:
+        where = f"row {bad[0][0]}" + (f", {column} {bad[0][1]}" if bad.shape[1] > 1 else "")
+        raise ValueError(f"{what} is NaN or inf at {where} ({len(bad)} non-finite values)")
+
+
 def _check_signal(time, x, min_samples=2):
     """Validate ``time`` and ``x``; return them as float arrays.
 
@@ -67,13 +98,7 @@ def _check_signal(time, x, min_samples=2):
     bad_t = np.flatnonzero(~np.isfinite(time))
     if bad_t.size:
         raise ValueError(f"time is not finite at row {bad_t[0]} (value {time[bad_t[0]]})")
-    bad_x = np.argwhere(~np.isfinite(x))
-    if bad_x.size:
-        row, col = bad_x[0]
-        raise ValueError(
-            f"x contains NaN or inf at row {row}, column {col} "
-            f"({len(bad_x)} non-finite values in total)"
-        )
+    check_finite(x, "x")
     steps = np.diff(time)
     bad_dt = np.flatnonzero(steps <= 0)
     if bad_dt.size:
@@ -167,10 +192,8 @@ def lowpass(time, x, cutoff=7.5, order=5):
 
     Parameters
     ----------
-    time : array-like of shape (n_samples,)
-        Strictly increasing time stamps [s].
-    x : array-like of shape (n_samples,) or (n_samples, k)
-        Signal(s) to filter, one column per channel.
+    time, x
+        As for :func:`differentiate`; ``x`` is the signal(s) to filter.
     cutoff : float, default=7.5
         Cutoff frequency [Hz] of the one-way filter; must be below the Nyquist
         frequency of the median sampling period.

@@ -22,7 +22,7 @@ from sklearn.utils.validation import check_is_fitted
 from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..io import Recording
-from .differentiation import METHODS, _check_options, differentiate
+from .differentiation import METHODS, _check_options, check_finite, differentiate
 
 #: Values accepted by ``InverseDynamicsFeatures(acceleration=...)``.
 ACCELERATION_SOURCES = ("auto", "measured", "target", "differentiate")
@@ -98,13 +98,7 @@ def _check_joint_counts(recordings):
 
 
 def _check_finite(rec, index, key, value):
-    bad = np.argwhere(~np.isfinite(value))
-    if bad.size:
-        row, col = bad[0]
-        raise ValueError(
-            f"recording {_label(rec, index)}: {key} is NaN or inf at row {row}, "
-            f"joint {col} ({len(bad)} non-finite values)"
-        )
+    check_finite(value, f"recording {_label(rec, index)}: {key}", column="joint")
 
 
 def targets(recordings):

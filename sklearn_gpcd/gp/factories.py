@@ -145,8 +145,8 @@ def make_sp_p(features, n_joints, *, sigma_v=DEFAULT_SIGMA_V, friction_columns="
 
     Parameters
     ----------
-    features : list of n_joints callables or transformers, or None
-        Per-joint regressors :math:`\phi_\ell`; None drops the parametric part.
+    features, friction_columns, **gp_params
+        As for :func:`make_sp_s`.
     n_joints : int
         Number of joints (outputs); ``X`` needs the ``6 * n_joints`` columns
         of the augmented layout.
@@ -155,12 +155,6 @@ def make_sp_p(features, n_joints, *, sigma_v=DEFAULT_SIGMA_V, friction_columns="
         :math:`\bar\phi_\ell`; the paper uses :math:`10^{-2}`. Tune it for
         all joints at once with ``GridSearchCV`` over ``sigma_v`` of the
         returned estimator.
-    friction_columns : "auto", array-like of int or None, default="auto"
-        Friction columns of :math:`\phi_\ell`.
-    **gp_params
-        Other :class:`SemiParametricGPRegressor` parameters
-        (``normalize_y`` defaults to True, ``n_support`` to "auto": at most
-        2,000 support rows).
 
     Returns
     -------

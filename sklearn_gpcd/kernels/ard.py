@@ -5,13 +5,18 @@ import numbers
 import numpy as np
 from scipy.spatial.distance import cdist, pdist, squareform
 from sklearn.gaussian_process.kernels import (
-    Hyperparameter,
     Kernel,
     NormalizedKernelMixin,
     StationaryKernelMixin,
 )
 
-from .columns import check_length_scale, column_indices, feature_names_of
+from .columns import (
+    check_length_scale,
+    column_indices,
+    feature_names_of,
+    is_anisotropic,
+    scale_hyperparameter,
+)
 
 __all__ = ["ARDRBF"]
 
@@ -80,19 +85,13 @@ class ARDRBF(StationaryKernelMixin, NormalizedKernelMixin, Kernel):
     @property
     def anisotropic(self):
         """bool: True when there is one length scale per column."""
-        return np.iterable(self.length_scale) and len(self.length_scale) > 1
+        return is_anisotropic(self.length_scale)
 
     @property
     def hyperparameter_length_scale(self):
         """Hyperparameter: specification of ``length_scale``."""
-        if self.anisotropic:
-            return Hyperparameter(
-                "length_scale",
-                "numeric",
-                self.length_scale_bounds,
-                len(self.length_scale),
-            )
-        return Hyperparameter("length_scale", "numeric", self.length_scale_bounds)
+        return scale_hyperparameter("length_scale", self.length_scale,
+                                    self.length_scale_bounds)
 
     def select(self, X):
         """The columns of X this kernel acts on.

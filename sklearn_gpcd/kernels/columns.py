@@ -13,7 +13,7 @@ import numbers
 
 import numpy as np
 from sklearn.base import clone
-from sklearn.gaussian_process.kernels import Kernel
+from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
 
 from .._gate import check_sigma_v
 
@@ -251,6 +251,32 @@ def check_length_scale(length_scale, n_columns, owner="ARDRBF"):
         )
     return length_scale
 
+
+def is_anisotropic(value):
+    """True when a kernel hyperparameter holds several values (one per column or weight).
+
+    Examples
+    --------
+    >>> is_anisotropic(1.0), is_anisotropic([1.0]), is_anisotropic([1.0, 2.0])
+    (False, False, True)
+    """
+    return bool(np.iterable(value) and len(value) > 1)
+
+
+def scale_hyperparameter(name, value, bounds):
+    """The :class:`~sklearn.gaussian_process.kernels.Hyperparameter` ``name`` of ``value``.
+
+    One positive number, or one per entry when :func:`is_anisotropic` (a
+    length scale per column, a prior variance per weight).
+
+    Examples
+    --------
+    >>> scale_hyperparameter("length_scale", [1.0, 2.0], (1e-5, 1e5)).n_elements
+    2
+    """
+    if is_anisotropic(value):
+        return Hyperparameter(name, "numeric", bounds, len(value))
+    return Hyperparameter(name, "numeric", bounds)
 
 def _take_rows(X, rows):
     """Rows ``rows`` of an array or DataFrame, keeping its type."""

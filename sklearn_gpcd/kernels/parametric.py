@@ -6,10 +6,10 @@ import numpy as np
 from scipy import sparse
 from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
-from sklearn.gaussian_process.kernels import Hyperparameter, Kernel
+from sklearn.gaussian_process.kernels import Kernel
 from sklearn.utils.validation import check_is_fitted
 
-from .columns import _n_samples
+from .columns import _n_samples, is_anisotropic, scale_hyperparameter
 
 __all__ = ["ParametricKernel"]
 
@@ -76,16 +76,12 @@ class ParametricKernel(Kernel):
     @property
     def anisotropic(self):
         """bool: True when each weight has its own prior variance."""
-        return np.iterable(self.prior_cov) and len(self.prior_cov) > 1
+        return is_anisotropic(self.prior_cov)
 
     @property
     def hyperparameter_prior_cov(self):
         """Hyperparameter: specification of ``prior_cov``."""
-        if self.anisotropic:
-            return Hyperparameter(
-                "prior_cov", "numeric", self.prior_cov_bounds, len(self.prior_cov)
-            )
-        return Hyperparameter("prior_cov", "numeric", self.prior_cov_bounds)
+        return scale_hyperparameter("prior_cov", self.prior_cov, self.prior_cov_bounds)
 
     def feature_map(self, X):
         r"""The callable :math:`\phi` used for a call on ``X``.

@@ -103,6 +103,7 @@ from sklearn.gaussian_process.kernels import (
 
 from .._gate import quasi_static
 from .ard import ARDRBF
+from .columns import is_anisotropic
 from .gate import QuasiStaticGate
 from .parametric import ParametricKernel
 
@@ -808,7 +809,7 @@ class _SquaredExponential(_Node):
                 raise _NotCompilable
         self.columns = None if columns is None else columns.astype(np.intp)
         self.length_scale = np.asarray(kernel.length_scale, dtype=float)
-        self.anisotropic = bool(np.iterable(kernel.length_scale) and len(kernel.length_scale) > 1)
+        self.anisotropic = is_anisotropic(kernel.length_scale)
         self.n_dims = kernel.n_dims
 
     def set_theta(self, theta):

@@ -65,6 +65,11 @@ def as_joint_batch(values, n_joints, name):
     return arr, single
 
 
+def _model_limits(field, doc):
+    """A read-only property: the pinocchio model's ``field`` as a float array."""
+    return property(lambda self: np.array(getattr(self.model, field), dtype=float), doc=doc)
+
+
 @dataclass(eq=False)
 class Robot:
     """A serial robot arm: kinematic/dynamic model and drive-train data.
@@ -222,21 +227,10 @@ class Robot:
     def joint_names(self):
         return list(self.model.names)[1:]
 
-    @property
-    def lower(self):
-        return np.array(self.model.lowerPositionLimit, dtype=float)
-
-    @property
-    def upper(self):
-        return np.array(self.model.upperPositionLimit, dtype=float)
-
-    @property
-    def velocity_limits(self):
-        return np.array(self.model.velocityLimit, dtype=float)
-
-    @property
-    def effort_limits(self):
-        return np.array(self.model.effortLimit, dtype=float)
+    lower = _model_limits("lowerPositionLimit", "Lower joint position limits [rad].")
+    upper = _model_limits("upperPositionLimit", "Upper joint position limits [rad].")
+    velocity_limits = _model_limits("velocityLimit", "Joint velocity limits [rad/s].")
+    effort_limits = _model_limits("effortLimit", "Joint torque limits [Nm].")
 
     @property
     def flange_frame_id(self):

@@ -307,7 +307,7 @@ class TrainedModel:
 
 def _build(model, robot, n_joints, params, coulomb_width=None):
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
-    from ..dynamics import RigidBodyFeatures
+    from ..dynamics import FrictionColumns, RigidBodyFeatures
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..gp import make_p_f, make_sp_c, make_sp_p, make_sp_s
 
@@ -321,7 +321,8 @@ def _build(model, robot, n_joints, params, coulomb_width=None):
     if robot is None:
         raise ValueError(f"model {model!r} needs the robot (its rigid-body features); "
                          "models without one: 'sp_c', 'gp'")
-    phi = [RigidBodyFeatures(robot, joint=j, coulomb_width=coulomb_width)
+    phi = [RigidBodyFeatures(robot, joint=j,
+                             friction=FrictionColumns(coulomb_width=coulomb_width))
            for j in range(n_joints)]
     return {"sp_p": make_sp_p, "sp_s": make_sp_s, "p_f": make_p_f}[model](
         phi, n_joints, **params)
