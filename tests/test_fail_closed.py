@@ -504,6 +504,58 @@ def test_a_stop_signal_writes_the_report(good, tmp_path, name, source):
         assert report["recordings"][0]["n_samples"] > 0
 
 
+#: ``gpcd calibrate`` in a child, with files above 10 kB streamed through a work folder.
+_STREAMED_CALIBRATE = """
+import sys
+from sklearn_gpcd.cli import main
+from sklearn_gpcd.io import chunks
+chunks.STREAM_BYTES, chunks.CHUNK_BYTES = 10_000, 20_000
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+def test_a_stopped_calibration_leaves_no_work_folder(good, tmp_path, name):
+    """gpcd calibrate of long logs spools them into a temporary work folder; a stop
+    signal while it works removes it, leaves the old detector file as it was and
+    ends in one line and 128 + the signal number (as gpcd monitor does)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    detector, features = good["objects"]
+    model = save({"kind": MODEL_KIND, "regressor": detector.regressor_,
+                  "features": features, "training": {}}, tmp_path / "model.skops")
+    logs = [write_rtde_csv(run, tmp_path / f"free{s}.csv")
+            for s, run in enumerate(free_runs(n=3, n_targets=2))]
+    output = tmp_path / "old.skops"
+    output.write_bytes(good["detector"].read_bytes())
+    before = output.read_bytes()
+    work = tmp_path / "tmp"
+    work.mkdir()
+    process = subprocess.Popen(
+        [sys.executable, "-c", _STREAMED_CALIBRATE, "calibrate", str(model), *map(str, logs),
+         "-q", "-o", str(output)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**_env(), "TMPDIR": str(work)})
+    try:
+        deadline = time.monotonic() + 120
+        while not any(p.name.startswith("gpcd-calibrate-") and any(p.iterdir())
+                      for p in work.iterdir()):
+            assert process.poll() is None and time.monotonic() < deadline, \
+                process.communicate()
+            time.sleep(0.01)
+        process.send_signal(getattr(signal, name))
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 128 + getattr(signal, name), err[-2000:]
+    assert err.strip().splitlines() == [f"gpcd calibrate: stopped by {name}"]
+    assert list(work.iterdir()) == []
+    assert output.read_bytes() == before
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".part")]
+
+
 # ------------------------------------------------------------------ fuzzing
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
