@@ -25,8 +25,10 @@ adds is the count, in one run, of what a user would see:
    monitor`` offline, ``--replay`` and live (``--rtde`` on the loopback
    server of :mod:`sklearn_gpcd.io._rtde_live`, as
    ``benchmarks/rtde_loopback.py``): exit status, the last line, the JSON
-   report's ``end``; and a killed link: the blind time the summary and the
-   report give against the time the link was down.
+   report's ``end``; to a streamed ``gpcd calibrate`` once its temporary
+   work folder has content: exit status, one line, the folder gone, the old
+   detector file byte for byte; and a killed link: the blind time the
+   summary and the report give against the time the link was down.
 4. **Mutated real logs**: the summary of ``benchmarks/mutated_logs.py``
    (``--mutated`` names its JSON; default the committed result).
 
@@ -315,6 +317,20 @@ def stops_probe(good, tmp):
             rows.append(row)
             print(f"  {'ok ' if row['ok'] else 'BAD'} {name} {source:8s} rc {status} "
                   f"end {row['end']}", flush=True)
+        folder = tmp / f"{name}_calibrate"
+        folder.mkdir()
+        tic = time.perf_counter()
+        status, err, left, intact, parts = tfc.stop_calibration(good, folder, signum)
+        lines = err.strip().splitlines()
+        row = {"signal": name, "source": "calibrate", "status": status,
+               "last_line": (lines or [""])[-1][:200], "work_left": left,
+               "old_file_intact": intact, "temporaries_left": parts,
+               "traceback": "Traceback" in err, "seconds": round(time.perf_counter() - tic, 1)}
+        row["ok"] = (status == 128 + signum and lines == [f"gpcd calibrate: stopped by {name}"]
+                     and not left and intact and not parts)
+        rows.append(row)
+        print(f"  {'ok ' if row['ok'] else 'BAD'} {name} calibrate rc {status} work left "
+              f"{left} old file intact {intact}", flush=True)
     return rows
 
 

@@ -504,6 +504,67 @@ def test_a_stop_signal_writes_the_report(good, tmp_path, name, source):
         assert report["recordings"][0]["n_samples"] > 0
 
 
+#: ``gpcd calibrate`` in a child, with files above 10 kB streamed through a work folder.
+_STREAMED_CALIBRATE = """
+import sys
+from sklearn_gpcd.cli import main
+from sklearn_gpcd.io import chunks
+chunks.STREAM_BYTES, chunks.CHUNK_BYTES = 10_000, 20_000
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def stop_calibration(good, folder, signum):
+    """Send ``signum`` to a streamed ``gpcd calibrate`` (a child) once its work folder
+    has content; (exit status, stderr, what is left in its TMPDIR, whether the old
+    output file is byte for byte, temporaries left next to it)."""
+    import subprocess
+    import sys
+    import time
+
+    detector, features = good["objects"]
+    model = save({"kind": MODEL_KIND, "regressor": detector.regressor_,
+                  "features": features, "training": {}}, folder / "model.skops")
+    logs = [write_rtde_csv(run, folder / f"free{s}.csv")
+            for s, run in enumerate(free_runs(n=3, n_targets=2))]
+    output = folder / "old.skops"
+    output.write_bytes(good["detector"].read_bytes())
+    before = output.read_bytes()
+    work = folder / "tmp"
+    work.mkdir()
+    process = subprocess.Popen(
+        [sys.executable, "-c", _STREAMED_CALIBRATE, "calibrate", str(model), *map(str, logs),
+         "-q", "-o", str(output)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**_env(), "TMPDIR": str(work)})
+    try:
+        deadline = time.monotonic() + 120
+        while not any(p.name.startswith("gpcd-calibrate-") and any(p.iterdir())
+                      for p in work.iterdir()):
+            assert process.poll() is None and time.monotonic() < deadline, \
+                process.communicate()
+            time.sleep(0.01)
+        process.send_signal(signum)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    parts = [p.name for p in folder.iterdir() if p.name.endswith(".part")]
+    return (process.returncode, err, sorted(p.name for p in work.iterdir()),
+            output.read_bytes() == before, parts)
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+def test_a_stopped_calibration_leaves_no_work_folder(good, tmp_path, name):
+    """gpcd calibrate of long logs spools them into a temporary work folder; a stop
+    signal while it works removes it, leaves the old detector file as it was and
+    ends in one line and 128 + the signal number (as gpcd monitor does)."""
+    import signal
+
+    signum = getattr(signal, name)
+    status, err, left, intact, parts = stop_calibration(good, tmp_path, signum)
+    assert status == 128 + signum, err[-2000:]
+    assert err.strip().splitlines() == [f"gpcd calibrate: stopped by {name}"]
+    assert left == [] and intact and parts == []
+
 # ------------------------------------------------------------------ fuzzing
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402

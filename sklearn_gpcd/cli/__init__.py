@@ -14,7 +14,10 @@ repeated (``--test a.csv --test b.csv``); output paths are checked first.
 Exit status: 0 on success; 2 for bad input (a usage error, or a recording or
 option the command cannot use), with ONE line ``gpcd COMMAND: error: MESSAGE``
 on stderr naming the file and never a traceback; 130 on Ctrl-C (``gpcd COMMAND:
-interrupted``). Warnings print one line each, ``gpcd COMMAND: warning: MESSAGE``,
+interrupted``); 143 on SIGTERM and 129 on SIGHUP (``gpcd COMMAND: stopped by
+SIGTERM``), what systemd, docker and a closed terminal send: every verb stops the
+way Ctrl-C stops it, its temporary files removed and the files it was writing left
+as they were (``gpcd monitor`` writes its report first). Warnings print one line each, ``gpcd COMMAND: warning: MESSAGE``,
 and the command goes on. Progress bars (with an ETA) go to stderr.
 
 One module per verb (:mod:`~sklearn_gpcd.cli.train`, ``calibrate``,
@@ -27,6 +30,7 @@ import argparse
 import sys
 import warnings
 
+from ..monitoring.stops import StopSignal, stop_signals
 from . import calibrate, diagnose, monitor, reproduce, teach, train
 
 __all__ = ["main", "build_parser", "parse_args"]
@@ -113,7 +117,8 @@ def main(argv=None):
     Returns
     -------
     status : int
-        Process exit status (130 after Ctrl-C).
+        Process exit status (130 after Ctrl-C, 128 + the signal number after
+        SIGTERM or SIGHUP).
 
     Examples
     --------
@@ -129,13 +134,16 @@ def main(argv=None):
         except SystemExit as exc:  # usage error or --help: argparse printed why
             return exc.code if isinstance(exc.code, int) else 2
         prefix = f"gpcd {args.command}"
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), stop_signals():  # SIGTERM, SIGHUP: like Ctrl-C
             warnings.showwarning = _warning_printer(prefix)
             try:
                 return args.func(args)
             except (ValueError, OSError, ImportError) as exc:
                 print(f"{prefix}: error: {_one_line(exc)}", file=sys.stderr)
                 return 2
+    except StopSignal as stop:  # the with blocks on the way cleaned up (temporary folders)
+        print(f"{prefix}: {stop}", file=sys.stderr)
+        return stop.exit_status
     except KeyboardInterrupt:
         fresh_line = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
         print(f"{fresh_line}{prefix}: interrupted", file=sys.stderr)  # after a bar's \r

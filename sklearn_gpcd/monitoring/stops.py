@@ -54,6 +54,11 @@ def stop_signals():
     """Within the block, SIGTERM and SIGHUP raise :class:`StopSignal` (main thread only;
     elsewhere the block runs unchanged). The previous handlers come back after it.
 
+    The first stop signal wins: from it on, the stop signals are ignored
+    (:func:`hold_stop_signals`), so that a second one (a supervisor that
+    insists) cannot cut the clean-up on the way out (a temporary folder
+    half removed, a report half written).
+
     Examples
     --------
     >>> import os, signal
@@ -71,6 +76,7 @@ def stop_signals():
     previous = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
 
     def raise_stop(signum, frame):
+        hold_stop_signals()
         raise StopSignal(signum)
 
     for signum in STOP_SIGNALS:
