@@ -88,6 +88,18 @@ class EventHold:
         return self.open
 
 
+def ratio_over_level(bands):
+    """Per joint, each band's ratio over its level, the largest over the bands.
+
+    Above 1 where a band alarms: what :class:`EventHold` holds an event on.
+    ``bands``: objects with ``ratio`` (per joint, or rows x joints) and
+    ``level`` (the detector's stages, or a streaming monitor's bands).
+    """
+    tiny = np.finfo(float).tiny
+    return np.max([np.asarray(band.ratio, dtype=float) / max(float(band.level), tiny)
+                   for band in bands], axis=0)
+
+
 def event_rows(ratio, starts, hold):
     """:class:`EventHold` over a batch, restarting at every segment start.
 

@@ -15,7 +15,7 @@ from ..layout import block_columns
 from .._gate import SIGMA_V_CONSTRAINT
 from .._persistence import VersionedStateMixin
 from ..gp import make_sp_p
-from ._regimes import event_rows
+from ._regimes import event_rows, ratio_over_level
 from ._signal import recording_index, segment_starts
 from .rules import AlarmRule
 
@@ -632,9 +632,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
     def _events(self, bands, starts):
         """Rows of a contact event: :func:`event_rows` on the largest ratio over its
         band's level (1: some joint at its threshold)."""
-        over = np.max([band.ratio.max(axis=1) / max(band.level, np.finfo(float).tiny)
-                       for band in bands], axis=0)
-        return event_rows(over, starts, self.rules_[0].event_hold_samples())
+        return event_rows(ratio_over_level(bands).max(axis=1), starts,
+                          self.rules_[0].event_hold_samples())
 
     def monitoring_signal(self, X, groups=None):
         """Every stage of the monitoring pipeline for the rows of ``X``.

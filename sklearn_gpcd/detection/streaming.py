@@ -12,9 +12,9 @@ from ..layout import column_names
 from .._persistence import VersionedStateMixin
 from ..features.inputs import as_recordings
 from ..gp import compile_predictor
-from ._regimes import MOVING, AlarmState, EventHold
+from ._regimes import MOVING, AlarmState, EventHold, ratio_over_level
 from .detector import _SAMPLE_TIME_RTOL, SampleTimeWarning, reads_currents
-from .task import TaughtTask, general_ratio
+from .task import TaughtTask
 
 
 class MonitorStatus(str, Enum):
@@ -563,7 +563,7 @@ class StreamingMonitor(VersionedStateMixin):
         thresholds where the arm moves through taught states, the bands' elsewhere."""
         general = self.bands[0].alarms if len(self.bands) == 1 else self.alarms
         alarm, self.taught = self._task_stream.step(
-            self._inputs, self._current, general, general_ratio(self.bands),
+            self._inputs, self._current, general, ratio_over_level(self.bands),
             moving=self.regime == MOVING, predicted=self.predicted)
         self.alarms[:] = alarm
         return bool(alarm.any())

@@ -63,7 +63,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._gate import DEFAULT_SIGMA_V
 from ..layout import block_columns
-from ._regimes import EVENT_HOLD_S, MOVING, EventHold
+from ._regimes import EVENT_HOLD_S, MOVING, EventHold, ratio_over_level
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 
 __all__ = ["EventHold", "TaughtTask", "TaskStream", "drift_features", "local_states",
@@ -279,15 +279,6 @@ def _held(moving, starts, hold):
     function of the state predicts; the detector's regimes keep those."""
     held = window_segments(moving.astype(float)[:, None], hold, starts, np.min, pad=0.0)
     return held[:, 0] > 0
-
-
-def general_ratio(bands):
-    """Per joint, the detector's ratio over its band's level, the largest over its
-    bands: above 1 where it alarms, what its own events hold on (``bands``: those
-    of :meth:`CollisionDetector.monitoring_signal`, or of a streaming monitor)."""
-    tiny = np.finfo(float).tiny
-    return np.max([np.asarray(band.ratio, dtype=float) / max(float(band.level), tiny)
-                   for band in bands], axis=0)
 
 
 def drift_features(qd):
@@ -748,7 +739,7 @@ class TaughtTask(BaseEstimator):
             ``BREAKAWAY_S``, the
             general ones elsewhere; ``ratio``, the largest of the debounced
             ``|m_l| / threshold_l`` where taught and of the detector's
-            ratio over its level elsewhere (:func:`general_ratio`), and
+            ratio over its level elsewhere (``ratio_over_level``), and
             ``event`` (bool): the rows of contact events (:class:`EventHold`).
         """
         check_is_fitted(self, "coef_")
@@ -768,7 +759,7 @@ class TaughtTask(BaseEstimator):
         general_alarms = np.asarray(general.alarms, dtype=bool).reshape(len(X), -1)
         joints = taught[:, None] & _sliding(inputs, n, self._sigma_v(), starts, self._hold())
         alarms = np.where(joints, taught_alarms, general_alarms)
-        over = general_ratio(general.bands).reshape(len(X), -1)
+        over = ratio_over_level(general.bands).reshape(len(X), -1)
         ratio = np.where(joints, debounced / self.thresholds_, over).max(axis=1)
         events = EventHold(self._hold_rows(EVENT_HOLD_S))
         event = np.array([events.step(r, start) for r, start in zip(
@@ -926,7 +917,7 @@ class TaskStream:
         general_alarm : ndarray of bool, shape (n_joints,)
             The detector's per-joint alarm at this sample.
         general_ratio : ndarray of shape (n_joints,)
-            The detector's per-joint ratio over its level (:func:`general_ratio`):
+            The detector's per-joint ratio over its level (``ratio_over_level``):
             the event of an untaught joint holds on it, as the detector's own.
         moving : bool, default=True
             Whether the detector's regime is "moving" (the taught thresholds
