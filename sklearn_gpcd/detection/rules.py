@@ -203,6 +203,10 @@ class AlarmRule(BaseEstimator):
     envelope_ : ndarray of shape (n_joints, 3) or None
         Coefficients :math:`a, b, c` of the moving thresholds' envelope
         (:mod:`~sklearn_gpcd.detection._envelope`; None without one).
+    rest_band_ : ndarray of shape (n_joints,) or None
+        The rest band :math:`B_\\ell`: the largest reference a joint takes at
+        rest entry (:meth:`learn_rest_band`; None without a rest reference or
+        with fewer than 2 recordings that enter rest).
 
     Examples
     --------
