@@ -366,17 +366,25 @@ def test_cli_ctrl_c_writes_the_report(files, tmp_path):
     import sys
     from pathlib import Path
 
+    from sklearn_gpcd.io import write_rtde_csv
+
     root = Path(__file__).resolve().parents[1]
     report = tmp_path / "interrupted.json"
+    # The whole first run (7.7 s) at a quarter speed: 31 s of replay after the
+    # first alarm at 0.6 s. The 3 s stream at half speed once ended before a
+    # slowed test process had sent the signal.
+    stream = write_rtde_csv(with_pushes(free_runs()[0], PUSHES), tmp_path / "long.csv",
+                            robot_comment=True)
     env = {**os.environ, "PYTHONPATH": f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     process = subprocess.Popen(
         [sys.executable, "-m", "sklearn_gpcd.cli", "monitor", str(files["detector"]),
-         "--replay", str(files["stream"]), "--speed", "0.5", "--json", str(report)],
+         "--replay", str(stream), "--speed", "0.25", "--json", str(report)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    try:  # half speed: the replay outlasts a test process slowed by a loaded machine
+    try:
         for line in process.stdout:  # the first alarm: monitoring is under way
             if line.startswith("ALARM"):
                 break
+        assert process.poll() is None, "the replay ended before the signal"
         process.send_signal(signal.SIGINT)
         _, err = process.communicate(timeout=60)
     finally:
