@@ -376,10 +376,14 @@ def test_cli_ctrl_c_writes_the_report(files, tmp_path):
     stream = write_rtde_csv(with_pushes(free_runs()[0], PUSHES), tmp_path / "long.csv",
                             robot_comment=True)
     env = {**os.environ, "PYTHONPATH": f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+    # a shell without job control starts background commands with SIGINT ignored,
+    # and Python keeps an ignored SIGINT: a test run started with "&" passed that
+    # on and the monitor never saw the signal (rc 0); the child gets the default
     process = subprocess.Popen(
         [sys.executable, "-m", "sklearn_gpcd.cli", "monitor", str(files["detector"]),
          "--replay", str(stream), "--speed", "0.25", "--json", str(report)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         for line in process.stdout:  # the first alarm: monitoring is under way
             if line.startswith("ALARM"):
