@@ -69,9 +69,10 @@ def test_braking_samples_are_the_hold_after_a_large_acceleration(fitted):
 
 def test_the_ring_no_longer_sets_the_moving_threshold(fitted):
     Z, plain, braking = fitted
-    assert plain.regime_names_ == ("moving", "settling", "rest")
-    assert braking.regime_names_ == ("moving", "settling", "rest", "braking")
-    assert braking.thresholds_.shape == (4, 1)
+    stage = ("settling after 0.25 s",)  # the default settle time's second stage
+    assert plain.regime_names_ == ("moving", "settling", "rest") + stage
+    assert braking.regime_names_ == ("moving", "settling", "rest", "braking") + stage
+    assert braking.thresholds_.shape == (5, 1)
     moving, brake = braking.thresholds_[MOVING, 0], braking.thresholds_[BRAKING, 0]
     assert plain.thresholds_[MOVING, 0] > 0.5  # the ring
     assert moving < 0.15 < 0.5 < brake  # noise in motion, the ring while braking

@@ -170,7 +170,7 @@ def test_per_regime_thresholds_are_tighter_at_rest_with_the_reference():
     plain = CollisionDetector(LinearRegression(), rules=rule(), **common).fit(X)
     ref = CollisionDetector(LinearRegression(), rules=rule(rest_reference=5.0), **common).fit(X)
     rest = REGIME_NAMES.index("rest")
-    assert plain.thresholds_.shape == (3, 2)
+    assert plain.thresholds_.shape == (len(plain.rules_[0].regime_names_), 2) == (4, 2)
     assert np.all(ref.thresholds_[rest] < 0.5 * plain.thresholds_[rest])
     bumped = current.copy()
     bumped[800:830, 0] += 0.3  # a small push at rest
@@ -243,14 +243,16 @@ def test_the_rest_band_bounds_what_rest_entry_takes_in_and_clips_no_calibration_
     for X in blocks:  # left out or not, no calibration entry reaches the band
         np.testing.assert_array_equal(det.monitoring_signal(X).signal,
                                       unbounded.monitoring_signal(X).signal)
-    # a push of 3 bands on joint 0, under the settling threshold, that starts while
-    # settling and is still on at rest entry: bounded, it alarms while it acts,
-    # with its own sign, and the reference is taken once it has let go; unbounded,
-    # the reference takes it in and only its release (the mirror image) alarms
+    # a push of 2.5 bands on joint 0 that stays under the threshold of the settling
+    # stage it starts in (no alarm before rest entry, below) and is still on at
+    # rest entry: bounded, it alarms while it acts, with its own sign, and the
+    # reference is taken once it has let go; unbounded, the reference takes it in
+    # and only its release (the mirror image) alarms
     qd, current = _still_then_moving(seed=0)
     pushed = _settling_relaxation(current)
-    pushed[630:700, 0] += 3.0 * band[0]  # still from ~598, rest from ~648
-    assert 3.0 * band[0] < det.thresholds_[1, 0]  # settling
+    pushed[630:700, 0] += 2.5 * band[0]  # still from ~598, rest from ~648
+    stage = rule.regime_names_.index("settling after 0.25 s")  # from ~623
+    assert det.thresholds_[stage, 0] < det.thresholds_[1, 0]
     X = stack_currents(qd, pushed)
     bounded = np.flatnonzero(det.monitoring_signal(X).alarms[:, 0])
     assert 640 <= bounded[0] and bounded[-1] < 710  # while it acts (+ the filter's lag)
@@ -259,6 +261,13 @@ def test_the_rest_band_bounds_what_rest_entry_takes_in_and_clips_no_calibration_
     mirror = np.flatnonzero(out.alarms[:, 0])
     assert mirror[0] >= 700 and np.all(out.signal[mirror, 0] < 0)
     assert StreamingMonitor(det).replay(X).signal == pytest.approx(det.monitoring_signal(X).signal)
+    # 3 bands, under the first stage's threshold but over its own stage's: caught
+    # while the arm settles, before rest entry, with its sign
+    pushed[630:700, 0] += 0.5 * band[0]
+    assert 3.0 * band[0] < det.thresholds_[1, 0]
+    out = det.monitoring_signal(stack_currents(qd, pushed))
+    caught = np.flatnonzero(out.alarms[:, 0])
+    assert 630 <= caught[0] < 648 and np.all(out.signal[caught, 0] > 0)
 
 
 @pytest.mark.parametrize("alarm_hold, n_events", [(1.0, 1), (0.0, 2)])
@@ -346,7 +355,7 @@ def test_raw_stream_equals_batch_on_a_simulated_recording(simulated):
     Z = stack_currents(features.transform(free), free.current)
     det = controller_detector().fit(Z, time=free.time)
     out = assert_raw_stream_equals_batch(det, features, rec)
-    assert set(np.unique(out.regime)) == {0, 1, 2}
+    assert set(np.unique(out.regime)) == {0, 1, 2, 3}  # 3: settling after 0.25 s
 
 
 def test_raw_stream_faults_leave_the_feature_state(simulated):
@@ -454,3 +463,45 @@ def test_controller_estimators_follow_the_sklearn_contract(make):
     bad[3, 0] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         apply(est, bad)
+
+
+def _ringing_stop(seed, n_joints=2):
+    """Motion, a stop at row 600 whose current rings (1 A, tau 0.15 s), then still."""
+    rng = np.random.default_rng(seed)
+    n = 1100
+    qd = np.zeros((n, n_joints))
+    qd[300:600] = 0.5 * np.sin(np.linspace(0, np.pi, 300))[:, None]
+    after = np.clip(np.arange(n) - 600, 0, None) * 0.01
+    ring = np.where(np.arange(n) >= 600, np.exp(-after / 0.15), 0.0)[:, None]
+    current = 2.0 * qd + ring + rng.normal(scale=0.02, size=(n, n_joints))
+    return qd, current
+
+
+def test_settling_stages_judge_a_push_seconds_after_a_stop_by_the_fading_ring():
+    """A push 1.5 s after a stop, under the ring of the first tenths of a second
+    (one settling threshold would miss it), alarms against its own stage;
+    streaming equals batch through the stages."""
+    blocks = [stack_currents(*_ringing_stop(seed)) for seed in range(6)]
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin="loro", min_duration=5,
+                     regimes=Regimes(settle_time=3.0))
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rule).fit(
+        np.concatenate(blocks), groups=np.repeat(np.arange(6), len(blocks[0])))
+    fitted = det.rules_[0]
+    names = fitted.regime_names_
+    assert names[:3] == ("moving", "settling", "rest")
+    assert names[3:] == ("settling after 0.25 s", "settling after 0.5 s", "settling after 1 s",
+                         "settling after 2 s")
+    first, late = (det.thresholds_[names.index(n)] for n in ("settling", "settling after 1 s"))
+    push = 0.4
+    assert np.all(first > 1.5 * push) and np.all(late < 0.5 * push)
+    qd, current = _ringing_stop(7)
+    assert not det.predict_joints(stack_currents(qd, current)).any()
+    current[750:780, 0] += push  # 1.5-1.8 s after the stop
+    Z = stack_currents(qd, current)
+    fired = det.predict_joints(Z)
+    assert fired[750:790, 0].any() and not fired[:750].any()
+    regime = np.asarray(det.monitoring_signal(Z).bands[0].regime)
+    assert names[regime[755]] == "settling after 1 s"
+    out = StreamingMonitor(det).replay(Z)
+    assert np.array_equal(out.prediction, det.predict(Z))

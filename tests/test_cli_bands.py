@@ -196,7 +196,8 @@ def test_braking_takes_the_limit_given_or_the_models_own(work, capsys):
     detector, _, calibration = load_detector(given)
     assert detector.rules[0].regimes.brake_limit == limit
     assert calibration["brake_limit"] == limit
-    assert calibration["regimes"] == ["moving", "settling", "rest", "braking"]
+    assert calibration["regimes"] == ["moving", "settling", "rest", "braking",
+                                      "settling after 0.25 s"]
     blocks = {p.name: stack_currents(trained.features.transform(r), r.current)
               for p, r in zip(work["free"], recs)}
     times = {p.name: r.time for p, r in zip(work["free"], recs)}

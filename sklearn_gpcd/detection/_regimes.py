@@ -3,7 +3,8 @@
 Our extension of the paper (the user guide's real-robot page: "History at
 rest"). Per sample the arm is ``moving`` (some :math:`|\\dot q_\\ell| \\ge
 \\sigma_v`), ``settling`` (all still for less than ``settle`` samples since
-it stopped), at ``rest`` (still for longer, or since the stream started) or,
+it stopped; split into stages by the time since the stop,
+:data:`SETTLE_STAGES_S`, each a regime of its own), at ``rest`` (still for longer, or since the stream started) or,
 with a braking limit, ``braking`` (for ``hold`` samples after some
 :math:`|\\ddot q_\\ell|` exceeds it). At rest the monitoring signal is
 re-referenced: at rest entry, or once :math:`|m_\\ell| \\le B_\\ell` has held for
@@ -37,6 +38,27 @@ from .._gate import quasi_static
 #: (``_gate.REGIME_WORDS``), which the features' regimes share.
 REGIME_NAMES = ("moving", "settling", "rest", "braking")
 MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
+#: Settling stages [s]: the settling regime splits at each of these times
+#: since the stop that is shorter than the settle time, each stage with its
+#: own thresholds (the current rings after a stop and fades: one threshold
+#: set by the first tenths of a second would cover the last seconds too).
+SETTLE_STAGES_S = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+
+
+def stage_name(start):
+    """Name of the settling stage that starts ``start`` seconds after the stop."""
+    return f"settling after {start:g} s"
+
+
+def settle_stages(settle_time):
+    """Start [s] of each settling stage after the first, for ``settle_time``.
+
+    Examples
+    --------
+    >>> settle_stages(3.0)
+    (0.25, 0.5, 1.0, 2.0)
+    """
+    return tuple(t for t in SETTLE_STAGES_S if t < settle_time)
 #: Release level of an event (ratio of the signal to its threshold).
 RELEASE = 0.5
 #: Seconds below the release level that end an event.
@@ -125,13 +147,16 @@ class RegimeState:
     that an alarm holds the regime of its onset (0: no hold); ``rest_band``:
     per joint, the largest reference taken at rest entry (None: no bound);
     ``entry_hold``: samples within the band before a joint that entered rest
-    beyond it takes its reference.
+    beyond it takes its reference; ``stages``: ``(samples, code)`` pairs in
+    increasing order, a settling sample still for more than ``samples`` has
+    that regime code (the settling stages; empty: one settling regime).
     """
 
     def __init__(self, sigma_v, settle, beta, n_joints, brake_limit=None, brake_hold=0,
-                 alarm_hold=0, rest_band=None, entry_hold=0):
+                 alarm_hold=0, rest_band=None, entry_hold=0, stages=()):
         self.sigma_v = float(sigma_v)
         self.settle = int(settle)
+        self.stages = tuple((int(samples), int(code)) for samples, code in stages)
         self.beta = beta
         self.n_joints = int(n_joints)
         self.brake_limit = None if brake_limit is None else float(brake_limit)
@@ -167,13 +192,18 @@ class RegimeState:
 
     def regime(self, qd):
         """Advance the still-counter with one velocity row; the regime code
-        among moving, settling and rest."""
+        among moving, the settling stages and rest."""
         sigma_v = self.sigma_v  # per joint on floats: no array call on a few values
         if all([quasi_static(v, sigma_v) for v in qd.tolist()]):
             self._still_for += 1
             if not self._moved or self._still_for > self.settle:
                 return REST
-            return SETTLING
+            code = SETTLING
+            for samples, stage in self.stages:
+                if self._still_for <= samples:
+                    break
+                code = stage
+            return code
         self._still_for = 0
         self._moved = True
         return MOVING
@@ -244,7 +274,7 @@ class RegimeState:
 
 
 def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
-                brake_hold=0, alarm_hold=0, rest_band=None, entry_hold=0):
+                brake_hold=0, alarm_hold=0, rest_band=None, entry_hold=0, stages=()):
     """:class:`RegimeState` over a batch, restarting at every segment start.
 
     Returns ``(referenced, regimes, reference)``: a copy of the signal
@@ -253,7 +283,7 @@ def regime_pass(signal, motion, starts, sigma_v, settle, beta, brake_limit=None,
     """
     settings = dict(sigma_v=sigma_v, settle=settle, beta=beta, brake_limit=brake_limit,
                     brake_hold=brake_hold, alarm_hold=alarm_hold, rest_band=rest_band,
-                    entry_hold=entry_hold)
+                    entry_hold=entry_hold, stages=stages)
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
     bounds = np.append(starts, signal.shape[0])

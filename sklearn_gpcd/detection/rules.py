@@ -34,7 +34,7 @@ from ._envelope import (
     window_peaks,
 )
 from ._regimes import (BRAKING, EVENT_HOLD_S, MOVING, REGIME_NAMES, held_regime_pass,
-                       regime_pass, rest_entry_peaks)
+                       regime_pass, rest_entry_peaks, settle_stages, stage_name)
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
@@ -59,8 +59,12 @@ class Regimes(BaseEstimator):
     large and fast: one band for both is blind at rest or noisy in motion.
     Per sample the arm is ``moving``, ``settling`` (still for less than
     ``settle_time``) or at ``rest``, by the detector's :math:`\\sigma_v` on
-    the joint velocities, or ``braking`` (with ``brake_limit``). Our
-    extension of the paper.
+    the joint velocities, or ``braking`` (with ``brake_limit``). Settling
+    is split into stages by the time since the stop (``"settling after
+    0.25 s"``, 0.5, 1, 2, 4, 8 s, those shorter than ``settle_time``), each
+    with its own thresholds: the current rings after a stop and fades, so a
+    push seconds after a stop is judged against the fading ring, not its
+    first tenths of a second. Our extension of the paper.
 
     Parameters
     ----------
@@ -97,13 +101,17 @@ class Regimes(BaseEstimator):
     Attributes
     ----------
     names : tuple of str
-        The regimes in use, indexed by their codes.
+        The regimes in use, indexed by their codes: moving, settling (its
+        first stage), rest, braking (with a braking limit), then the later
+        settling stages.
 
     Examples
     --------
     >>> from sklearn_gpcd.detection import Regimes
     >>> Regimes(brake_limit=5.0).names
-    ('moving', 'settling', 'rest', 'braking')
+    ('moving', 'settling', 'rest', 'braking', 'settling after 0.25 s')
+    >>> Regimes(settle_time=0.2).names
+    ('moving', 'settling', 'rest')
     """
 
     _parameter_constraints = {
@@ -127,7 +135,8 @@ class Regimes(BaseEstimator):
 
     @property
     def names(self):
-        return REGIME_NAMES if self.brake_limit is not None else REGIME_NAMES[:BRAKING]
+        base = REGIME_NAMES if self.brake_limit is not None else REGIME_NAMES[:BRAKING]
+        return base + tuple(stage_name(t) for t in settle_stages(self.settle_time))
 
     @property
     def reads_accelerations(self):
@@ -310,8 +319,9 @@ class AlarmRule(BaseEstimator):
             ``sigma_v`` (``DEFAULT_SIGMA_V`` when the detector gives none); ``settle``,
             ``brake_hold`` and ``alarm_hold`` in samples; ``beta`` (the rest
             reference's smoothing factor, None without it), ``brake_limit``,
-            ``rest_band`` (``rest_band_``) and ``entry_hold`` (samples of
-            ``EVENT_HOLD_S``).
+            ``rest_band`` (``rest_band_``), ``entry_hold`` (samples of
+            ``EVENT_HOLD_S``) and ``stages`` (the settling stages among
+            ``regime_names_``: samples since the stop, regime code).
         """
         regimes, dt = self.regimes, self.sample_time_
         if regimes is None:
@@ -329,7 +339,16 @@ class AlarmRule(BaseEstimator):
             # files saved before the rest band have none: no bound, as they were
             "rest_band": getattr(self, "rest_band_", None),
             "entry_hold": self.event_hold_samples(),
+            "stages": self._stages(),
         }
+
+    def _stages(self):
+        """``(samples, code)`` of each settling stage among ``regime_names_`` (files
+        saved before the stages have none: one settling regime, as they were)."""
+        names, dt = self.regime_names_, self.sample_time_
+        return tuple((int(round(t / dt)), names.index(stage_name(t)))
+                     for t in settle_stages(self.regimes.settle_time)
+                     if stage_name(t) in names)
 
     def signal(self, u, starts=None, motion=None):
         """Monitoring signal :math:`m`, regime codes and rest reference, without

@@ -378,9 +378,9 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     >>> trained = train_model([rec(0.0)], model="sp_c", n_support=50)
     >>> calibrated = calibrate_detector(trained, [rec(1.0), rec(2.0), rec(3.0)])
     >>> calibrated.calibration["regimes"]
-    ['moving', 'settling', 'rest']
+    ['moving', 'settling', 'rest', 'settling after 0.25 s']
     >>> np.shape(calibrated.detector.thresholds_)
-    (3, 1)
+    (4, 1)
     """
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..detection import stack_currents
@@ -498,14 +498,21 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
 def _fill_regimes_without_data(detector, coverage):
     """Give the regimes with less than :data:`MIN_REGIME_DATA_SECONDS` of data, in
     every band of the fitted ``detector``, the largest threshold of the regimes
-    with data (joint by joint); returns their names."""
+    with data (joint by joint), and a later settling stage that of the stage
+    before it (the ring fades: no data, no tighter band than the stage before);
+    returns their names."""
     names = list(coverage)
     empty = np.array([coverage[name]["seconds"] < MIN_REGIME_DATA_SECONDS for name in names])
     if not empty.any() or empty.all():
         return []
+    # the settling stages in time order: "settling", then "settling after ..."
+    stages = [k for k, name in enumerate(names) if name.startswith("settling")]
     for rule in detector.rules_:  # thresholds_ = gamma * scale_, gamma = -offset_
         scale = np.array(rule.scale_, dtype=float, copy=True)
         scale[empty] = scale[~empty].max(axis=0)
+        for before, k in zip(stages[:-1], stages[1:]):
+            if empty[k]:
+                scale[k] = scale[before]
         rule.scale_, rule.thresholds_ = scale, -rule.offset_ * scale
     detector.scale_, detector.thresholds_ = (detector.rules_[0].scale_,
                                              detector.rules_[0].thresholds_)
@@ -531,7 +538,9 @@ def calibration_coverage(result, times, split=False):
         Per regime name: ``seconds``, ``episodes`` (how many times the arm
         entered it), ``recordings`` (how many logs have at least 1 s of it)
         and ``largest`` (the log with the most of it) with its
-        ``largest_share`` of the regime's time.
+        ``largest_share`` of the regime's time. ``"settling"`` counts the
+        whole settling time, its later stages (``"settling after 0.25 s"``,
+        ...) included; each stage also has its own entry.
 
     Examples
     --------
@@ -555,9 +564,13 @@ def calibration_coverage(result, times, split=False):
         per_log[log] = per_log.get(log, 0.0) + seconds
         entered = np.flatnonzero(np.diff(regime, prepend=-1) != 0)
         episodes += np.bincount(regime[entered], minlength=n_codes)
+    # "settling" covers its stages ("settling after 0.25 s", ...): every stop
+    # enters it, and its data is that of the whole settling time
+    family = [k for k, name in enumerate(result.regime_names) if name.startswith("settling")]
     coverage = {}
     for code, name in enumerate(result.regime_names):
-        seconds = {log: float(v[code]) for log, v in per_log.items()}
+        codes = family if name == "settling" else [code]
+        seconds = {log: float(v[codes].sum()) for log, v in per_log.items()}
         total = sum(seconds.values())
         largest = max(seconds, key=seconds.get)
         coverage[name] = {"seconds": round(total, 3), "episodes": int(episodes[code]),
@@ -583,6 +596,8 @@ def _warn_coverage(summary):
             "recordings, and run gpcd calibrate on them", CalibrationWarning, stacklevel=4)
     several = summary["n_files"] > 1
     for name, cov in summary["coverage"].items():
+        if name.startswith("settling after"):  # a stage: counted in "settling"
+            continue
         if name in summary.get("regimes_without_data", ()) or cov["seconds"] == 0.0:
             problem = (f"no calibration data in the {name} regime ({cov['seconds']:.2f} s, "
                        f"less than {MIN_REGIME_DATA_SECONDS:g} s): its thresholds are, joint "
