@@ -119,7 +119,7 @@ def causal_outputs(calibrated, rec):
         res = det.monitoring_signal(X)
         regime = np.asarray(res.regime).reshape(len(X))
         return Bunch(alarms=res.alarms, residual=res.residual, regime=res.regime,
-                     taught=np.zeros(len(X), dtype=bool), event=res.alarms.any(axis=1),
+                     taught=np.zeros(len(X), dtype=bool), event=res.event,
                      thresholds=np.atleast_2d(det.thresholds_)[regime])
     return _quiet(monitor.replay_recording, rec)
 
