@@ -57,8 +57,11 @@ SEED = 4524
 #: The scoring seed. 4525 scored session 24's design once (24/h on the same
 #: task, 351/h on other poses: docs/results_taught_task.rst's history). 4526
 #: was fixed (session 25) after the rest band and the untaught events' fix,
-#: and after seed 4524 was rerun on them, before any run of its own.
-SCORE_SEED = 4526
+#: and after seed 4524 was rerun on them, before any run of its own. 4527 was
+#: fixed (session 26) after the settling stages, and after seed 4524 was rerun
+#: on them (0 onsets on the same task and other poses, 16/16), before any run
+#: of its own; 4526 scored session 25's design once.
+SCORE_SEED = 4527
 #: Calibration and teaching: the first ``TASK_SECONDS`` of the task log, cut in
 #: pieces of ``SPLIT`` seconds for the calibration.
 TASK_SECONDS, SPLIT = 120.0, 30.0
