@@ -12,9 +12,8 @@ subprocesses, each measured by its peak resident set size (``ru_maxrss`` of
 the child, ``resource.getrusage(RUSAGE_CHILDREN)`` in a fresh Python):
 
 - ``gpcd calibrate MODEL LOG --split 500`` (the long log cut into pieces of
-  250k rows left out in turn; on 10M rows with ``--no-select``: the settle
-  time and rest reference chosen among 12 candidates take 12 passes of the
-  regime loop, a Python loop of about 25 us a sample: time, not memory);
+  250k rows left out in turn, the settle time and rest reference chosen
+  among 12 candidates: the default);
 - ``gpcd monitor DETECTOR LOG --json`` (offline, sample by sample; the
   detector calibrated on a 200k-row log of the same tiles);
 - the refusals, before any work: a 720 MB log with a 100,000-column header
@@ -27,7 +26,9 @@ times are those of a shared machine.
 Printed: one row per run (rows, file size, peak RSS, wall time, exit
 status, the first line of a refusal); ``--json`` writes the same. The
 acceptance of the issue: peak RSS under 1 GB for both on the 10M-row log.
-The files are deleted at the end (``--keep`` keeps them).
+The files are deleted at the end (``--keep`` keeps them); ``--only
+calibrate`` (or ``monitor``, ``refusals``) runs those only, and ``--reuse``
+keeps a log of ``--dir`` that an earlier ``--keep`` run left (same rows).
 
 Run::
 
@@ -120,6 +121,10 @@ def main(argv=None):
     parser.add_argument("--json", default=None)
     parser.add_argument("--keep", action="store_true")
     parser.add_argument("--dir", default=None, help="work folder (default: a temporary one)")
+    parser.add_argument("--only", nargs="+", choices=("calibrate", "monitor", "refusals"),
+                        default=("calibrate", "monitor", "refusals"))
+    parser.add_argument("--reuse", action="store_true",
+                        help="keep the logs an earlier --keep run left in --dir")
     args = parser.parse_args(argv)
     root = Path(args.dir or tempfile.mkdtemp(prefix="gpcd-big-"))
     root.mkdir(parents=True, exist_ok=True)
@@ -148,21 +153,26 @@ def main(argv=None):
             return 1
         runs = []
         for n_rows in args.rows:
-            log = write_log(root / f"log_{n_rows}.csv", n_rows, names, rows)
-            select = [] if n_rows <= 1_000_000 else ["--no-select"]
-            runs += [(f"calibrate --split {SPLIT_S:g}" + " --no-select" * bool(select),
-                      n_rows, log, gpcd("calibrate", model, log, "--split", SPLIT_S, *select,
-                                        "-q", "-o", root / f"d{n_rows}.skops")),
-                     ("monitor", n_rows, log, gpcd("monitor", detector, log, "-q", "--json",
-                                                   root / f"m{n_rows}.json"))]
-        big = root / f"log_{max(args.rows)}.csv"
-        os.link(big, big.with_name("copy.csv"))
-        wide = wide_log(root / "wide.csv")
-        runs += [("calibrate, two logs, no --split", max(args.rows), big,
-                  gpcd("calibrate", model, big, big.with_name("copy.csv"), "-q", "-o",
-                       root / "d.skops")),
-                 ("calibrate, 100k-column header", 1800, wide,
-                  gpcd("calibrate", model, wide, small, "-q", "-o", root / "d.skops"))]
+            log = root / f"log_{n_rows}.csv"
+            if not (args.reuse and log.exists()):
+                write_log(log, n_rows, names, rows)
+            if "calibrate" in args.only:
+                runs.append((f"calibrate --split {SPLIT_S:g}", n_rows, log,
+                             gpcd("calibrate", model, log, "--split", SPLIT_S, "-q", "-o",
+                                  root / f"d{n_rows}.skops")))
+            if "monitor" in args.only:
+                runs.append(("monitor", n_rows, log, gpcd("monitor", detector, log, "-q",
+                                                          "--json", root / f"m{n_rows}.json")))
+        if "refusals" in args.only:
+            big = root / f"log_{max(args.rows)}.csv"
+            if not big.with_name("copy.csv").exists():
+                os.link(big, big.with_name("copy.csv"))
+            wide = wide_log(root / "wide.csv")
+            runs += [("calibrate, two logs, no --split", max(args.rows), big,
+                      gpcd("calibrate", model, big, big.with_name("copy.csv"), "-q", "-o",
+                           root / "d.skops")),
+                     ("calibrate, 100k-column header", 1800, wide,
+                      gpcd("calibrate", model, wide, small, "-q", "-o", root / "d.skops"))]
         with ThreadPoolExecutor(len(runs)) as pool:  # each child measured on its own
             done = pool.map(lambda run: _row(run[0], run[1], run[2].stat().st_size,
                                              measured(run[3])), runs)

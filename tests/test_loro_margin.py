@@ -284,3 +284,43 @@ def test_param_grid_names_what_can_be_chosen():
     with pytest.raises(ValueError, match="'regimes__rest_reference' is not a setting"):
         calibrate_across_recordings(no_regimes, blocks, times,
                                     param_grid={"regimes__rest_reference": [None, 1.0]})
+
+
+def _random_series(rng, keys, n=400, n_rows=3, n_joints=2):
+    """:func:`regime_excursions`-like series: a few high samples on noise."""
+    out = {}
+    for k in keys:
+        debounced = rng.gamma(2.0, size=(n, n_joints))
+        debounced[rng.random(n) < 0.01] *= rng.uniform(1, 4)
+        regimes = rng.integers(0, n_rows, size=n)
+        peaks = np.zeros((n_rows, n_joints))
+        for g in range(n_rows):
+            peaks[g] = debounced[regimes == g].max(axis=0)
+        out[k] = (debounced, regimes, peaks)
+    return out
+
+
+@pytest.mark.parametrize("rule", ["global", "cell"])
+@pytest.mark.parametrize("n_fixed", [0, 1])
+def test_union_onsets_of_all_subsets_equal_one_subset_at_a_time(rule, n_fixed):
+    # the ranking's onsets, each series read once for every subset, against
+    # nested_alarms on each subset on its own (the definition)
+    from sklearn_gpcd.detection.calibration import _union_onsets
+    from sklearn_gpcd.metrics import alarm_onsets
+
+    rng = np.random.default_rng(3)
+    keys = list("abcdef")
+    fixed = [_random_series(rng, keys) for _ in range(n_fixed)]
+    runs = [_random_series(rng, keys) for _ in range(4)]
+    runs[1]["c"][0][5, 0] = np.nan  # an unknown sample alarms nowhere
+    subsets = [tuple(keys)] + [tuple(k for k in keys if k != r) for r in keys]
+    table = _union_onsets(fixed, runs, keys, subsets, rule)
+    for subset in subsets:
+        held = [nested_alarms({k: s[k] for k in subset}, rule) for s in fixed]
+        expected = []
+        for run in runs:
+            alarms = nested_alarms({k: run[k] for k in subset}, rule)
+            expected.append(sum(len(alarm_onsets(np.logical_or.reduce(
+                [h[r] for h in held] + [alarms[r]]))) for r in subset))
+        assert table[subset] == expected
+    assert any(sum(counts) for counts in table.values())  # alarms to count

@@ -387,19 +387,13 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
     runs = [_band_run(r, series, times, rule)
             for r, series in zip(band_rules[n_fixed:], all_series[n_fixed:])]
     fixed_series = [run.series for run in fixed]
-
-    def union_onsets(subset):
-        """Nested onsets of the union on ``subset``, per candidate (the fixed
-        bands' held-out alarms computed once for all candidates)."""
-        if len(subset) < 3:  # no margin without two other recordings
-            return [0] * len(runs)
-        held_out = {r: _held_out_union(fixed_series, subset, r, rule) for r in subset}
-        return [sum(len(alarm_onsets(held_out[r] | _held_out_alarm(run.series, subset, r,
-                                                                      rule)))
-                    for r in subset) for run in runs]
+    subsets = [tuple(keys)]
+    if len(keys) >= 3 and len(runs) > 1:  # the settings chosen without each recording
+        subsets += [tuple(k for k in keys if k != r) for r in keys]
+    onsets = _union_onsets(fixed_series, [run.series for run in runs], keys, subsets, rule)
 
     def ranks(subset):
-        return list(zip(union_onsets(subset),
+        return list(zip(onsets[tuple(subset)],
                         (_selection_score(run.series, subset, rule) for run in runs)))
 
     table_ranks = ranks(keys)
@@ -584,10 +578,50 @@ def _selection_score(series, keys, rule):
 def _held_out_alarm(series, keys, r, rule):
     """Alarms (any joint) of recording ``r`` with margin and levels from the
     other recordings of ``keys`` (over the envelope fitted without ``r``)."""
+    return next(_held_out_alarms(series, [keys], r, rule))
+
+
+def _held_out_alarms(series, subsets, r, rule):
+    """:func:`_held_out_alarm` of recording ``r`` for each of ``subsets``, its
+    series read once (a generator). With several subsets the samples are
+    compared once with the lowest of their thresholds (``fmin``: a NaN
+    threshold alarms nowhere) and only those above it with each: a sample at
+    or below the lowest is below every one."""
     series = _left_out(series, r)
-    thresholds = _loro_thresholds(series, [k for k in keys if k != r], rule)
     debounced, regimes, _ = series[r]
-    return (debounced > thresholds[regimes]).any(axis=1)
+    thresholds = [_loro_thresholds(series, [k for k in keys if k != r], rule)
+                  for keys in subsets]
+    rows = slice(None)
+    if len(thresholds) > 1:
+        lowest = np.fmin.reduce(np.stack(thresholds))
+        rows = np.flatnonzero((debounced > lowest[regimes]).any(axis=1))
+    above, regimes = debounced[rows], regimes[rows]
+    for level in thresholds:
+        alarm = np.zeros(len(debounced), dtype=bool)
+        alarm[rows] = (above > level[regimes]).any(axis=1)
+        yield alarm
+
+
+def _union_onsets(fixed_series, run_series, keys, subsets, rule):
+    """Nested onsets of the union of the bands on each subset of ``keys``, per
+    candidate: ``{subset: [onsets of candidate c]}``, the sum over the
+    recordings ``r`` of ``subset`` of the onsets of the fixed bands' held-out
+    alarms or candidate ``c``'s (:func:`_held_out_union`), each with margin
+    and levels from ``subset`` without ``r``; 0 on a subset of fewer than 3
+    (no margin without two other recordings). Recording by recording, each
+    band's series read once for all the subsets (a streamed calibration
+    reads them from files)."""
+    table = {subset: [0] * len(run_series) for subset in subsets}
+    for r in keys:
+        mine = [subset for subset in subsets if len(subset) >= 3 and r in subset]
+        if not mine:
+            continue
+        fixed = [list(_held_out_alarms(series, mine, r, rule)) for series in fixed_series]
+        held = [np.logical_or.reduce([band[i] for band in fixed]) for i in range(len(mine))]
+        for c, series in enumerate(run_series):
+            for i, alarm in enumerate(_held_out_alarms(series, mine, r, rule)):
+                table[mine[i]][c] += len(alarm_onsets(held[i] | alarm))
+    return table
 
 
 # ------------------------------------------------------------------ streamed

@@ -33,8 +33,9 @@ from ._envelope import (
     over_envelope,
     window_peaks,
 )
+from ._regime_batch import batch_regime_pass
 from ._regimes import (BRAKING, EVENT_HOLD_S, MOVING, REGIME_NAMES, held_regime_pass,
-                       regime_pass, rest_entry_peaks, settle_stages, stage_name)
+                       rest_entry_peaks, settle_stages, stage_name)
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
@@ -375,7 +376,7 @@ class AlarmRule(BaseEstimator):
         u = self._filtered(u, starts)
         if self.regimes is None:
             return u, np.zeros(u.shape[0], dtype=np.intp), None
-        return regime_pass(u, self._motion(motion), starts, **self.regime_settings())
+        return batch_regime_pass(u, self._motion(motion), starts, **self.regime_settings())
 
     def _filtered(self, u, starts):
         if self.filter_coefficients_ is None:
