@@ -566,10 +566,9 @@ def collision_family(root, train, labels, n_support, seed, n_jobs, progress,
 
 
 #: The ``gpcd calibrate`` recipes scored through its function, by their options.
-RECIPES = {"defaults": {}, "--motion-envelope 0.05": {"motion_envelope": 0.05},
-           "--no-select --motion-envelope 0.05": {"select": False, "motion_envelope": 0.05}}
+RECIPES = {"defaults": {}}
 #: The recipes of the same-task table.
-SAME_TASK_RECIPES = ("defaults", "--motion-envelope 0.05")
+SAME_TASK_RECIPES = ("defaults",)
 
 
 def _recipe(trained, recordings, keys, options):
@@ -589,7 +588,7 @@ def _recipe_result(calibrated, messages):
             "settle_time_s": summary["settle_time_s"],
             "rest_reference_s": summary["rest_reference_s"],
             "thresholds": np.atleast_2d(calibrated.detector.thresholds_),
-            "envelope": summary.get("envelope"), "warnings": messages}
+            "warnings": messages}
 
 
 def same_task_recipes(data, models, unseen, pushes, labels, progress):

@@ -19,14 +19,10 @@ labels of ``benchmarks/labels/ur10e_events.json``.
   ``|qd_l| < v0``; arm acceleration below or above ``acc``) with the margin
   shared globally, per regime or per cell.
 
-- ``ceiling``: for each band (filter, debounce), with and without the motion
-  envelope, how many 2020 collisions rise above the largest value the 2020
-  event-free segments reach on the same joint (an oracle threshold with 0
-  onsets there: what no calibration can beat);
-- ``bands``: the 2 Hz band plus a fixed fast band (10 or 20 Hz), with the
-  envelope, at the two settle / rest settings, calibrated on the cross-task
-  recordings and on the 21 unseen ones alone: margins, nested onsets, 2020
-  collisions, pushes;
+- ``ceiling``: for each band (filter, debounce), how many 2020 collisions
+  rise above the largest value the 2020 event-free segments reach on the
+  same joint (an oracle threshold with 0 onsets there: what no calibration
+  can beat);
 - ``refclip``: the rest reference clipped to the largest ``|b|`` of the
   calibration data (gpcd calibrate's default settings, the 21 unseen
   recordings): alarm episodes per push with and without the clip.
@@ -278,47 +274,26 @@ def study_ceiling(cache, labels):
     fits = dict(groups=np.repeat(np.arange(len(keys)), [len(cache["blocks"][k]) for k in keys]),
                 time=np.concatenate([cache["times"][k] for k in keys]))
     Z = np.concatenate([cache["blocks"][k] for k in keys])
-    for envelope in (None, 0.05):
-        over = {}
-        for cutoff, order, debounce in ((2.0, 1, 5), (4.0, 2, 5), (10.0, 1, 2), (20.0, 1, 3)):
-            rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=cutoff,
-                             filter_order=order, min_duration=debounce,
-                             regimes=Regimes(rest_reference=5.0, motion_envelope=envelope))
-            det = CollisionDetector(FrozenEstimator(cache["model"]), n_joints=J,
-                                    sample_time="auto", rules=rule).fit(Z, **fits)
-            peaks, free = [], np.zeros(J)
-            for key in B.COLLISIONS:
-                t = cache["times"][key] - cache["times"][key][0]
-                ratio = det.monitoring_signal(cache["blocks"][key]).bands[0].ratio
-                ratio = np.min([np.roll(ratio, k, axis=0) for k in range(debounce)], axis=0)
-                for a, b in B.free_segments(recs[key], labels[key]):
-                    free = np.maximum(free, ratio[a + debounce:b].max(axis=0))
-                peaks += [ratio[(t >= e["start_s"]) & (t <= e.get("tail_stop_s", e["stop_s"])
-                                                       + 0.5)].max(axis=0)
-                          for e in labels[key]["events"]]
-            over[cutoff] = (np.array(peaks) / free).max(axis=1)
-            print(f"envelope {envelope}, {cutoff:g} Hz order {order} debounce {debounce}: "
-                  f"{int((over[cutoff] > 1).sum())}/{len(peaks)} collisions above the "
-                  f"event-free maximum; weakest {np.round(np.sort(over[cutoff])[:4], 2)}",
-                  flush=True)
-
-
-def study_bands(cache, labels):
-    cross = cache["calibration"]
-    for cutoff, debounce in ((10.0, 2), (20.0, 3)):
-        for settle, tau in ((0.5, 5.0), (3.0, 2.0)):
-            for name, keys in (("cross-task", cross), ("21 unseen", cross[:-1])):
-                rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=2.0,
-                                 min_duration=5, regimes=Regimes(
-                                     settle_time=settle, rest_reference=tau,
-                                     motion_envelope=0.05))
-                fast = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=cutoff,
-                                 min_duration=debounce, regimes=rule.regimes)
-                cal = calibrated(cache, keys=keys, rules=[rule, fast])
-                print(f"+{cutoff:g} Hz band, settle {settle}, rest ref. {tau}, {name}: margins "
-                      f"{[round(float(np.max(b.margin)), 2) for b in cal.bands]}, nested "
-                      f"onsets {cal.n_false_alarms}, {score(cal.detector, cache, labels)}",
-                      flush=True)
+    for cutoff, order, debounce in ((2.0, 1, 5), (4.0, 2, 5), (10.0, 1, 2), (20.0, 1, 3)):
+        rule = AlarmRule("per_joint", false_alarm_rate=0.0, filter_cutoff=cutoff,
+                         filter_order=order, min_duration=debounce,
+                         regimes=Regimes(rest_reference=5.0))
+        det = CollisionDetector(FrozenEstimator(cache["model"]), n_joints=J,
+                                sample_time="auto", rules=rule).fit(Z, **fits)
+        peaks, free = [], np.zeros(J)
+        for key in B.COLLISIONS:
+            t = cache["times"][key] - cache["times"][key][0]
+            ratio = det.monitoring_signal(cache["blocks"][key]).bands[0].ratio
+            ratio = np.min([np.roll(ratio, k, axis=0) for k in range(debounce)], axis=0)
+            for a, b in B.free_segments(recs[key], labels[key]):
+                free = np.maximum(free, ratio[a + debounce:b].max(axis=0))
+            peaks += [ratio[(t >= e["start_s"]) & (t <= e.get("tail_stop_s", e["stop_s"])
+                                                   + 0.5)].max(axis=0)
+                      for e in labels[key]["events"]]
+        over = (np.array(peaks) / free).max(axis=1)
+        print(f"{cutoff:g} Hz order {order} debounce {debounce}: "
+              f"{int((over > 1).sum())}/{len(peaks)} collisions above the "
+              f"event-free maximum; weakest {np.round(np.sort(over)[:4], 2)}", flush=True)
 
 
 def study_refclip(cache, labels):
@@ -358,7 +333,7 @@ def study_refclip(cache, labels):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--study", required=True,
-                        choices=("peaks", "scale", "cells", "ceiling", "bands", "refclip"))
+                        choices=("peaks", "scale", "cells", "ceiling", "refclip"))
     parser.add_argument("--cache", default="/tmp/transfer_scale.joblib")
     args = parser.parse_args()
     root = B.real_data_path(B.DATASET, None)
@@ -370,7 +345,7 @@ def main():
         warnings.simplefilter("ignore")
         cache = load_cache(args.cache)
         {"peaks": study_peaks, "scale": study_scale, "cells": study_cells,
-         "ceiling": study_ceiling, "bands": study_bands, "refclip": study_refclip}[args.study](
+         "ceiling": study_ceiling, "refclip": study_refclip}[args.study](
             cache, labels)
 
 

@@ -203,6 +203,17 @@ def _nan_threshold(s, tmp):
     return str(path)
 
 
+def _envelope_file(s, tmp):
+    """The detector file as written before the motion envelope was removed
+    (issue 45): its rule holds the envelope's coefficients."""
+    from sklearn_gpcd.persistence import load, save
+
+    bundle = load(s["det"])
+    rule = bundle["detector"].rules_[0]
+    rule.envelope_ = np.full((len(np.atleast_2d(rule.thresholds_)[0]), 3), 0.5)
+    return str(save(bundle, tmp / "envelope.skops"))
+
+
 def _no_limit(s):
     from sklearn_gpcd.workflow import load_model
 
@@ -363,6 +374,8 @@ T = {
                                           file="damaged.skops"),
     "file-value-invalid": lambda s, t, mp: dict(argv=["monitor", _nan_threshold(s, t),
                                                       s["d0"]], file="nan.skops"),
+    "file-option-removed": lambda s, t, mp: dict(argv=["monitor", _envelope_file(s, t),
+                                                       s["d0"]], file="envelope.skops"),
     "pickle-untrusted": lambda s, t, mp: dict(
         argv=["calibrate", _model_variant(s, t, "model.joblib"), s["d0"], s["d1"],
               "-o", t / "x.skops"]),

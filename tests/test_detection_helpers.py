@@ -8,12 +8,6 @@ import numpy as np
 from scipy.signal import lfilter
 
 from sklearn_gpcd.detection import AlarmRule, Regimes
-from sklearn_gpcd.detection._envelope import (
-    envelope_factor,
-    envelope_features,
-    fit_envelope,
-    over_envelope,
-)
 from sklearn_gpcd.detection._regimes import (
     AlarmState,
     RegimeState,
@@ -92,26 +86,6 @@ def test_regime_tables():
         1.0, 2.0]
     factors = [np.array([[0.5, 2.0]]), np.array([[1.5, 0.5]])]
     assert shared_margin(factors, "joint").tolist() == [[1.5, 2.0]]
-
-
-# ---------------------------------------------------------------- _envelope
-def test_envelope_features_and_factor():
-    assert envelope_features(np.array([[0.0, 2.0]]), 1, 0.05)[0, 0].tolist() == [
-        1.0, 1.0, 2.0, 0.0]
-    factor = envelope_factor(np.array([[[1.0, 1.0, 2.0, 0.0]]]), np.array([[0.5, 0.25, 0.0]]))
-    assert factor.tolist() == [[2.0]]
-    f = np.array([[[1.0, 0.0, 2.0, 0.0]], [[1.0, 0.0, 2.0, 0.0]]])
-    normalized = over_envelope(np.array([[3.0], [3.0]]), np.array([True, False]), f,
-                               np.array([[0.0, 0.5, 0.0]]), np.array([0]), 1)
-    assert normalized[:, 0].tolist() == [1.5, 3.0]  # the envelope on moving rows only
-
-
-def test_fit_envelope_recovers_peaks_that_grow_with_the_acceleration():
-    qdd = np.linspace(0, 4, 50)
-    F = np.stack([np.ones(50), np.zeros(50), qdd, np.zeros(50)], axis=-1)[:, None]
-    level, coef = fit_envelope([(F, (1 + 0.5 * qdd)[:, None])])
-    assert round(float(level[0]), 3) == 1.0
-    assert coef[0].round(3).tolist() == [0.0, 0.5, 0.0]
 
 
 # ----------------------------------------------------------------- _regimes

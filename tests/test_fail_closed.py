@@ -23,6 +23,7 @@ from test_model_files import _Call, craft_skops
 from sklearn.linear_model import LinearRegression
 
 from sklearn_gpcd.cli import main
+from sklearn_gpcd.detection import AlarmRule, CollisionDetector, Regimes, stack_currents
 from sklearn_gpcd.io import write_rtde_csv
 from sklearn_gpcd.persistence import MalformedFileError, UntrustedTypesError, load, save
 from sklearn_gpcd.workflow import (
@@ -176,6 +177,42 @@ def test_thresholds_for_another_joint_count_are_refused(good, tmp_path, capsys):
     path = edit_arrays(good["detector"], tmp_path / "shape.skops", "thresholds_",
                        lambda a: a[..., :3])
     assert_refused(path, good, capsys, "thresholds_", "has shape (3,)")
+
+
+def envelope_file(good, target, envelope, motion_envelope):
+    """A detector file as written before the motion envelope was removed (issue 45):
+    a rule with regimes whose ``envelope_`` and ``regimes.motion_envelope`` are
+    the given values (what that version's ``gpcd calibrate --motion-envelope``
+    stored; None without the option)."""
+    features = good["objects"][1]
+    run = good["run"]
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=1.5, filter_cutoff=10.0,
+                     min_duration=5, regimes=Regimes())
+    detector = CollisionDetector(LinearRegression(), n_joints=6, sample_time=run.time[1]
+                                 - run.time[0], rules=rule)
+    detector.fit(stack_currents(features.transform(run), run.current))
+    fitted = detector.rules_[0]
+    fitted.envelope_ = envelope
+    vars(fitted.regimes)["motion_envelope"] = motion_envelope
+    return save_detector(CalibratedDetector(detector, features, {}), target)
+
+
+@pytest.mark.parametrize("envelope, motion_envelope, field", [
+    (np.full((6, 3), 0.5), 0.05, "envelope_"),
+    (None, 0.05, "regimes.motion_envelope")])
+def test_a_file_calibrated_with_the_removed_motion_envelope_is_refused(
+        good, tmp_path, capsys, envelope, motion_envelope, field):
+    path = envelope_file(good, tmp_path / "envelope.skops", envelope, motion_envelope)
+    message = assert_refused(path, good, capsys, f"detector.rules_[0].{field}",
+                             "--motion-envelope", "was removed")
+    assert f"gpcd calibrate MODEL RECORDINGS -o {path}" in message
+
+
+def test_a_file_written_before_the_removal_without_the_envelope_loads(good, tmp_path):
+    path = envelope_file(good, tmp_path / "plain.skops", None, None)
+    detector = load_detector(path).detector
+    assert detector.rules_[0].regime_names_ == ("moving", "settling", "rest")
+    assert main(["monitor", str(path), str(good["recording"])]) == 0  # no alarm on it
 
 
 def test_a_model_with_a_nan_coefficient_is_refused(good, tmp_path, capsys):

@@ -41,7 +41,13 @@ from sklearn_gpcd.gp import (
     make_sp_p,
     make_sp_s,
 )
-from sklearn_gpcd.persistence import GPCDVersionWarning, UntrustedTypesError, load, save
+from sklearn_gpcd.persistence import (
+    GPCDVersionWarning,
+    MalformedFileError,
+    UntrustedTypesError,
+    load,
+    save,
+)
 
 skops_io = pytest.importorskip("skops.io")
 
@@ -183,6 +189,16 @@ def test_streaming_monitor_resumes_where_it_was_saved(fmt, detector, data, tmp_p
     assert (rest.prediction == -1).any() and (rest.prediction == 1).any()
     # the copy still writes its inputs into the row buffer it checks
     assert copy.update(np.full(Z.shape[1], np.nan)) == MonitorStatus.SENSOR_FAULT
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_monitor_saved_with_the_removed_motion_envelope_is_refused(fmt, detector, tmp_path):
+    monitor = StreamingMonitor(detector)
+    assert round_trip(monitor, fmt, tmp_path).n_ticks == 0  # without the ring: loads
+    # what a band of a monitor saved before issue 45 removed the envelope held
+    monitor.bands[0]._envelope = np.ones((25, detector.n_joints))
+    with pytest.raises(MalformedFileError, match="motion envelope.*gpcd calibrate"):
+        round_trip(monitor, fmt, tmp_path)
 
 
 @pytest.mark.parametrize("fmt", FORMATS)

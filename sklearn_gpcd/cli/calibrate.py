@@ -9,7 +9,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..io.chunks import STREAM_BYTES, streamed
+from ..io.chunks import streamed
 from ..io.load import recording_paths
 from ..workflow.calibration import SELECT_GRID, check_recordings, resolve_select
 from ..workflow.streamed import calibrate_detector_streamed, check_fits_streamed
@@ -99,12 +99,6 @@ def add_parser(sub):
                      "chosen without it. The default unless --settle-time, "
                      "--rest-reference, --band, --band-candidate or --no-regimes fix the "
                      "settings; --no-select keeps settle 0.5 s and rest reference 5 s")
-    cal.add_argument("--motion-envelope", type=non_negative_float, default=None,
-                     metavar="SPEED",
-                     help="moving thresholds that follow the motion: a joint's band widens "
-                     "when it is stuck (|qd| well below SPEED rad/s), accelerates or moves "
-                     "fast, by the tightest envelope of the calibration residual (e.g. "
-                     "0.05; default: one moving threshold per joint)")
     cal.add_argument("--no-regimes", action="store_true",
                      help="one threshold per joint for every regime (no rest reference)")
     cal.add_argument("--band", type=band_arg, action="append", default=None,
@@ -151,10 +145,6 @@ def _calibrate_streamed(args, trained, paths, options):
     chunks into a temporary work folder (``TMPDIR``), one piece in memory at a
     time (:mod:`sklearn_gpcd.workflow.streamed`); what would not fit is refused
     from each file's first chunk, before the work."""
-    if options["motion_envelope"] is not None:
-        raise ValueError(f"--motion-envelope is fitted on all the residual at once; "
-                         f"{' '.join(map(str, args.recordings))} holds files larger than "
-                         f"{STREAM_BYTES // 2**20} MiB: drop --motion-envelope for long logs")
     select = resolve_select(options["select"], **{k: options[k] for k in (
         "regimes", "rest_reference", "settle_time", "bands", "band_candidates")})
     n_bands = len(options["bands"]) + (
@@ -186,7 +176,6 @@ def run(args):
                    bands=args.band or (), band_candidates=args.band_candidates or (),
                    braking=args.braking)
     check_calibration_options(**options)
-    options["motion_envelope"] = args.motion_envelope or None  # 0: none
     trained = load_model(args.model, trust_pickle=args.trust_pickle)
     if streamed(paths):
         calibrated = _calibrate_streamed(args, trained, paths, options)

@@ -317,10 +317,9 @@ class AlarmState:
 
     Per sample: the regime (:class:`RegimeState` with ``settings``, None: no
     regimes), the debounce over the last ``min_duration`` samples (a ring),
-    the ratio to the regime's scale, over the motion envelope while moving,
-    and the joints above ``level``. While an alarm lasts its regime and
-    envelope factor are frozen; it ends at the first sample at or below
-    the level. A sample allocates no array.
+    the ratio to the regime's scale, and the joints above ``level``. While
+    an alarm lasts its regime is frozen; it ends at the first sample at or
+    below the level. A sample allocates no array.
     """
 
     def __init__(self, n_joints, settings, scales, level, min_duration):
@@ -347,7 +346,7 @@ class AlarmState:
     def reset(self):
         """A new stream: no regime, debounce or alarm history."""
         self.window[:] = 0.0
-        self.position, self.regime, self.factor = 0, 0, 1.0
+        self.position, self.regime = 0, 0
         self.clear()
         if self.regimes is not None:
             self.regimes.reset()
@@ -357,12 +356,10 @@ class AlarmState:
         self.alarms[:] = False
         self.alarmed = False
 
-    def step(self, signal, motion, envelope=None):
+    def step(self, signal, motion):
         """One sample; returns the largest ratio over the joints.
 
-        ``signal`` (the filtered residual) is re-referenced in place at rest;
-        ``envelope``: rows whose column maximum is the sample's motion
-        envelope factor (None: no envelope).
+        ``signal`` (the filtered residual) is re-referenced in place at rest.
         """
         if self.regimes is not None:
             self.regime = self.regimes.step(motion, signal,
@@ -371,10 +368,6 @@ class AlarmState:
         self.position = (self.position + 1) % len(self._rows)
         np.minimum.reduce(self.window, axis=0, out=self.ratio)
         self.ratio /= self._scale_rows[self.regime]
-        if envelope is not None and self.regime == MOVING:
-            if not self.alarmed:
-                self.factor = envelope.max(axis=0)
-            self.ratio /= self.factor
         top = max(self.ratio.tolist())
         if top > self.level:
             np.greater(self.ratio, self.level, out=self.alarms)
@@ -384,12 +377,12 @@ class AlarmState:
         return top
 
 
-def held_regime_pass(signal, motion, settings, scales, level, min_duration, envelope=None):
+def held_regime_pass(signal, motion, settings, scales, level, min_duration):
     """:class:`AlarmState` over one segment, as a streaming monitor runs it.
 
-    ``envelope``: the held motion envelope factor of each sample. Returns
-    those of :func:`regime_pass`, then ``ratio`` (debounced ``|m|`` over the
-    scale of each sample's regime) and ``alarms`` (bool, joints in alarm).
+    Returns those of :func:`regime_pass`, then ``ratio`` (debounced ``|m|``
+    over the scale of each sample's regime) and ``alarms`` (bool, joints in
+    alarm).
     """
     out = np.array(signal, dtype=float, copy=True)
     regimes = np.empty(signal.shape[0], dtype=np.intp)
@@ -397,6 +390,6 @@ def held_regime_pass(signal, motion, settings, scales, level, min_duration, enve
     alarms = np.zeros(signal.shape, dtype=bool)
     state = AlarmState(signal.shape[1], settings, scales, level, min_duration)
     for k in range(signal.shape[0]):
-        state.step(out[k], motion[k], None if envelope is None else envelope[k:k + 1])
+        state.step(out[k], motion[k])
         regimes[k], ratio[k], alarms[k] = state.regime, state.ratio, state.alarms
     return out, regimes, signal - out, ratio, alarms

@@ -99,8 +99,7 @@ def window_segments(x, window, starts, reduce, pad=None):
     row repeated; ``window <= 1`` returns ``x`` itself. The debounce is the
     running minimum of ``|m|`` with ``pad=0`` (a joint above the threshold
     for ``min_duration`` samples in a row is one whose minimum over them is;
-    the first ``min_duration - 1`` samples of a segment cannot fire); the
-    motion envelope holds its running maximum.
+    the first ``min_duration - 1`` samples of a segment cannot fire).
     """
     if window <= 1:
         return x

@@ -25,8 +25,7 @@ from sklearn.model_selection import ParameterGrid
 from sklearn.utils import Bunch
 
 from ..metrics import alarm_onsets
-from ._envelope import envelope_features, fit_envelope, over_envelope, window_peaks
-from ._regimes import MOVING, rest_entry_peaks
+from ._regimes import rest_entry_peaks
 from ._thresholds import (
     _LEVEL_MARGIN,
     MARGIN_RULES,
@@ -35,7 +34,6 @@ from ._thresholds import (
     peak_levels,
     recording_peaks,
     rest_band,
-    shared_margin,
 )
 from .detector import reads_currents
 from .rules import AlarmRule
@@ -87,17 +85,13 @@ def regime_excursions(detector, blocks):
     out = {}
     for key, block in blocks.items():
         band = detector.monitoring_signal(block).bands[0]
-        if getattr(rule, "envelope_", None) is None:
-            out[key] = _excursion(rule, band.signal, band.regime)
-        else:  # |m| over the motion envelope, in the units of the levels
-            debounced = band.ratio * np.atleast_2d(rule.scale_)[band.regime]
-            out[key] = _excursion(rule, band.signal, band.regime, debounced)
+        out[key] = _excursion(rule, band.signal, band.regime)
     return out
 
 
-def _excursion(rule, signal, regime, debounced=None):
+def _excursion(rule, signal, regime):
     """``(debounced, regime, peaks)`` of one recording's monitoring signal."""
-    debounced = rule.debounced(signal) if debounced is None else debounced
+    debounced = rule.debounced(signal)
     recording = np.zeros(len(signal), dtype=np.intp)
     peaks = recording_peaks(debounced, regime, recording, len(rule.regime_names_))[0]
     return debounced, regime, peaks
@@ -308,7 +302,7 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         the fitted rules take the levels from the recordings' peaks instead
         of one pass over all the residuals (:func:`_rule_from_peaks`: the
         same maxima, the same thresholds). Memory is that of one recording
-        and its series. Not for a motion envelope, nor ``normalize="std"``.
+        and its series. Not for ``normalize="std"``.
         ``sample_time="auto"`` takes the median step of all recordings.
 
     Returns
@@ -483,8 +477,6 @@ def _band_rules(rules, candidates, timing):
 
 def _band_series(rule, residuals):
     """:func:`regime_excursions` of one band on each recording's ``(u, motion)``."""
-    if rule.regimes is not None and rule.regimes.motion_envelope is not None:
-        return _enveloped_series(rule, residuals)
     return {key: _excursion(rule, *rule.signal(u, motion=motion)[:2])
             for key, (u, motion) in residuals.items()}
 
@@ -494,62 +486,10 @@ def _band_run(rule, series, times, margin_rule):
     keys = list(series)
     peaks = {k: _peaks(series, k) for k in keys}
     folds = nested_false_alarms(series, times, margin_rule) if len(keys) >= 3 else {}
-    return Bunch(rule=rule, series=series, margin=_fold_margin(series, keys, margin_rule),
+    return Bunch(rule=rule, series=series, margin=loro_margin(peaks, keys, margin_rule),
                  levels=regime_levels(peaks, keys), folds=folds,
                  n_false_alarms=sum(len(f["onsets"]) for f in folds.values()),
                  regime_names=tuple(rule.regime_names_))
-
-
-class _FoldSeries(dict):
-    """:func:`regime_excursions`-like series over a motion envelope fitted on all
-    recordings; ``folds[r]``: the same over the one fitted without ``r``."""
-
-    folds = None
-
-
-def _enveloped_series(rule, residuals):
-    """Debounced ``|m|`` over the motion envelope, fitted on all recordings for
-    the operating point and without each recording for its left-out figures
-    (no recording is scored against an envelope it shaped)."""
-    raw, constraints = {}, {}
-    speed, hold = rule.regimes.motion_envelope, rule.envelope_hold()
-    for key, (u, motion) in residuals.items():
-        signal, regime, _ = rule.signal(u, motion=motion)
-        debounced = rule.debounced(signal)
-        features = envelope_features(motion, u.shape[1], speed)
-        raw[key] = (signal, regime, debounced, features)
-        constraints[key] = window_peaks(debounced, regime == MOVING, features)
-
-    def over(keys):
-        _, coef = fit_envelope([constraints[k] for k in keys])
-        out = {}
-        for key, (signal, regime, debounced, features) in raw.items():
-            normalized = over_envelope(debounced, regime == MOVING, features, coef,
-                                       np.array([0]), hold)
-            out[key] = _excursion(rule, signal, regime, normalized)
-        return out
-
-    keys = list(raw)
-    series = _FoldSeries(over(keys))
-    series.folds = {r: over([k for k in keys if k != r]) for r in keys} if len(keys) > 1 else {}
-    return series
-
-
-def _left_out(series, r):
-    """The series recording ``r`` is scored on: over the motion envelope fitted
-    without ``r`` where the band has one (:class:`_FoldSeries`)."""
-    return series.folds[r] if getattr(series, "folds", None) else series
-
-
-def _fold_margin(series, keys, rule):
-    """The LORO margin (:func:`loro_margin`), each left-out recording over the
-    envelope fitted without it where the band has one."""
-    factors = []
-    for r in keys:
-        fold = _left_out(series, r)
-        others = peak_levels(np.stack([_peaks(fold, k) for k in keys if k != r]))
-        factors.append(_peaks(fold, r) / others)
-    return shared_margin(factors, rule)
 
 
 def _held_out_union(bands, keys, r, rule):
@@ -577,7 +517,7 @@ def _selection_score(series, keys, rule):
 
 def _held_out_alarm(series, keys, r, rule):
     """Alarms (any joint) of recording ``r`` with margin and levels from the
-    other recordings of ``keys`` (over the envelope fitted without ``r``)."""
+    other recordings of ``keys``."""
     return next(_held_out_alarms(series, [keys], r, rule))
 
 
@@ -587,7 +527,6 @@ def _held_out_alarms(series, subsets, r, rule):
     compared once with the lowest of their thresholds (``fmin``: a NaN
     threshold alarms nowhere) and only those above it with each: a sample at
     or below the lowest is below every one."""
-    series = _left_out(series, r)
     debounced, regimes, _ = series[r]
     thresholds = [_loro_thresholds(series, [k for k in keys if k != r], rule)
                   for keys in subsets]
@@ -676,11 +615,6 @@ class _SeriesFiles(Mapping):
 def _streamed_series(base, rules, candidates, blocks, times, folder):
     """Fit ``base`` on the first recording, then each recording's residual once
     and every band's series of it into files: ``(band_rules, series)``."""
-    for r in rules:
-        if r.regimes is not None and r.regimes.motion_envelope is not None:
-            raise ValueError("a motion envelope is fitted on all the residual at once: "
-                             "calibrate it on recordings that fit in memory (drop "
-                             "--motion-envelope for long logs)")
     if base.normalize == "std":
         raise ValueError("normalize='std' is not streamed: calibrate on shorter recordings")
     keys = list(blocks)
@@ -719,7 +653,6 @@ def _rule_from_peaks(rule, series, keys, timing):
     lifted by the same relative 1e-9 (``false_alarm_level``); a regime absent
     from the data takes the largest level of the others."""
     rule.prepare(*timing)
-    rule.envelope_ = None
     n_rows = len(rule.regime_names_)
     top = np.stack([_peaks(series, k) for k in keys]).max(axis=0)
     levels = np.maximum(top * (1.0 + _LEVEL_MARGIN), np.finfo(float).tiny)

@@ -170,7 +170,7 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
         Sampling period used (``sample_time``, or the data's with "auto").
     velocity_columns_, acceleration_columns_ : list of int or None
         Columns of the regressor inputs that the regimes read (accelerations
-        with a braking limit or a motion envelope).
+        with a braking limit).
     motion_columns_ : list of int or None
         Both, velocities first.
     n_features_in_ : int
@@ -449,11 +449,8 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             self.velocity_columns_ = self._layout_block(
                 "qd", n_inputs, "regimes need the joint velocities", "; pass velocity_columns")
         if any(r.reads_accelerations for r in regimes):
-            names = [name for name in ("brake_limit", "motion_envelope")
-                     if any(getattr(r, name) is not None for r in regimes)]
             self.acceleration_columns_ = self._layout_block(
-                "qdd", n_inputs, " and ".join(names)
-                + (" needs" if len(names) == 1 else " need") + " the joint accelerations",
+                "qdd", n_inputs, "brake_limit needs the joint accelerations",
                 ", the qdd block after q and qd")
         self.motion_columns_ = self.velocity_columns_ + list(self.acceleration_columns_ or [])
 

@@ -25,16 +25,8 @@ from sklearn.base import BaseEstimator
 from sklearn.utils._param_validation import Interval, Options, StrOptions
 
 from .._gate import DEFAULT_SIGMA_V
-from ._envelope import (
-    HOLD_SECONDS,
-    envelope_factor,
-    envelope_features,
-    fit_envelope,
-    over_envelope,
-    window_peaks,
-)
 from ._regime_batch import batch_regime_pass
-from ._regimes import (BRAKING, EVENT_HOLD_S, MOVING, REGIME_NAMES, held_regime_pass,
+from ._regimes import (BRAKING, EVENT_HOLD_S, REGIME_NAMES, held_regime_pass,
                        rest_entry_peaks, settle_stages, stage_name)
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
@@ -92,12 +84,6 @@ class Regimes(BaseEstimator):
         thresholds while it lasts. 0: no hold. (A contact whose force dips
         below the threshold for a moment is one *event*:
         :class:`~sklearn_gpcd.detection.EventHold`, on every path.)
-    motion_envelope : float or None, default=None
-        Moving thresholds that follow the motion
-        (:mod:`sklearn_gpcd.detection._envelope`): joint ``l``'s band widens
-        when it is stuck (``|qd_l|`` well below this speed [rad/s]),
-        accelerates or moves fast. None: one moving threshold per joint.
-        Needs the ``qdd`` block of the paper's layout among the inputs.
 
     Attributes
     ----------
@@ -122,17 +108,15 @@ class Regimes(BaseEstimator):
         "brake_limit": [None, Interval(Real, 0, None, closed="neither")],
         "brake_hold": [Interval(Real, 0, None, closed="left")],
         "alarm_hold": [Interval(Real, 0, None, closed="left")],
-        "motion_envelope": [None, Interval(Real, 0, None, closed="neither")],
     }
 
     def __init__(self, settle_time=0.5, rest_reference=None, brake_limit=None, brake_hold=0.5,
-                 alarm_hold=1.0, motion_envelope=None):
+                 alarm_hold=1.0):
         self.settle_time = settle_time
         self.rest_reference = rest_reference
         self.brake_limit = brake_limit
         self.brake_hold = brake_hold
         self.alarm_hold = alarm_hold
-        self.motion_envelope = motion_envelope
 
     @property
     def names(self):
@@ -141,8 +125,8 @@ class Regimes(BaseEstimator):
 
     @property
     def reads_accelerations(self):
-        """Whether the regimes read the joint accelerations (braking, envelope)."""
-        return self.brake_limit is not None or self.motion_envelope is not None
+        """Whether the regimes read the joint accelerations (braking)."""
+        return self.brake_limit is not None
 
 
 class AlarmRule(BaseEstimator):
@@ -207,12 +191,7 @@ class AlarmRule(BaseEstimator):
     offset_ : float
         :math:`-\\gamma`: a joint fires when ``ratio > -offset_``.
     thresholds_ : ndarray of the shape of ``scale_``
-        :math:`\\sigma_{CD}` per joint (and regime) in units of the signal
-        (with a motion envelope, a moving sample's threshold is the moving
-        row times :math:`e_\\ell(x)`).
-    envelope_ : ndarray of shape (n_joints, 3) or None
-        Coefficients :math:`a, b, c` of the moving thresholds' envelope
-        (:mod:`~sklearn_gpcd.detection._envelope`; None without one).
+        :math:`\\sigma_{CD}` per joint (and regime) in units of the signal.
     rest_band_ : ndarray of shape (n_joints,) or None
         The rest band :math:`B_\\ell`: the largest reference a joint takes at
         rest entry (:meth:`learn_rest_band`; None without a rest reference or
@@ -405,46 +384,9 @@ class AlarmRule(BaseEstimator):
         return window_segments(np.abs(signal), self.min_duration, _starts(signal, starts), np.min,
                                pad=0.0)
 
-    def _ratio(self, signal, regime, starts=None, motion=None):
-        """Debounced ``|m|`` over the scale of each sample's regime (and envelope)."""
-        ratio = self.debounced(signal, starts) / np.atleast_2d(self.scale_)[regime]
-        factor = self._held_envelope(motion, signal.shape[1], starts)
-        if factor is not None:
-            ratio /= np.where((regime == MOVING)[:, None], factor, 1.0)
-        return ratio
-
-    def _held_envelope(self, motion, n_joints, starts=None):
-        """:math:`e_\\ell(x)` of every sample (as if moving), held over the last
-        0.25 s; None without an envelope."""
-        factor = self.instant_envelope(motion, n_joints)
-        if factor is None:
-            return None
-        return window_segments(factor, self.envelope_hold(), _starts(motion, starts), np.max)
-
-    def instant_envelope(self, motion, n_joints):
-        """:math:`e_\\ell(x)` of each sample on its own, before the hold; None
-        without an envelope (a streaming monitor holds it over its own ring).
-
-        Parameters
-        ----------
-        motion : ndarray of shape (n_samples, 2 * n_joints)
-            Velocities, then accelerations.
-        n_joints : int
-
-        Returns
-        -------
-        factor : ndarray of shape (n_samples, n_joints) or None
-        """
-        if getattr(self, "envelope_", None) is None:
-            return None
-        return envelope_factor(self._features(motion, n_joints), self.envelope_)
-
-    def envelope_hold(self):
-        """Samples the envelope holds its largest value."""
-        return max(1, int(round(HOLD_SECONDS / self.sample_time_)))
-
-    def _features(self, motion, n_joints):
-        return envelope_features(self._motion(motion), n_joints, self.regimes.motion_envelope)
+    def _ratio(self, signal, regime, starts=None):
+        """Debounced ``|m|`` over the scale of each sample's regime."""
+        return self.debounced(signal, starts) / np.atleast_2d(self.scale_)[regime]
 
     def stages(self, u, starts=None, motion=None):
         """Every stage from the residual to the alarms.
@@ -466,7 +408,7 @@ class AlarmRule(BaseEstimator):
         """
         starts = _starts(u, starts)
         signal, regime, reference = self.signal(u, starts, motion)
-        ratio = self._ratio(signal, regime, starts, motion)
+        ratio = self._ratio(signal, regime, starts)
         level = -self.offset_
         alarms = ratio > level
         if self.regimes is not None and alarms.any():
@@ -481,7 +423,6 @@ class AlarmRule(BaseEstimator):
         signal, regime, reference, ratio, held = (np.array(a, copy=True) for a in stages)
         filtered, motion = self._filtered(u, starts), self._motion(motion)
         scales = np.atleast_2d(self.scale_)
-        factor = self._held_envelope(motion, u.shape[1], starts)
         bounds = np.append(starts, len(u))
         for lo, hi in zip(bounds[:-1], bounds[1:]):
             if not alarms[lo:hi].any():
@@ -490,7 +431,7 @@ class AlarmRule(BaseEstimator):
             (signal[rows], regime[rows], reference[rows], ratio[rows],
              held[rows]) = held_regime_pass(
                 filtered[rows], motion[rows], self.regime_settings(), scales, -self.offset_,
-                self.min_duration, None if factor is None else factor[rows])
+                self.min_duration)
         return signal, regime, reference, ratio, held
 
     def event_hold_samples(self):
@@ -534,8 +475,7 @@ class AlarmRule(BaseEstimator):
             self.scale_ = np.ones(n_joints) if normalized else rms_scale(std)
             gamma = float(self.k)
         elif self.threshold == "per_joint":
-            debounced = self._enveloped(self.debounced(signal, starts), regimes, starts,
-                                        motion)
+            debounced = self.debounced(signal, starts)
             levels = self._joint_levels(debounced, regimes, starts)
             margin = self._margin(debounced, regimes, recordings, levels.shape)
             self.scale_ = margin * levels
@@ -548,8 +488,6 @@ class AlarmRule(BaseEstimator):
                 gamma = contamination_level(peak, self.contamination)
             else:
                 gamma = false_alarm_level(peak, starts, self.sample_time_, self.false_alarm_rate)
-        if self.threshold != "per_joint":
-            self.envelope_ = None
         self.margin_ = np.broadcast_to(margin, np.shape(self.scale_)).copy()
         self.offset_ = -gamma
         self.thresholds_ = gamma * self.scale_
@@ -581,21 +519,6 @@ class AlarmRule(BaseEstimator):
         if reference is not None and self.regimes.rest_reference is not None:
             self.rest_band_ = rest_band(rest_entry_peaks(reference, regimes, starts))
         return self
-
-    def _enveloped(self, debounced, regimes, starts, motion):
-        """``debounced`` over the motion envelope fitted on it (moving rows);
-        sets ``envelope_`` (None without one)."""
-        self.envelope_ = None
-        if self.regimes is None or self.regimes.motion_envelope is None:
-            return debounced
-        features = self._features(motion, debounced.shape[1])
-        moving = regimes == MOVING
-        bounds = np.append(starts, len(debounced))
-        _, self.envelope_ = fit_envelope([
-            window_peaks(debounced[lo:hi], moving[lo:hi], features[lo:hi])
-            for lo, hi in zip(bounds[:-1], bounds[1:])])
-        return over_envelope(debounced, moving, features, self.envelope_, starts,
-                             self.envelope_hold())
 
     def _margin(self, debounced, regimes, recordings, shape):
         """The given margin, checked against the levels' shape, or the LORO one."""

@@ -162,9 +162,6 @@ class BandState:
         self.thresholds = np.atleast_2d(np.asarray(rule.thresholds_, dtype=float))
         self.state = AlarmState(n_joints, rule.regime_settings(), rule.scale_, self.level,
                                 rule.min_duration)
-        # the envelope of the last envelope_hold() samples (a ring)
-        self._envelope = (None if getattr(rule, "envelope_", None) is None
-                          else np.ones((rule.envelope_hold(), n_joints)))
         self._transition, self._zi_unit = _filter_transition(rule.filter_coefficients_)
         order = self._transition.shape[0] - 1
         # [u; z] -> [y; z']: filter input and state, output and next state
@@ -180,6 +177,11 @@ class BandState:
         return state
 
     def __setstate__(self, state):
+        if state.get("_envelope") is not None:  # the ring of a band saved before issue 45
+            raise ValueError("this monitor was saved with the motion envelope (gpcd calibrate "
+                             "--motion-envelope), which was removed, and its thresholds hold "
+                             "only with it: calibrate again with gpcd calibrate and start a "
+                             "new monitor")
         self.__dict__.update(state)
         self._bind()
 
@@ -203,8 +205,7 @@ class BandState:
 
     def reset(self):
         """Forget the filter, regime and debounce history."""
-        self._fresh = self._fresh_envelope = True
-        self._envelope_position = 0
+        self._fresh = True
         self.state.reset()
 
     def _filter_step(self, u):
@@ -222,14 +223,7 @@ class BandState:
         largest ratio over the joints. ``motion``: what the regimes read."""
         np.copyto(self._z, self._z_next)
         self._fresh = False
-        if self._envelope is not None:
-            factor = self.rule.instant_envelope(motion[None, :], self.ratio.size)[0]
-            if self._fresh_envelope:  # the first sample fills the ring, as in batch
-                self._envelope[:] = factor
-                self._fresh_envelope = False
-            self._envelope[self._envelope_position] = factor
-            self._envelope_position = (self._envelope_position + 1) % len(self._envelope)
-        return self.state.step(self.signal, motion, self._envelope)
+        return self.state.step(self.signal, motion)
 
     def _reject(self):
         """A rejected tick: no signal, no decision (the state is kept)."""

@@ -20,7 +20,6 @@ from .calibration import (
     DETECTOR_RULE,
     MIN_CALIBRATION_SECONDS,
     MIN_REGIME_SECONDS,
-    MOTION_ENVELOPE_SPEED,
     SELECT_GRID,
     CalibratedDetector,
     CalibrationWarning,

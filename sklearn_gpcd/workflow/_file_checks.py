@@ -15,7 +15,10 @@ field and the command that rebuilds the file:
   unit circle, ``|p| < 1``, so the filtered signal stays bounded;
 - the shapes agree with the joint count: ``(n_regimes, n_joints)`` for the
   per-regime thresholds, ``n_joints`` for the features;
-- the regressor predicts finite values on an input row of zeros.
+- the regressor predicts finite values on an input row of zeros;
+- no rule holds an option since removed whose thresholds hold only with it
+  (:data:`REMOVED_FIELDS`): such a file is calibrated again, never run
+  without it.
 """
 
 import math
@@ -34,6 +37,12 @@ POSITIVE_FIELDS = ("thresholds_", "scale_", "margin_", "sample_time_", "filter_c
 INFINITE_FIELDS = ("rest_reference",)
 #: Deepest nesting of objects walked in a loaded file.
 MAX_DEPTH = 64
+#: Fields of an alarm rule (or of its regimes) that files written before an
+#: option was removed may hold, and the option. Its thresholds were calibrated
+#: over it (the motion envelope widened the moving thresholds by a factor of the
+#: motion; issue 45 removed it): without it they are not the calibrated ones.
+REMOVED_FIELDS = {"envelope_": "gpcd calibrate --motion-envelope",
+                  "regimes.motion_envelope": "gpcd calibrate --motion-envelope"}
 
 
 def load_checked(path, trust_pickle, fix):
@@ -76,6 +85,8 @@ def check_detector_bundle(bundle, path, fix):
     for where, part in [("detector", detector)] + [
             (f"detector.rules_[{k}]", rule) for k, rule in enumerate(detector.rules_)]:
         _check_rule_shapes(part, where, n_joints, path, fix)
+    for k, rule in enumerate(detector.rules_):
+        _check_removed(rule, f"detector.rules_[{k}]", path, fix)
     _check_predicts(detector.regressor_, "detector.regressor_", path, fix)
 
 
@@ -204,6 +215,16 @@ def _check_parameters(obj, where, path, fix):
     except Exception as exc:  # noqa: BLE001 -- InvalidParameterError, or a broken object
         raise MalformedFileError(path, f"field {where or 'the file'}: "
                                  f"{' '.join(str(exc).split())}", fix=fix) from None
+
+
+def _check_removed(rule, where, path, fix):
+    """Refuse a rule that holds a field of :data:`REMOVED_FIELDS` (set, not None)."""
+    for field, option in REMOVED_FIELDS.items():
+        owner, _, name = field.rpartition(".")
+        value = getattr(getattr(rule, owner, None) if owner else rule, name, None)
+        _need(value is None, path, fix,
+              f"field {where}.{field} is set: the file was calibrated with {option}, which "
+              "was removed, and its thresholds hold only with it")
 
 
 def _check_rule_shapes(part, where, n_joints, path, fix):

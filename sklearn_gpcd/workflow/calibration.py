@@ -34,7 +34,6 @@ import numpy as np
 from ..io import RecordingWarning, SignalCheck, signal_ranges
 
 __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "MIN_CALIBRATION_SECONDS", "MIN_REGIME_SECONDS",
-           "MOTION_ENVELOPE_SPEED",
            "SELECT_GRID", "CalibratedDetector", "CalibrationWarning",
            "band_label", "band_settings", "calibrate_detector", "calibration_coverage",
            "calibration_report", "check_calibration_options", "check_signals",
@@ -57,11 +56,6 @@ SELECT_GRID = {"regimes__settle_time": [0.5, 1.0, 2.0, 3.0],
                "regimes__rest_reference": [None, 2.0, 5.0]}
 #: Rest reference time constant [s] when none is given.
 DEFAULT_REST_REFERENCE = 5.0
-#: Speed [rad/s] below which the motion envelope counts a joint as stuck
-#: (``Regimes(motion_envelope=...)``, ``gpcd calibrate --motion-envelope``):
-#: about 3 degrees per second. Not the default: on the real UR10e it costs
-#: one nested false alarm on the same task (results page, issue 38).
-MOTION_ENVELOPE_SPEED = 0.05
 #: A good calibration has a leave-one-recording-out margin of at most this and
 #: no expected false alarm; a summary that falls short warns
 #: (:class:`CalibrationWarning`): the levels of the others do not cover some
@@ -291,7 +285,7 @@ def band_label(settings):
 
 def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_reference=None,
                        settle_time=None, select="auto", bands=(), band_candidates=(),
-                       braking=None, motion_envelope=None, split=None,
+                       braking=None, split=None,
                        robot=None, progress=None, accept=()):
     """Thresholds for a trained model, chosen across collision-free recordings.
 
@@ -330,12 +324,6 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
         "min_duration": samples}``.
     band_candidates : sequence of dict, default=()
         Candidates (same keys) for one more band chosen across the recordings.
-    motion_envelope : float or None, default=None
-        Moving thresholds that follow the motion: joint ``l``'s band widens
-        when it is stuck (``|qd_l|`` well below this speed [rad/s], e.g.
-        :data:`MOTION_ENVELOPE_SPEED`), accelerates or moves fast
-        (``Regimes(motion_envelope=...)``, the tightest envelope of the
-        calibration residual); None: one moving threshold per joint.
     braking : None, "model" or float, default=None
         The braking regime above this acceleration [rad/s^2]; "model" takes
         the largest one the model was trained on.
@@ -407,8 +395,7 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
         units=recordings[0].units, n_files=n_files,
         split=split, robot=robot, accept=accept, options=dict(
             regimes=regimes, rest_reference=rest_reference, settle_time=settle_time,
-            select=select, bands=bands, band_candidates=band_candidates, braking=braking,
-            motion_envelope=motion_envelope))
+            select=select, bands=bands, band_candidates=band_candidates, braking=braking))
 
 
 def _check_files(n_files, split, units):
@@ -442,9 +429,8 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from ..detection import AlarmRule, CollisionDetector, Regimes, calibrate_across_recordings
 
-    regimes, rest_reference, settle_time, braking, motion_envelope = (
-        options[k] for k in ("regimes", "rest_reference", "settle_time", "braking",
-                             "motion_envelope"))
+    regimes, rest_reference, settle_time, braking = (
+        options[k] for k in ("regimes", "rest_reference", "settle_time", "braking"))
     bands = list(options["bands"] or ())
     band_candidates = list(options["band_candidates"] or ())
     select = resolve_select(options["select"], regimes=regimes, rest_reference=rest_reference,
@@ -458,8 +444,7 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
     regime_params = {} if settle_time is None else {"settle_time": settle_time}
     main = AlarmRule(**DETECTOR_RULE, regimes=Regimes(
         rest_reference=tau if tau > 0 else None,
-        brake_limit=_brake_limit(braking, trained.training), motion_envelope=motion_envelope,
-        **regime_params)
+        brake_limit=_brake_limit(braking, trained.training), **regime_params)
         if regimes else None)
     # the chosen band is the last; its settings stand in until the grid's replace them
     rules = [main] + [clone(main).set_params(**band) for band in [*bands, *band_candidates[:1]]]
@@ -806,9 +791,6 @@ def _summary(result, trained, features, robot, *, keys, split, n_files, select, 
         "settle_time_s": 0.5 if regimes is None else regimes.settle_time,
         "rest_reference_s": None if regimes is None else regimes.rest_reference,
         "brake_limit": None if regimes is None else regimes.brake_limit,
-        "motion_envelope": None if regimes is None else regimes.motion_envelope,
-        "envelope": (None if getattr(det.rules_[0], "envelope_", None) is None
-                     else det.rules_[0].envelope_.tolist()),
         "selected": bool(select),
         "candidates": [dict(c, params=_json_params(c["params"])) for c in result.candidates]
         if select else [],
@@ -922,11 +904,6 @@ def _report_lines(summary, out):
           + (" (chosen across the recordings)" if summary.get("selected") else "")
           + ("" if summary.get("brake_limit") is None else
              f"; braking above {summary['brake_limit']:.3g} rad/s^2"))
-    if (envelope := summary.get("envelope")) is not None:
-        out.append(f"  moving thresholds follow the motion: joint l's moving threshold times "
-                   f"1 + a stuck + b |qdd| + c |qd| (stuck: exp(-(qd / "
-                   f"{summary['motion_envelope']:g})^2)); a, b, c per joint: " + "; ".join(
-                       f"j{j + 1} {a:.2f} {b:.2f} {c:.2f}" for j, (a, b, c) in enumerate(envelope)))
     if (coverage := summary.get("coverage")):
         out.append("  data per regime: " + ", ".join(
             f"{name} {_duration_text(c['seconds'])} from {c['recordings']} recording(s)"

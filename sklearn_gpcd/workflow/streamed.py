@@ -42,8 +42,7 @@ from .calibration import (
 MAX_PIECE_ROWS = 300_000
 #: The options of :func:`~sklearn_gpcd.workflow.calibrate_detector`, its defaults.
 CALIBRATION_DEFAULTS = dict(regimes=True, rest_reference=None, settle_time=None,
-                            select="auto", bands=(), band_candidates=(), braking=None,
-                            motion_envelope=None)
+                            select="auto", bands=(), band_candidates=(), braking=None)
 #: Work-folder bytes per row and band (its signals, then each band's series).
 SPOOL_ROW_BYTES, SERIES_ROW_BYTES = 8 * 25, 8 * 7
 
@@ -235,7 +234,7 @@ def calibrate_detector_streamed(trained, paths, folder, *, reader=None, split=No
     split, robot, accept, **options
         As for :func:`~sklearn_gpcd.workflow.calibrate_detector`
         (``regimes``, ``rest_reference``, ``settle_time``, ``select``,
-        ``bands``, ``band_candidates``, ``braking``, ``motion_envelope``).
+        ``bands``, ``band_candidates``, ``braking``).
     on_read : callable, default=None
         Called after each file is read (a progress bar's ``update``).
 
