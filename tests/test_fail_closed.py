@@ -211,7 +211,7 @@ def test_a_file_calibrated_with_the_removed_motion_envelope_is_refused(
 def test_a_file_written_before_the_removal_without_the_envelope_loads(good, tmp_path):
     path = envelope_file(good, tmp_path / "plain.skops", None, None)
     detector = load_detector(path).detector
-    assert detector.rules_[0].regime_names_ == ("moving", "settling", "rest")
+    assert detector.rules_[0].regime_names_[:3] == ("moving", "settling", "rest")
     assert main(["monitor", str(path), str(good["recording"])]) == 0  # no alarm on it
 
 
