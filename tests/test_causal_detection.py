@@ -19,6 +19,7 @@ from sklearn_gpcd.detection import (
     Regimes,
     SampleTimeWarning,
     StreamingMonitor,
+    calibrate_across_recordings,
     stack_currents,
 )
 from sklearn_gpcd.detection._regimes import REST, SETTLING, regime_pass
@@ -505,3 +506,30 @@ def test_settling_stages_judge_a_push_seconds_after_a_stop_by_the_fading_ring():
     assert names[regime[755]] == "settling after 1 s"
     out = StreamingMonitor(det).replay(Z)
     assert np.array_equal(out.prediction, det.predict(Z))
+
+
+def test_no_settling_stage_is_tighter_than_a_later_one():
+    """A stop whose current bumps late (0.6-0.8 s after it): the earlier stages take
+    that bump's level too (the ring fades; a short log's largest ring may fall
+    late), in the calibrated detector and in the across-recordings calibration."""
+    blocks = []
+    for seed in range(3):
+        qd, current = _ringing_stop(seed)
+        current[660:680] += 2.0  # a late bump, in the stage from 0.5 s
+        blocks.append(stack_currents(qd, current))
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin="loro", min_duration=5,
+                     regimes=Regimes(settle_time=3.0))
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rule).fit(
+        np.concatenate(blocks), groups=np.repeat(np.arange(3), len(blocks[0])))
+    rows = det.rules_[0].settling_rows()
+    stages = det.thresholds_[list(rows)]
+    assert np.all(np.diff(stages, axis=0) <= 0)  # non-increasing in time
+    late = det.rules_[0].regime_names_.index("settling after 0.5 s")
+    assert np.all(det.thresholds_[rows[0]] == det.thresholds_[late])  # the bump sets them
+    assert np.all(det.thresholds_[late] > 2.0)
+    result = calibrate_across_recordings(
+        CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                          velocity_columns=[0, 1], rules=rule),
+        {k: b for k, b in enumerate(blocks)}, {k: np.arange(1100) * 0.01 for k in range(3)})
+    np.testing.assert_allclose(result.detector.thresholds_, det.thresholds_)

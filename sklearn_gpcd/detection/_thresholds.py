@@ -103,6 +103,30 @@ def recording_peaks(debounced, regimes, recordings, n_regime_rows):
     return peaks
 
 
+def fading_stages(table, rows):
+    """Each settling stage at least every later one: the ring of a stop fades.
+
+    ``table``: (..., n_regime_rows, n_joints) peaks or levels; ``rows``: the
+    settling stages' rows in time order (:meth:`AlarmRule.settling_rows`).
+    Row ``rows[i]`` becomes the largest of the rows ``rows[i:]``, so a stage
+    is never tighter than a later one: where the calibration data's largest
+    ring fell in a later stage (a short log, few stops), the earlier stages
+    do not drop below it. Returns a copy.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> table = np.array([[5.0], [1.0], [0.2], [2.0], [0.5]])   # rows 1, 3, 4: stages
+    >>> fading_stages(table, [1, 3, 4])[:, 0].tolist()
+    [5.0, 2.0, 0.2, 2.0, 0.5]
+    """
+    out = np.array(table, dtype=float, copy=True)
+    rows = list(rows)
+    for i in range(len(rows) - 2, -1, -1):
+        out[..., rows[i], :] = np.maximum(out[..., rows[i], :], out[..., rows[i + 1], :])
+    return out
+
+
 def peak_levels(peaks):
     """Level per (regime, joint) of ``false_alarm_rate=0``: the largest peak (positive).
 

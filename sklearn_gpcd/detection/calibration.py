@@ -29,6 +29,7 @@ from ._regimes import rest_entry_peaks
 from ._thresholds import (
     _LEVEL_MARGIN,
     MARGIN_RULES,
+    fading_stages,
     fill_absent_regimes,
     loro_factors,
     peak_levels,
@@ -94,7 +95,7 @@ def _excursion(rule, signal, regime):
     debounced = rule.debounced(signal)
     recording = np.zeros(len(signal), dtype=np.intp)
     peaks = recording_peaks(debounced, regime, recording, len(rule.regime_names_))[0]
-    return debounced, regime, peaks
+    return debounced, regime, fading_stages(peaks, rule.settling_rows())
 
 
 def regime_levels(peaks, keys):

@@ -31,6 +31,7 @@ from ._regimes import (BRAKING, EVENT_HOLD_S, REGIME_NAMES, held_regime_pass,
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
     contamination_level,
+    fading_stages,
     false_alarm_level,
     fill_absent_regimes,
     loro_factors,
@@ -322,6 +323,28 @@ class AlarmRule(BaseEstimator):
             "stages": self._stages(),
         }
 
+    def settling_rows(self):
+        """Rows of the settling stages in ``regime_names_``, in time order
+        (``"settling"``, then ``"settling after 0.25 s"``, ...); empty without
+        regimes.
+
+        Returns
+        -------
+        rows : tuple of int
+
+        Examples
+        --------
+        >>> from sklearn_gpcd.detection import AlarmRule, Regimes
+        >>> rule = AlarmRule(regimes=Regimes(settle_time=1.0)).prepare(0.01)
+        >>> rule.regime_names_
+        ('moving', 'settling', 'rest', 'settling after 0.25 s', 'settling after 0.5 s')
+        >>> rule.settling_rows()
+        (1, 3, 4)
+        """
+        if self.regimes is None:
+            return ()
+        return (REGIME_NAMES.index("settling"),) + tuple(code for _, code in self._stages())
+
     def _stages(self):
         """``(samples, code)`` of each settling stage among ``regime_names_`` (files
         saved before the stages have none: one settling regime, as they were)."""
@@ -477,6 +500,8 @@ class AlarmRule(BaseEstimator):
         elif self.threshold == "per_joint":
             debounced = self.debounced(signal, starts)
             levels = self._joint_levels(debounced, regimes, starts)
+            if self.regimes is not None:
+                levels = fading_stages(levels, self.settling_rows())
             margin = self._margin(debounced, regimes, recordings, levels.shape)
             self.scale_ = margin * levels
             gamma = 1.0
@@ -537,7 +562,9 @@ class AlarmRule(BaseEstimator):
                 "margin='loro' leaves one recording out: pass groups= naming at least 2 "
                 f"recordings to fit, got {n_recordings}"
             )
-        peaks = recording_peaks(debounced, regimes, recordings, len(self.regime_names_))
+        peaks = fading_stages(
+            recording_peaks(debounced, regimes, recordings, len(self.regime_names_)),
+            self.settling_rows())
         return loro_factors(peaks, "global").reshape(shape)
 
     def _regime_rows(self, per_regime, regimes, n_joints):
