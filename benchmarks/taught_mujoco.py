@@ -60,8 +60,11 @@ SEED = 4524
 #: and after seed 4524 was rerun on them, before any run of its own. 4527 was
 #: fixed (session 26) after the settling stages, and after seed 4524 was rerun
 #: on them (0 onsets on the same task and other poses, 16/16), before any run
-#: of its own; 4526 scored session 25's design once.
-SCORE_SEED = 4527
+#: of its own; 4526 scored session 25's design once. 4527 scored the stages
+#: once (0/h, 16/16, 4 events outside the pushes in the push logs, all in the
+#: first settling stage); 4528 was fixed after the fading stages that
+#: followed, before any run of its own.
+SCORE_SEED = 4528
 #: Calibration and teaching: the first ``TASK_SECONDS`` of the task log, cut in
 #: pieces of ``SPLIT`` seconds for the calibration.
 TASK_SECONDS, SPLIT = 120.0, 30.0
