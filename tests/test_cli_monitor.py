@@ -119,16 +119,18 @@ def test_calibrate_needs_two_recordings(work, capsys):
 def filled(thresholds, calibration):
     """``thresholds`` of calibrate_across_recordings with ``gpcd calibrate``'s rule
     for regimes with less than 1 s of data: the largest of the regimes with data,
-    and a later settling stage that of the stage before it."""
+    and a later settling stage without data or seen in one log alone, that of
+    the stage before it."""
     names, without = calibration["regimes"], calibration["regimes_without_data"]
     empty = np.array([name in without for name in names])
+    one_log = set(calibration["stages_from_one_log"])
     out = np.array(thresholds, dtype=float, copy=True)
-    if empty.any() and not empty.all():
+    if empty.any():
         out[empty] = out[~empty].max(axis=0)
-        stages = [k for k, name in enumerate(names) if name.startswith("settling")]
-        for before, k in zip(stages[:-1], stages[1:]):
-            if empty[k]:
-                out[k] = out[before]
+    stages = [k for k, name in enumerate(names) if name.startswith("settling")]
+    for before, k in zip(stages[:-1], stages[1:]):
+        if empty[k] or names[k] in one_log:
+            out[k] = out[before]
     return out
 
 
@@ -159,6 +161,12 @@ def test_calibrate_split_cuts_one_long_log_into_left_out_pieces(work, capsys):
         {k: p.time for k, p in zip(keys, pieces)})
     np.testing.assert_allclose(detector.thresholds_,
                                filled(expected.detector.thresholds_, calibration))
+    # one log: its later settling stages, unchecked by a left-out log, are the first's
+    stages = [calibration["regimes"].index(n) for n in calibration["regimes"]
+              if n.startswith("settling")]
+    assert all(calibration["regimes"][k] in calibration["stages_from_one_log"]
+               + calibration["regimes_without_data"] for k in stages[1:])
+    assert np.all(detector.thresholds_[stages] == detector.thresholds_[stages[0]])
     # too coarse a split leaves one piece: an error that says what would work
     assert main(["calibrate", str(work["model"]), str(work["free"][2]), "--split",
                  f"{rec.duration}", "-o", str(work["folder"] / "one.skops")]) == 2

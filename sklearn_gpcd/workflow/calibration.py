@@ -460,11 +460,12 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
                                          folder=folder)
     several = bool(bands or band_candidates)
     coverage = calibration_coverage(result, times, split=split is not None)
-    without_data = _fill_regimes_without_data(result.detector, coverage)
+    without_data, one_log = _fill_regimes_without_data(result.detector, coverage)
     summary = _summary(result, trained, features, robot, keys=keys, split=split,
                        n_files=n_files, select=select, several=several,
                        chosen_band=bool(band_candidates))
     summary["regimes_without_data"] = without_data
+    summary["stages_from_one_log"] = one_log
     summary["units"] = units  # of thresholds_A: "Nm" for torque logs
     if summary["units"] != "A":
         summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
@@ -483,25 +484,30 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
 def _fill_regimes_without_data(detector, coverage):
     """Give the regimes with less than :data:`MIN_REGIME_DATA_SECONDS` of data, in
     every band of the fitted ``detector``, the largest threshold of the regimes
-    with data (joint by joint), and a later settling stage that of the stage
-    before it (the ring fades: no data, no tighter band than the stage before);
-    returns their names."""
+    with data (joint by joint), and a later settling stage without data, or
+    seen in one log alone, that of the stage before it (the ring fades: no
+    tighter band than the stage before where no left-out log checks it);
+    returns ``(names without data, stages from one log)``."""
     names = list(coverage)
     empty = np.array([coverage[name]["seconds"] < MIN_REGIME_DATA_SECONDS for name in names])
-    if not empty.any() or empty.all():
-        return []
     # the settling stages in time order: "settling", then "settling after ..."
     stages = [k for k, name in enumerate(names) if name.startswith("settling")]
+    one_log = [k for k in stages[1:] if not empty[k] and coverage[names[k]]["logs"] < 2]
+    fill = empty.any() and not empty.all()
+    if not fill and not one_log:
+        return [], []
     for rule in detector.rules_:  # thresholds_ = gamma * scale_, gamma = -offset_
         scale = np.array(rule.scale_, dtype=float, copy=True)
-        scale[empty] = scale[~empty].max(axis=0)
+        if fill:
+            scale[empty] = scale[~empty].max(axis=0)
         for before, k in zip(stages[:-1], stages[1:]):
-            if empty[k]:
+            if (fill and empty[k]) or k in one_log:
                 scale[k] = scale[before]
         rule.scale_, rule.thresholds_ = scale, -rule.offset_ * scale
     detector.scale_, detector.thresholds_ = (detector.rules_[0].scale_,
                                              detector.rules_[0].thresholds_)
-    return [name for name, e in zip(names, empty) if e]
+    return ([name for name, e in zip(names, empty) if e] if fill else [],
+            [names[k] for k in one_log])
 
 
 def calibration_coverage(result, times, split=False):
@@ -521,8 +527,8 @@ def calibration_coverage(result, times, split=False):
     -------
     coverage : dict of str -> dict
         Per regime name: ``seconds``, ``episodes`` (how many times the arm
-        entered it), ``recordings`` (how many logs have at least 1 s of it)
-        and ``largest`` (the log with the most of it) with its
+        entered it), ``recordings`` (how many logs have at least 1 s of it),
+        ``logs`` (how many have any of it) and ``largest`` (the log with the most of it) with its
         ``largest_share`` of the regime's time. ``"settling"`` counts the
         whole settling time, its later stages (``"settling after 0.25 s"``,
         ...) included; each stage also has its own entry.
@@ -560,6 +566,7 @@ def calibration_coverage(result, times, split=False):
         largest = max(seconds, key=seconds.get)
         coverage[name] = {"seconds": round(total, 3), "episodes": int(episodes[code]),
                           "recordings": sum(v >= 1.0 for v in seconds.values()),
+                          "logs": sum(v > 0.0 for v in seconds.values()),
                           "largest": largest,
                           "largest_share": seconds[largest] / total if total > 0 else 0.0}
     return coverage
@@ -913,6 +920,9 @@ def _report_lines(summary, out):
                    f"{' and '.join(without)} regime"
                    + ("s: their" if len(without) > 1 else ": its")
                    + " thresholds are, joint by joint, the largest of the regimes with data")
+    if (one_log := summary.get("stages_from_one_log")):
+        out.append(f"  {' and '.join(one_log)}: seen in one log alone (no left-out log "
+                   "checks it), the threshold of the settling stage before")
     if summary.get("candidates"):
         out.append("  candidates, best first (alarms: nested onsets at that fixed candidate, "
               "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
