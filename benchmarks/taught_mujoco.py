@@ -63,8 +63,11 @@ SEED = 4524
 #: of its own; 4526 scored session 25's design once. 4527 scored the stages
 #: once (0/h, 16/16, 4 events outside the pushes in the push logs, all in the
 #: first settling stage); 4528 was fixed after the fading stages that
-#: followed, before any run of its own.
-SCORE_SEED = 4528
+#: followed, before any run of its own. 4528 scored them once (other poses
+#: 115/h: later stages set by one log); 4529 was fixed after the rule that
+#: followed (a stage seen in one log alone takes the stage before), before
+#: any run of its own.
+SCORE_SEED = 4529
 #: Calibration and teaching: the first ``TASK_SECONDS`` of the task log, cut in
 #: pieces of ``SPLIT`` seconds for the calibration.
 TASK_SECONDS, SPLIT = 120.0, 30.0
