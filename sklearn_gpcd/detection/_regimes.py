@@ -4,7 +4,8 @@ Our extension of the paper (the user guide's real-robot page: "History at
 rest"). Per sample the arm is ``moving`` (some :math:`|\\dot q_\\ell| \\ge
 \\sigma_v`), ``settling`` (all still for less than ``settle`` samples since
 it stopped; split into stages by the time since the stop,
-:data:`SETTLE_STAGES_S`, each a regime of its own), at ``rest`` (still for longer, or since the stream started) or,
+:data:`SETTLE_STAGES_S`, each a regime of its own), at ``rest`` (still for
+longer, or since the stream started) or,
 with a braking limit, ``braking`` (for ``hold`` samples after some
 :math:`|\\ddot q_\\ell|` exceeds it). At rest the monitoring signal is
 re-referenced: at rest entry, or once :math:`|m_\\ell| \\le B_\\ell` has held for
@@ -45,6 +46,7 @@ MOVING, SETTLING, REST, BRAKING = 0, 1, 2, 3
 SETTLE_STAGES_S = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
 
+
 def stage_name(start):
     """Name of the settling stage that starts ``start`` seconds after the stop."""
     return f"settling after {start:g} s"
@@ -59,6 +61,8 @@ def settle_stages(settle_time):
     (0.25, 0.5, 1.0, 2.0)
     """
     return tuple(t for t in SETTLE_STAGES_S if t < settle_time)
+
+
 #: Release level of an event (ratio of the signal to its threshold).
 RELEASE = 0.5
 #: Seconds below the release level that end an event.

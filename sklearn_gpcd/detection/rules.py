@@ -26,7 +26,7 @@ from sklearn.utils._param_validation import Interval, Options, StrOptions
 
 from .._gate import DEFAULT_SIGMA_V
 from ._regime_batch import batch_regime_pass
-from ._regimes import (BRAKING, EVENT_HOLD_S, REGIME_NAMES, held_regime_pass,
+from ._regimes import (BRAKING, EVENT_HOLD_S, REGIME_NAMES, SETTLING, held_regime_pass,
                        rest_entry_peaks, settle_stages, stage_name)
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 from ._thresholds import (
@@ -343,7 +343,7 @@ class AlarmRule(BaseEstimator):
         """
         if self.regimes is None:
             return ()
-        return (REGIME_NAMES.index("settling"),) + tuple(code for _, code in self._stages())
+        return (SETTLING,) + tuple(code for _, code in self._stages())
 
     def _stages(self):
         """``(samples, code)`` of each settling stage among ``regime_names_`` (files
@@ -499,9 +499,8 @@ class AlarmRule(BaseEstimator):
             gamma = float(self.k)
         elif self.threshold == "per_joint":
             debounced = self.debounced(signal, starts)
-            levels = self._joint_levels(debounced, regimes, starts)
-            if self.regimes is not None:
-                levels = fading_stages(levels, self.settling_rows())
+            levels = fading_stages(self._joint_levels(debounced, regimes, starts),
+                                   self.settling_rows())
             margin = self._margin(debounced, regimes, recordings, levels.shape)
             self.scale_ = margin * levels
             gamma = 1.0

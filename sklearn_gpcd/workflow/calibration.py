@@ -490,8 +490,7 @@ def _fill_regimes_without_data(detector, coverage):
     returns ``(names without data, stages from one log)``."""
     names = list(coverage)
     empty = np.array([coverage[name]["seconds"] < MIN_REGIME_DATA_SECONDS for name in names])
-    # the settling stages in time order: "settling", then "settling after ..."
-    stages = [k for k, name in enumerate(names) if name.startswith("settling")]
+    stages = detector.rules_[0].settling_rows()  # the coverage's regimes, in time order
     one_log = [k for k in stages[1:] if not empty[k] and coverage[names[k]]["logs"] < 2]
     fill = empty.any() and not empty.all()
     if not fill and not one_log:
@@ -528,8 +527,8 @@ def calibration_coverage(result, times, split=False):
     coverage : dict of str -> dict
         Per regime name: ``seconds``, ``episodes`` (how many times the arm
         entered it), ``recordings`` (how many logs have at least 1 s of it),
-        ``logs`` (how many have any of it) and ``largest`` (the log with the most of it) with its
-        ``largest_share`` of the regime's time. ``"settling"`` counts the
+        ``logs`` (how many have any of it) and ``largest`` (the log with the
+        most of it) with its ``largest_share`` of the regime's time. ``"settling"`` counts the
         whole settling time, its later stages (``"settling after 0.25 s"``,
         ...) included; each stage also has its own entry.
 
