@@ -24,8 +24,10 @@ place):
 - **pushes**: the labels of ``benchmarks/labels/ur10e_events.json``. Per
   push: detected (an alarm in ``[start, tail_stop + 0.5 s]``), delay (first
   alarm minus labelled start), **events** (the detector's contact events,
-  ``monitoring_signal(X).event``, whose onset falls in that window: one
-  per push is the bar) and **mirror**: the first alarm of the push has, on
+  ``monitoring_signal(X).event`` and ``event_onset``: a new contact can
+  begin while the one before is still open), whose onset falls in that window: one
+  per push is the bar; an onset in the windows of two pushes that follow
+  each other counts for the later one) and **mirror**: the first alarm of the push has, on
   its joint of largest ratio, the opposite sign of the push on that joint
   (the median of ``i - i_des`` over the labelled push minus its median over
   the 0.3 s before): the release of a push taken into the rest reference,
@@ -60,7 +62,7 @@ import real_ur10e as ur  # noqa: E402
 
 from sklearn_gpcd.detection import stack_currents  # noqa: E402
 from sklearn_gpcd.dynamics import ControllerCurrent  # noqa: E402
-from sklearn_gpcd.features import contiguous_segments  # noqa: E402
+from sklearn_gpcd.metrics import alarm_onsets  # noqa: E402
 from sklearn_gpcd.monitoring import MonitorSession  # noqa: E402
 from sklearn_gpcd.robots import load_robot  # noqa: E402
 from sklearn_gpcd.workflow import training_set  # noqa: E402
@@ -85,16 +87,18 @@ def score_pushes(mon, rec, labelled):
     """Per labelled push: detected, delay, events, mirror; events outside the pushes."""
     t = rec.time - rec.time[0]
     alarm = mon.alarms.any(axis=1)
-    onsets = [a for a, _ in contiguous_segments(mon.event)]
+    onsets = alarm_onsets(mon.event, new=mon.event_onset)
     ratio = mon.ratio if "ratio" in mon else None
-    inside = set()
+    windows = [(ev["start_s"], ev.get("tail_stop_s", ev["stop_s"]) + TAIL_S) for ev in labelled]
+    owner = {}   # each onset counts for one push: the latest whose window holds it
+    for i, (lo, hi) in enumerate(windows):
+        owner.update({a: i for a in onsets if lo - TAIL_S <= t[a] <= hi})
+    inside = set(owner)
     scored = []
-    for ev in labelled:
-        lo, hi = ev["start_s"], ev.get("tail_stop_s", ev["stop_s"]) + TAIL_S
+    for i, (ev, (lo, hi)) in enumerate(zip(labelled, windows)):
         window = (t >= lo) & (t <= hi)
         hits = np.flatnonzero(window & alarm)
-        mine = [a for a in onsets if lo - TAIL_S <= t[a] <= hi]
-        inside.update(mine)
+        mine = [a for a in onsets if owner.get(a) == i]
         entry = {"start_s": ev["start_s"], "stop_s": ev["stop_s"], "detected": bool(hits.size),
                  "delay_s": float(t[hits[0]] - lo) if hits.size else None,
                  "n_events": len(mine), "mirror": None}
@@ -148,8 +152,8 @@ def batch_onsets(det, blocks, pushes):
     out = {}
     for key, rec in pushes.items():
         t = rec.time - rec.time[0]
-        event = det.monitoring_signal(blocks[key]).event
-        out[key] = [float(t[a]) for a, _ in contiguous_segments(event)]
+        mon = det.monitoring_signal(blocks[key])
+        out[key] = alarm_onsets(mon.event, t, new=mon.event_onset)
     return out
 
 

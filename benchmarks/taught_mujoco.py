@@ -209,10 +209,12 @@ def replay(calibrated, rec):
 
 
 def onsets_of(out, t):
-    """Event onsets [s]: an event holds while the signal has not been released."""
+    """Event onsets [s]: an event holds while the signal has not been released, and a
+    new contact on joints that had let go starts another (``event_onset``)."""
     from sklearn_gpcd.metrics import alarm_onsets
 
-    return np.asarray(alarm_onsets(out.event | out.alarms.any(axis=1), t), dtype=float)
+    return np.asarray(alarm_onsets(out.event | out.alarms.any(axis=1), t, new=out.event_onset),
+                      dtype=float)
 
 
 def score_set(calibrated, recs, entries):

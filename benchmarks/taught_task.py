@@ -115,12 +115,12 @@ def causal_outputs(calibrated, rec):
                                np.atleast_2d(det.detector.thresholds_)[regime])
             return Bunch(alarms=res.alarms, residual=res.residual,
                          regime=np.where(res.moving, 0, 1), taught=res.taught, event=res.event,
-                         thresholds=applied)
+                         event_onset=res.event_onset, thresholds=applied)
         res = det.monitoring_signal(X)
         regime = np.asarray(res.regime).reshape(len(X))
         return Bunch(alarms=res.alarms, residual=res.residual, regime=res.regime,
                      taught=np.zeros(len(X), dtype=bool), event=res.event,
-                     thresholds=np.atleast_2d(det.thresholds_)[regime])
+                     event_onset=res.event_onset, thresholds=np.atleast_2d(det.thresholds_)[regime])
     return _quiet(monitor.replay_recording, rec)
 
 
@@ -133,7 +133,7 @@ def score_file(calibrated, rec, entry, robot):
     alarms = out.alarms
     # one event per contact: an event holds until the signal stays below release
     events_open = out.event | alarms.any(axis=1)
-    onsets = alarm_onsets(events_open, t)
+    onsets = alarm_onsets(events_open, t, new=out.event_onset)
     collisions = []
     for ev in entry["events"]:
         stop = ev.get("tail_stop_s", ev["stop_s"]) + TAIL

@@ -96,11 +96,13 @@ def _new_segment(n, groups):
 
 
 # ------------------------------------------------------------------- alarms
-def alarm_onsets(alarms, time=None):
+def alarm_onsets(alarms, time=None, new=None):
     """Times at which alarm episodes start.
 
     An onset is a sample with an alarm whose predecessor has none (the first
-    sample counts when it alarms). With one column per joint, a sample alarms
+    sample counts when it alarms), or an alarm sample marked ``new`` (a
+    contact event that begins while the one before is still open: the
+    ``event_onset`` of the monitoring signal). With one column per joint, a sample alarms
     when any joint does, so overlapping alarms on several joints are one
     episode. On one recording, these are the onsets that
     :func:`false_alarms_per_hour` counts before it leaves out those that
@@ -112,6 +114,8 @@ def alarm_onsets(alarms, time=None):
         True where the detector raised an alarm (per joint, or any joint).
     time : array-like of shape (n_samples,), default=None
         Time stamp of each sample; None gives the sample indices.
+    new : array-like of bool, shape (n_samples,), default=None
+        Samples where an episode begins even with an alarm before them.
 
     Returns
     -------
@@ -123,6 +127,8 @@ def alarm_onsets(alarms, time=None):
     >>> from sklearn_gpcd.metrics import alarm_onsets
     >>> alarm_onsets([0, 1, 1, 0, 1])
     [1, 4]
+    >>> alarm_onsets([0, 1, 1, 1, 0], new=[0, 0, 0, 1, 0])
+    [1, 3]
     >>> alarm_onsets([[0, 0], [1, 0], [0, 1], [0, 0]], time=[0.0, 0.01, 0.02, 0.03])
     [0.01]
     """
@@ -135,7 +141,10 @@ def alarm_onsets(alarms, time=None):
     n = alarms.shape[0]
     alarms = _check_alarm_values(alarms)
     any_joint = alarms.any(axis=1) if alarms.ndim == 2 else alarms
-    starts = np.flatnonzero(any_joint & ~np.concatenate([[False], any_joint[:-1]]))
+    first = ~np.concatenate([[False], any_joint[:-1]])
+    if new is not None:
+        first |= _check_alarm_values(np.asarray(new)).reshape(n)
+    starts = np.flatnonzero(any_joint & first)
     if time is None:
         return starts.tolist()
     time = _check_time(time, None, n, required=True)

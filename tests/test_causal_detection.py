@@ -322,6 +322,35 @@ def test_a_contact_whose_force_dips_is_one_event():
     assert np.array_equal(out.event, batch.event)
 
 
+def test_a_contact_on_other_joints_while_an_event_holds_is_a_new_event():
+    """A push on joint 2 whose tail stays above the release level, then a push on
+    joint 1 (which had let go): two events with no row between them
+    (``event_onset``); streaming gives the same rows and onsets."""
+    qd, current = _still_then_moving()
+    rule = AlarmRule("per_joint", false_alarm_rate=0.0, margin=3.0, min_duration=3,
+                     regimes=Regimes(rest_reference=2.0))
+    det = CollisionDetector(LinearRegression(), n_joints=2, sample_time=0.01,
+                            velocity_columns=[0, 1], rules=rule).fit(stack_currents(qd, current))
+    rest = det.thresholds_[REST]
+    pushed = current.copy()
+    pushed[680:720, 1] += 3.0 * rest[1]
+    pushed[720:820, 1] += 1.2 * rest[1]                  # its tail, above release
+    pushed[770:800, 0] += 3.0 * rest[0]                  # the second push, other joint
+    Z = stack_currents(qd, pushed)
+    batch = det.monitoring_signal(Z)
+    onsets = np.flatnonzero(batch.event_onset)
+    assert len(onsets) == 2 and 680 <= onsets[0] < 700 and 770 <= onsets[1] < 790
+    assert batch.event[onsets[0]:onsets[1] + 1].all()    # no row between the two events
+    assert batch.alarms[onsets[1], 0] and not batch.alarms[onsets[1] - 1].any()
+    out = StreamingMonitor(det).replay(Z)
+    assert np.array_equal(out.event, batch.event)
+    assert np.array_equal(out.event_onset, batch.event_onset)
+    pushed[770:800, 0] -= 3.0 * rest[0]                  # the first push alone
+    pushed[770:800, 1] += 3.0 * rest[1]                  # back on the joint it holds
+    again = det.monitoring_signal(stack_currents(qd, pushed))
+    assert np.count_nonzero(again.event_onset) == 1
+
+
 def test_batch_events_equal_streaming_with_several_bands_and_recordings():
     """Two bands, two recordings (``groups``): the batch ``event`` rows are the
     streaming monitor's, and an event never spans the recordings' boundary."""
@@ -340,6 +369,7 @@ def test_batch_events_equal_streaming_with_several_bands_and_recordings():
     batch = det.monitoring_signal(Z, groups)
     out = StreamingMonitor(det).replay(Z, groups=groups)
     assert np.array_equal(out.event, batch.event)
+    assert np.array_equal(out.event_onset, batch.event_onset)
     assert batch.event[700:760].any() and batch.event[len(qd) - 1]
     assert not batch.event[len(qd):].any()
 

@@ -30,7 +30,9 @@ def _push_file():
     signal[(t >= 7.0) & (t < 7.2), 0] = 2.0           # outside both
     alarms = np.abs(signal) > 1.0
     event = alarms[:, 0].copy()
-    mon = Bunch(alarms=alarms, signal=signal, ratio=np.abs(signal), event=event)
+    onset = event & ~np.concatenate([[False], event[:-1]])
+    mon = Bunch(alarms=alarms, signal=signal, ratio=np.abs(signal), event=event,
+                event_onset=onset)
     labelled = [{"start_s": 1.0, "stop_s": 2.0, "tail_stop_s": 2.0},
                 {"start_s": 4.0, "stop_s": 5.0, "tail_stop_s": 5.0}]
     return mon, rec, labelled
@@ -44,6 +46,26 @@ def test_pushes_are_scored_from_the_events(bench):
     assert scored[1]["delay_s"] == pytest.approx(1.1) and scored[1]["mirror"]
     assert [e["n_events"] for e in scored] == [1, 1]
     assert outside == [pytest.approx(7.0)]
+
+
+def test_a_contact_that_follows_another_is_its_own_event(bench):
+    """Two pushes with no gap between their events (the second begins while the
+    first is still open, ``event_onset``): one event each, the second onset in
+    both windows counts for the later push only."""
+    mon, rec, _ = _push_file()
+    t = rec.time
+    mon.event = (t >= 1.1) & (t < 3.5)
+    mon.event_onset = np.isclose(t, 1.1) | np.isclose(t, 2.6)
+    mon.alarms = mon.event[:, None].copy()
+    mon.signal = np.where(mon.alarms, 2.0, 0.0)
+    labelled = [{"start_s": 1.0, "stop_s": 2.0, "tail_stop_s": 2.5},
+                {"start_s": 2.5, "stop_s": 3.4, "tail_stop_s": 3.4}]
+    scored, outside = bench.score_pushes(mon, rec, labelled)
+    assert [e["n_events"] for e in scored] == [1, 1]
+    assert outside == []
+    mon.event_onset = np.isclose(t, 1.1)            # one event over both pushes
+    scored, _ = bench.score_pushes(mon, rec, labelled)
+    assert [e["n_events"] for e in scored] == [1, 0]
 
 
 def test_exits_cleanly_without_the_data(bench, tmp_path, capsys):

@@ -152,6 +152,7 @@ def _assert_stream_equals_batch(task, X):
         np.testing.assert_allclose(stream.signal, batch.signal[i], rtol=1e-9, atol=1e-12)
         np.testing.assert_array_equal(alarm, batch.alarms[i])
         assert stream.event == batch.event[i]
+        assert stream.event_onset == batch.event_onset[i]
 
 
 def test_a_cycle_unlike_the_others_is_named(taught):

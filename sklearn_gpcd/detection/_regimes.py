@@ -72,16 +72,32 @@ EVENT_HOLD_S = 0.2
 class EventHold:
     """One event per contact: open at an alarm, closed after a hold below release.
 
-    An event opens where the ratio (signal over threshold) exceeds 1 and
-    stays open while it is above ``RELEASE`` or has been below it for fewer
-    than ``hold`` samples: a contact whose signal dips under the threshold
-    for a moment is one event, and the next contact, which starts from
-    below the release level, is another (hysteresis and a hold time).
+    An event opens where some joint's ratio (signal over threshold) exceeds
+    1 and stays open while the largest ratio is above ``RELEASE`` or has
+    been below it for fewer than ``hold`` samples: a contact whose signal
+    dips under the threshold for a moment is one event, and the next
+    contact, which starts from below the release level, is another
+    (hysteresis and a hold time).
+
+    A second contact can start before the first has let go (a push while
+    the tail of the one before is still above release). A new alarm, after
+    a sample where no joint alarmed, on a joint that had *let go* (below the
+    release level for ``hold`` samples since it last alarmed) is the onset
+    of a new event even while one is open: the new contact loads joints the
+    open one no longer does.
 
     Parameters
     ----------
     hold : int
-        Samples below release that end an event.
+        Samples below release that end an event (and that let a joint go).
+
+    Attributes
+    ----------
+    open : bool
+        Whether an event is open after the last sample.
+    onset : bool
+        Whether an event began at the last sample (a new one, or a new
+        contact while one was open).
 
     Examples
     --------
@@ -89,28 +105,51 @@ class EventHold:
     >>> ratios = [0.2, 1.3, 0.8, 1.1, 0.4, 0.3, 0.2, 0.1, 1.2, 0.1]
     >>> [int(hold.step(r)) for r in ratios]
     [0, 1, 1, 1, 1, 1, 0, 0, 1, 1]
+
+    Two joints: joint 2 alarms while joint 1's contact still holds the event
+    open above release, after joint 2 had let go: a second event.
+
+    >>> hold = EventHold(2)
+    >>> rows = [(1.5, 0.0), (0.7, 0.1), (0.7, 0.1), (0.6, 1.4), (0.6, 1.6)]
+    >>> [(int(hold.step(r)), int(hold.onset)) for r in rows]
+    [(1, 1), (1, 0), (1, 0), (1, 1), (1, 0)]
     """
 
     def __init__(self, hold):
         self.hold = int(hold)
         self.open = False
+        self.onset = False
         self._below = 0
+        self._alarm = False
+        self._quiet = None      # per joint, samples in a row at or below release
+        self._released = None   # per joint, let go since it last alarmed
 
     def step(self, ratio, restart=False):
-        """One sample's ``ratio``; ``restart`` closes any open event first.
+        """One sample's ``ratio`` (per joint, or one number); ``restart``
+        closes any open event first.
 
         Returns
         -------
         open : bool
         """
-        if restart:
-            self.open, self._below = False, 0
-        if ratio > 1.0:
+        r = np.atleast_1d(np.asarray(ratio, dtype=float))
+        if restart or self._quiet is None or self._quiet.shape != r.shape:
+            self.open, self._below, self._alarm = False, 0, False
+            self._quiet = np.zeros(r.shape, dtype=np.intp)
+            self._released = np.ones(r.shape, dtype=bool)
+        alarm = r > 1.0
+        self.onset = False
+        if alarm.any():
+            self.onset = not self.open or (
+                not self._alarm and bool((alarm & self._released).any()))
             self.open, self._below = True, 0
         elif self.open:
-            self._below = self._below + 1 if ratio <= RELEASE else 0
+            self._below = self._below + 1 if r.max() <= RELEASE else 0
             if self._below >= self.hold:
                 self.open, self._below = False, 0
+        self._quiet = np.where(r <= RELEASE, self._quiet + 1, 0)
+        self._released = (self._released | (self._quiet >= self.hold)) & ~alarm
+        self._alarm = bool(alarm.any())
         return self.open
 
 
@@ -129,14 +168,19 @@ def ratio_over_level(bands):
 def event_rows(ratio, starts, hold):
     """:class:`EventHold` over a batch, restarting at every segment start.
 
-    ``ratio``: (n,) the signal over its threshold (1: the threshold);
-    returns the rows of an open event (bool, (n,)).
+    ``ratio``: (n,) or (n, n_joints) the signal over its threshold (1: the
+    threshold); returns the rows of an open event and the rows where an
+    event begins (both bool, (n,)).
     """
     events = EventHold(hold)
-    restart = np.zeros(len(ratio), dtype=bool)
+    n = len(ratio)
+    restart = np.zeros(n, dtype=bool)
     restart[np.asarray(starts, dtype=np.intp)] = True
-    return np.array([events.step(r, s) for r, s in zip(np.asarray(ratio).tolist(),
-                                                       restart.tolist())], dtype=bool)
+    rows, onsets = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    for k, (r, s) in enumerate(zip(np.asarray(ratio, dtype=float), restart.tolist())):
+        rows[k] = events.step(r, s)
+        onsets[k] = events.onset
+    return rows, onsets
 
 
 class RegimeState:

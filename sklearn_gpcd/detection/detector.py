@@ -605,31 +605,34 @@ class CollisionDetector(VersionedStateMixin, OutlierMixin, BaseEstimator):
             ``alarms`` and ``level`` (the rule's :math:`\\gamma`); ``alarms``
             (bool, (n_samples, n_joints): joints that fired in some band),
             ``score`` and ``decision`` (the :meth:`score_samples` and
-            :meth:`decision_function` values) and ``event`` (bool,
+            :meth:`decision_function` values), ``event`` (bool,
             (n_samples,): the rows of a contact event, one per contact:
-            :class:`~sklearn_gpcd.detection.EventHold` on the largest ratio
-            over its band's level). With one rule its stages are also at the
-            top level.
+            :class:`~sklearn_gpcd.detection.EventHold` on each joint's ratio
+            over its band's level) and ``event_onset`` (bool, (n_samples,):
+            where an event begins; two contacts can follow with no row
+            between them). With one rule its stages are also at the top
+            level.
         """
         u = self._normalized(residuals.residual, residuals.std)
         bands = [Bunch(level=-float(rule.offset_),
                        **rule.stages(u, residuals.starts, residuals.motion))
                  for rule in self.rules_]
         alarms = np.logical_or.reduce([band.alarms for band in bands])
-        event = self._events(bands, residuals.starts)
+        event, onset = self._events(bands, residuals.starts)
         if len(bands) == 1:
             score = -bands[0].ratio.max(axis=1)
             out = Bunch(bands=bands, alarms=alarms, score=score,
-                        decision=score - self.offset_, event=event)
+                        decision=score - self.offset_, event=event, event_onset=onset)
             out.update({k: v for k, v in bands[0].items() if k not in ("level", "alarms")})
             return out
         decision = np.min([band.level - band.ratio.max(axis=1) for band in bands], axis=0)
-        return Bunch(bands=bands, alarms=alarms, score=decision, decision=decision, event=event)
+        return Bunch(bands=bands, alarms=alarms, score=decision, decision=decision, event=event,
+                     event_onset=onset)
 
     def _events(self, bands, starts):
-        """Rows of a contact event: :func:`event_rows` on the largest ratio over its
-        band's level (1: some joint at its threshold)."""
-        return event_rows(ratio_over_level(bands).max(axis=1), starts,
+        """Rows of a contact event and rows where one begins: :func:`event_rows`
+        on each joint's largest ratio over its band's level (1: at its threshold)."""
+        return event_rows(ratio_over_level(bands), starts,
                           self.rules_[0].event_hold_samples())
 
     def monitoring_signal(self, X, groups=None):

@@ -51,9 +51,6 @@ class MonitorStatus(str, Enum):
         return self.value
 
 
-_TINY = np.finfo(float).tiny
-
-
 def _numbers(value, name):
     """``value`` as a float array (None entries become NaN); ValueError if not numeric."""
     if isinstance(value, np.ndarray) and value.dtype.kind in "fiub":
@@ -443,6 +440,13 @@ class StreamingMonitor(VersionedStateMixin):
         return self._events.open if self._task_stream is None else self._task_stream.event
 
     @property
+    def event_onset(self):
+        """Whether a contact event began at the last tick (:class:`EventHold`:
+        a new event, or a new contact while one was open)."""
+        return (self._events.onset if self._task_stream is None
+                else self._task_stream.event_onset)
+
+    @property
     def taught_joints(self):
         """Per joint, whether the taught task decided it at the last tick."""
         if self._task_stream is None:
@@ -535,29 +539,28 @@ class StreamingMonitor(VersionedStateMixin):
             band = self.bands[0]
             top = band._commit(self._motion)
             self.score = -top
-            over = top / max(band.level, _TINY)
             alarmed = band.alarmed
         else:
             tops = [band._commit(self._motion) for band in self.bands]
             self.score = min([band.level - top for band, top in zip(self.bands, tops)])
-            over = max([top / max(band.level, _TINY) for band, top in zip(self.bands, tops)])
             np.logical_or.reduce([band.alarms for band in self.bands], out=self.alarms)
             alarmed = any(band.alarmed for band in self.bands)
+        over = ratio_over_level(self.bands)
         self._events.step(over)
         if self._task_stream is not None:
-            alarmed = self._taught_step()
+            alarmed = self._taught_step(over)
         self.last_time = stamp
         self.n_consecutive_faults = 0
         self.fault_reason = None
         self.status = MonitorStatus.COLLISION if alarmed else MonitorStatus.OK
         return self.status
 
-    def _taught_step(self):
+    def _taught_step(self, over):
         """The taught decision of this tick (:class:`TaskStream`): the task's
         thresholds where the arm moves through taught states, the bands' elsewhere."""
         general = self.bands[0].alarms if len(self.bands) == 1 else self.alarms
         alarm, self.taught = self._task_stream.step(
-            self._inputs, self._current, general, ratio_over_level(self.bands),
+            self._inputs, self._current, general, over,
             moving=self.regime == MOVING, predicted=self.predicted)
         self.alarms[:] = alarm
         return bool(alarm.any())
@@ -797,12 +800,13 @@ class StreamingMonitor(VersionedStateMixin):
                                  regime=np.zeros(n, dtype=np.intp), level=band.level)
                            for band in self.bands],
                     taught=np.zeros(n, dtype=bool), event=np.zeros(n, dtype=bool),
-                    thresholds=np.empty(shape))
+                    event_onset=np.zeros(n, dtype=bool), thresholds=np.empty(shape))
         for t, status in enumerate(statuses):
             out.status[t] = status.value
             out.alarms[t], out.score[t] = self.alarms, self.score
             out.predicted[t], out.residual[t] = self.predicted, self.residual
             out.taught[t], out.event[t] = self.taught, self.event
+            out.event_onset[t] = self.event_onset
             out.thresholds[t] = self.applied_thresholds
             for record, band in zip(out.bands, self.bands):
                 record.signal[t], record.ratio[t] = band.signal, band.ratio

@@ -63,7 +63,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._gate import DEFAULT_SIGMA_V
 from ..layout import block_columns
-from ._regimes import EVENT_HOLD_S, MOVING, EventHold, ratio_over_level
+from ._regimes import EVENT_HOLD_S, MOVING, EventHold, event_rows, ratio_over_level
 from ._signal import filter_segments, lowpass_coefficients, segment_starts, window_segments
 
 __all__ = ["EventHold", "TaughtTask", "TaskStream", "drift_features", "local_states",
@@ -739,8 +739,10 @@ class TaughtTask(BaseEstimator):
             ``BREAKAWAY_S``, the
             general ones elsewhere; ``ratio``, the largest of the debounced
             ``|m_l| / threshold_l`` where taught and of the detector's
-            ratio over its level elsewhere (``ratio_over_level``), and
-            ``event`` (bool): the rows of contact events (:class:`EventHold`).
+            ratio over its level elsewhere (``ratio_over_level``),
+            ``event`` (bool): the rows of contact events (:class:`EventHold`
+            on those ratios per joint) and ``event_onset`` (bool): the rows
+            where an event begins.
         """
         check_is_fitted(self, "coef_")
         X = np.asarray(X, dtype=float)
@@ -760,14 +762,12 @@ class TaughtTask(BaseEstimator):
         joints = taught[:, None] & _sliding(inputs, n, self._sigma_v(), starts, self._hold())
         alarms = np.where(joints, taught_alarms, general_alarms)
         over = ratio_over_level(general.bands).reshape(len(X), -1)
-        ratio = np.where(joints, debounced / self.thresholds_, over).max(axis=1)
-        events = EventHold(self._hold_rows(EVENT_HOLD_S))
-        event = np.array([events.step(r, start) for r, start in zip(
-            ratio, np.isin(np.arange(len(X)), starts))], dtype=bool)
+        joint_ratio = np.where(joints, debounced / self.thresholds_, over)
+        event, onset = event_rows(joint_ratio, starts, self._hold_rows(EVENT_HOLD_S))
         return Bunch(residual=residual, signal=m, novelty=novelty, moving=moving,
                      taught=taught, joints=joints, taught_alarms=taught_alarms,
                      general_alarms=general_alarms, general_ratio=over, alarms=alarms,
-                     ratio=ratio, event=event)
+                     ratio=joint_ratio.max(axis=1), event=event, event_onset=onset)
 
     def predict(self, X, groups=None):
         """+1 normal, -1 collision, per row.
@@ -905,6 +905,7 @@ class TaskStream:
         self.signal = None
         self.ratio = 0.0
         self.event = False
+        self.event_onset = False
 
     def step(self, inputs, current, general_alarm, general_ratio, moving=True,
              predicted=None):
@@ -957,8 +958,9 @@ class TaskStream:
         self._sliding_run = np.where(fast, self._sliding_run + 1, 0)
         self.joints = joints = (self._sliding_run >= self._hold) & taught
         alarm = np.where(joints, debounced > task.thresholds_, general_alarm)
-        self.ratio = float(np.where(joints, debounced / task.thresholds_,
-                                    general_ratio).max())
-        self.event = self._events.step(self.ratio, self._first)
+        joint_ratio = np.where(joints, debounced / task.thresholds_, general_ratio)
+        self.ratio = float(joint_ratio.max())
+        self.event = self._events.step(joint_ratio, self._first)
+        self.event_onset = self._events.onset
         self._first = False
         return alarm, taught

@@ -254,7 +254,8 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         ``"monitoring"``, ``"blind"`` or ``"recovering"``.
     events : list of dict
         Contact events, one per contact (an event ends when the signal has
-        stayed below the release level for the hold time,
+        stayed below the release level for the hold time, or where a new
+        contact begins on joints that had let go,
         :class:`~sklearn_gpcd.detection.EventHold`): ``recording``,
         ``start_s`` (onset), ``end_s`` (last alarm), ``released_s`` (the
         event closed), ``joints`` (that fired, 1-based), ``peak_A`` and
@@ -443,11 +444,15 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
                for band, thresholds in zip(self.bands, self.thresholds)):
             if self.cross_start is None:
                 self.cross_start = rel
-        elif self.open is None:
+        else:
             self.cross_start = None
         if self.task is not None:
             self._count_taught(rel)
         if mon.alarms.any():
+            if self.open is not None and mon.event_onset:  # a new contact (EventHold)
+                crossed = self.cross_start
+                self._close(rel)
+                self.cross_start = crossed
             self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
         elif self.open is not None and not mon.event:  # an event holds (EventHold)
             self._close(rel)
