@@ -81,10 +81,11 @@ class EventHold:
 
     A second contact can start before the first has let go (a push while
     the tail of the one before is still above release). A new alarm, after
-    a sample where no joint alarmed, on a joint that had *let go* (below the
-    release level for ``hold`` samples since it last alarmed) is the onset
-    of a new event even while one is open: the new contact loads joints the
-    open one no longer does.
+    ``hold`` samples where no joint alarmed, on a joint that had *let go*
+    (below the release level for ``hold`` samples since it last alarmed) is
+    the onset of a new event even while one is open: the new contact loads
+    joints the open one no longer does. A contact whose alarm moves from
+    joint to joint within the hold stays one event.
 
     Parameters
     ----------
@@ -113,6 +114,13 @@ class EventHold:
     >>> rows = [(1.5, 0.0), (0.7, 0.1), (0.7, 0.1), (0.6, 1.4), (0.6, 1.6)]
     >>> [(int(hold.step(r)), int(hold.onset)) for r in rows]
     [(1, 1), (1, 0), (1, 0), (1, 1), (1, 0)]
+
+    Within the hold of the last alarm, the same contact:
+
+    >>> hold = EventHold(2)
+    >>> rows = [(1.5, 0.0), (0.7, 0.1), (0.6, 1.4)]
+    >>> [(int(hold.step(r)), int(hold.onset)) for r in rows]
+    [(1, 1), (1, 0), (1, 0)]
     """
 
     def __init__(self, hold):
@@ -120,7 +128,7 @@ class EventHold:
         self.open = False
         self.onset = False
         self._below = 0
-        self._alarm = False
+        self._since_alarm = 0   # samples since some joint last alarmed
         self._quiet = None      # per joint, samples in a row at or below release
         self._released = None   # per joint, let go since it last alarmed
 
@@ -134,14 +142,14 @@ class EventHold:
         """
         r = np.atleast_1d(np.asarray(ratio, dtype=float))
         if restart or self._quiet is None or self._quiet.shape != r.shape:
-            self.open, self._below, self._alarm = False, 0, False
+            self.open, self._below, self._since_alarm = False, 0, 0
             self._quiet = np.zeros(r.shape, dtype=np.intp)
             self._released = np.ones(r.shape, dtype=bool)
         alarm = r > 1.0
         self.onset = False
         if alarm.any():
             self.onset = not self.open or (
-                not self._alarm and bool((alarm & self._released).any()))
+                self._since_alarm >= self.hold and bool((alarm & self._released).any()))
             self.open, self._below = True, 0
         elif self.open:
             self._below = self._below + 1 if r.max() <= RELEASE else 0
@@ -149,7 +157,7 @@ class EventHold:
                 self.open, self._below = False, 0
         self._quiet = np.where(r <= RELEASE, self._quiet + 1, 0)
         self._released = (self._released | (self._quiet >= self.hold)) & ~alarm
-        self._alarm = bool(alarm.any())
+        self._since_alarm = 0 if alarm.any() else self._since_alarm + 1
         return self.open
 
 
