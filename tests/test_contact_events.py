@@ -6,6 +6,7 @@ estimates the force; without a robot model it says so. The session's events
 (streaming) start where the batch detector's ``event`` rows do.
 """
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -82,3 +83,31 @@ def test_the_session_events_are_the_batch_events(pushed_arm):
     assert [e["start_s"] for e in session.events] == pytest.approx([t[a] for a, _ in segments])
     assert [e["released_s"] for e in session.events] == pytest.approx(
         [t[b] if b < len(t) else t[-1] for _, b in segments])
+
+
+def test_a_second_contact_while_the_first_holds_is_a_second_session_event(pushed_arm):
+    """Joint 2 pushed, its tail held above the release level, then joint 5 pushed
+    (it had let go): ``gpcd monitor``'s loop closes the first event where the
+    second begins, as the batch ``event_onset`` says."""
+    robot, calibrated, _ = pushed_arm
+    reference = JointTrajectory.concatenate([JointTrajectory.point_to_point(Q0, Q1, 2.0),
+                                             JointTrajectory.rest(Q1, 6.0)])
+    rec = simulate(reference, robot, random_state=3, name="two")
+    rest = calibrated.detector.thresholds_[calibrated.detector.rules_[0].regime_names_.index(
+        "rest")]
+    t = rec.time - rec.time[0]
+    current = rec.current.copy()
+    current[(t >= 4.0) & (t < 4.4), 1] += 3.0 * rest[1]
+    current[(t >= 4.4) & (t < 5.6), 1] += 0.75 * rest[1]   # the tail, above release
+    current[(t >= 5.0) & (t < 5.3), 4] += 3.0 * rest[4]
+    rec = dataclasses.replace(rec, current=current)
+    session = MonitorSession(calibrated.detector, calibrated.features, robot=robot)
+    session.run_recording(rec, "two")
+    X = stack_currents(calibrated.features.transform(rec), rec.current)
+    batch = calibrated.detector.monitoring_signal(X)
+    onsets = t[batch.event_onset]
+    assert len(onsets) == 2 and 4.0 <= onsets[0] < 4.4 and 5.0 <= onsets[1] < 5.3
+    assert [e["start_s"] for e in session.events] == pytest.approx(onsets.tolist())
+    first, second = session.events
+    assert first["released_s"] == pytest.approx(second["start_s"])
+    assert first["joints"] == [2] and second["joints"] == [5]
