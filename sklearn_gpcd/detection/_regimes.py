@@ -81,11 +81,12 @@ class EventHold:
 
     A second contact can start before the first has let go (a push while
     the tail of the one before is still above release). A new alarm, after
-    ``hold`` samples where no joint alarmed, on a joint that had *let go*
-    (below the release level for ``hold`` samples since it last alarmed) is
-    the onset of a new event even while one is open: the new contact loads
-    joints the open one no longer does. A contact whose alarm moves from
-    joint to joint within the hold stays one event.
+    ``hold`` samples where no joint alarmed, on a joint that has not fired
+    in the open event and is *quiet* (below the release level for ``hold``
+    samples since it last alarmed) is the onset of a new event even while
+    one is open: the new contact loads joints the open one did not. A
+    contact whose alarm moves from joint to joint within the hold, or whose
+    own joints ring again as the arm recovers, stays one event.
 
     Parameters
     ----------
@@ -115,12 +116,17 @@ class EventHold:
     >>> [(int(hold.step(r)), int(hold.onset)) for r in rows]
     [(1, 1), (1, 0), (1, 0), (1, 1), (1, 0)]
 
-    Within the hold of the last alarm, the same contact:
+    Within the hold of the last alarm, or on a joint the event fired, the
+    same contact:
 
     >>> hold = EventHold(2)
     >>> rows = [(1.5, 0.0), (0.7, 0.1), (0.6, 1.4)]
     >>> [(int(hold.step(r)), int(hold.onset)) for r in rows]
     [(1, 1), (1, 0), (1, 0)]
+    >>> hold = EventHold(2)
+    >>> rows = [(1.5, 0.0), (0.1, 0.7), (0.1, 0.7), (1.2, 0.7)]
+    >>> [(int(hold.step(r)), int(hold.onset)) for r in rows]
+    [(1, 1), (1, 0), (1, 0), (1, 0)]
     """
 
     def __init__(self, hold):
@@ -131,6 +137,7 @@ class EventHold:
         self._since_alarm = 0   # samples since some joint last alarmed
         self._quiet = None      # per joint, samples in a row at or below release
         self._released = None   # per joint, let go since it last alarmed
+        self._fired = None      # per joint, fired in the open event
 
     def step(self, ratio, restart=False):
         """One sample's ``ratio`` (per joint, or one number); ``restart``
@@ -145,12 +152,16 @@ class EventHold:
             self.open, self._below, self._since_alarm = False, 0, 0
             self._quiet = np.zeros(r.shape, dtype=np.intp)
             self._released = np.ones(r.shape, dtype=bool)
+            self._fired = np.zeros(r.shape, dtype=bool)
         alarm = r > 1.0
         self.onset = False
         if alarm.any():
-            self.onset = not self.open or (
-                self._since_alarm >= self.hold and bool((alarm & self._released).any()))
+            self.onset = not self.open or (self._since_alarm >= self.hold and bool(
+                (alarm & self._released & ~self._fired).any()))
+            if self.onset:
+                self._fired[:] = False
             self.open, self._below = True, 0
+            self._fired |= alarm
         elif self.open:
             self._below = self._below + 1 if r.max() <= RELEASE else 0
             if self._below >= self.hold:
