@@ -147,28 +147,30 @@ class EventHold:
         -------
         open : bool
         """
-        r = np.atleast_1d(np.asarray(ratio, dtype=float))
-        if restart or self._quiet is None or self._quiet.shape != r.shape:
+        r = np.asarray(ratio, dtype=float).ravel().tolist()
+        if restart or self._quiet is None or len(self._quiet) != len(r):
             self.open, self._below, self._since_alarm = False, 0, 0
-            self._quiet = np.zeros(r.shape, dtype=np.intp)
-            self._released = np.ones(r.shape, dtype=bool)
-            self._fired = np.zeros(r.shape, dtype=bool)
-        alarm = r > 1.0
+            self._quiet = [0] * len(r)
+            self._released = [True] * len(r)
+            self._fired = [False] * len(r)
+        alarm = [x > 1.0 for x in r]
+        any_alarm = any(alarm)
         self.onset = False
-        if alarm.any():
-            self.onset = not self.open or (self._since_alarm >= self.hold and bool(
-                (alarm & self._released & ~self._fired).any()))
+        if any_alarm:
+            self.onset = not self.open or (self._since_alarm >= self.hold and any(
+                a and q and not f for a, q, f in zip(alarm, self._released, self._fired)))
             if self.onset:
-                self._fired[:] = False
+                self._fired = [False] * len(r)
             self.open, self._below = True, 0
-            self._fired |= alarm
+            self._fired = [f or a for f, a in zip(self._fired, alarm)]
         elif self.open:
-            self._below = self._below + 1 if r.max() <= RELEASE else 0
+            self._below = self._below + 1 if max(r) <= RELEASE else 0
             if self._below >= self.hold:
                 self.open, self._below = False, 0
-        self._quiet = np.where(r <= RELEASE, self._quiet + 1, 0)
-        self._released = (self._released | (self._quiet >= self.hold)) & ~alarm
-        self._since_alarm = 0 if alarm.any() else self._since_alarm + 1
+        self._quiet = [n + 1 if x <= RELEASE else 0 for n, x in zip(self._quiet, r)]
+        self._released = [(q or n >= self.hold) and not a
+                          for q, n, a in zip(self._released, self._quiet, alarm)]
+        self._since_alarm = 0 if any_alarm else self._since_alarm + 1
         return self.open
 
 
@@ -196,7 +198,7 @@ def event_rows(ratio, starts, hold):
     restart = np.zeros(n, dtype=bool)
     restart[np.asarray(starts, dtype=np.intp)] = True
     rows, onsets = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-    for k, (r, s) in enumerate(zip(np.asarray(ratio, dtype=float), restart.tolist())):
+    for k, (r, s) in enumerate(zip(np.asarray(ratio, dtype=float).tolist(), restart.tolist())):
         rows[k] = events.step(r, s)
         onsets[k] = events.onset
     return rows, onsets
