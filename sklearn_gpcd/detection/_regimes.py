@@ -30,6 +30,8 @@ shared by batch and streaming. :class:`EventHold`: one event per contact, the
 same on every path.
 """
 
+import contextlib
+
 import numpy as np
 
 from .._gate import quasi_static
@@ -62,6 +64,9 @@ def settle_stages(settle_time):
     """
     return tuple(t for t in SETTLE_STAGES_S if t < settle_time)
 
+
+_TINY = np.finfo(float).tiny
+_NO_CONTEXT = contextlib.nullcontext()
 
 #: Release level of an event (ratio of the signal to its threshold).
 RELEASE = 0.5
@@ -181,9 +186,13 @@ def ratio_over_level(bands):
     ``bands``: objects with ``ratio`` (per joint, or rows x joints) and
     ``level`` (the detector's stages, or a streaming monitor's bands).
     """
-    tiny = np.finfo(float).tiny
-    return np.max([np.asarray(band.ratio, dtype=float) / max(float(band.level), tiny)
-                   for band in bands], axis=0)
+    out = None
+    for band in bands:
+        level = max(float(band.level), _TINY)
+        with np.errstate(over="ignore") if level < 1.0 else _NO_CONTEXT:
+            ratio = np.asarray(band.ratio, dtype=float) / level   # inf past a tiny level
+        out = ratio if out is None else np.maximum(out, ratio)
+    return out
 
 
 def event_rows(ratio, starts, hold):
