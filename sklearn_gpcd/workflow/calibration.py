@@ -295,7 +295,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     one margin chosen by leaving one recording out
     (:func:`~sklearn_gpcd.detection.calibrate_across_recordings`). The
     expected false alarms come from the nested version: each recording is
-    scored with the margin and levels chosen without it.
+    scored with the margin and levels chosen without it. The moving
+    thresholds are at least the model's level on its left-out training runs
+    when ``gpcd train --model auto`` measured it
+    (``training_moving_level``): motion the calibration recordings do not
+    cover meets the model's error there, not theirs.
 
     Parameters
     ----------
