@@ -9,7 +9,7 @@ import pytest
 from sklearn_gpcd.cli import main
 from sklearn_gpcd.datasets import Contact, JointTrajectory, reference_d1, simulate
 from sklearn_gpcd.io import load_recording, write_rtde_csv
-from sklearn_gpcd.workflow import check_target_current, load_model
+from sklearn_gpcd.workflow import check_target_current, load_detector, load_model
 
 ROBOT = "ur10"
 #: (start as a fraction of the motion or seconds into the final rest, peak joint-1 torque
@@ -86,6 +86,13 @@ def test_train_without_robot_chooses_among_sp_c_and_gp_and_detects_every_push(
 
     assert main(["calibrate", str(model), *map(str, feedforward["calibrate"]), "-q",
                  "-o", str(detector)]) == 0
+    # the moving thresholds are at least the chosen model's level on its left-out runs
+    calibrated = load_detector(detector)
+    level = choice["thresholds"][choice["models"].index(choice["best"])]
+    assert calibrated.calibration["moving_floor_A"] == pytest.approx(level)
+    moving = calibrated.calibration["regimes"].index("moving")
+    assert np.all(np.atleast_2d(calibrated.detector.thresholds_)[moving]
+                  >= np.asarray(level) * (1 - 1e-12))
     assert main(["monitor", str(detector), str(feedforward["push"]), "-q",
                  "--json", str(events)]) == 0
     found = json.loads(events.read_text())["events"]

@@ -295,7 +295,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     one margin chosen by leaving one recording out
     (:func:`~sklearn_gpcd.detection.calibrate_across_recordings`). The
     expected false alarms come from the nested version: each recording is
-    scored with the margin and levels chosen without it.
+    scored with the margin and levels chosen without it. The moving
+    thresholds are at least the model's level on its left-out training runs
+    when ``gpcd train --model auto`` measured it
+    (``training_moving_level``): motion the calibration recordings do not
+    cover meets the model's error there, not theirs.
 
     Parameters
     ----------
@@ -461,11 +465,13 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
     several = bool(bands or band_candidates)
     coverage = calibration_coverage(result, times, split=split is not None)
     without_data, one_log = _fill_regimes_without_data(result.detector, coverage)
+    training_floor = _moving_floor_from_training(result.detector, trained.training)
     summary = _summary(result, trained, features, robot, keys=keys, split=split,
                        n_files=n_files, select=select, several=several,
                        chosen_band=bool(band_candidates))
     summary["regimes_without_data"] = without_data
     summary["stages_from_one_log"] = one_log
+    summary["moving_floor_A"] = training_floor
     summary["units"] = units  # of thresholds_A: "Nm" for torque logs
     if summary["units"] != "A":
         summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
@@ -507,6 +513,85 @@ def _fill_regimes_without_data(detector, coverage):
                                              detector.rules_[0].thresholds_)
     return ([name for name, e in zip(names, empty) if e] if fill else [],
             [names[k] for k in one_log])
+
+
+def training_moving_level(training):
+    """Per joint, the threshold the alarm rule set across the left-out training runs.
+
+    ``gpcd train --model auto`` fits each candidate model without one training
+    recording and runs :data:`DETECTOR_RULE` on the recording it left out
+    (:data:`~sklearn_gpcd.workflow.model_choice.CHOICE_RULE`): the chosen
+    model's thresholds there are out-of-fold evidence of how the model errs
+    in motion it was not fitted on, over the diverse motion of the training
+    runs. Per joint ``j`` (regimes ``g`` weighted by their time ``n_g / n``
+    in the left-out runs, :math:`L` the largest excursion, :math:`\\mu` the
+    leave-one-recording-out margin):
+
+    .. math:: T^{\\mathrm{train}}_j = \\exp \\sum_g \\frac{n_g}{n}
+              \\log\\big(\\mu\\, L_{gj}\\big)
+
+    The fold models are smaller than the final one (200 support rows per
+    joint), so the level leans high: it is a floor for motion the
+    calibration did not cover, never a threshold of its own.
+
+    Parameters
+    ----------
+    training : dict
+        A model's training record (``TrainedModel.training``).
+
+    Returns
+    -------
+    level : ndarray of shape (n_joints,) or None
+        None when the model was not chosen across its training runs (an
+        explicit ``--model``, or a model file from an earlier ``gpcd train``).
+
+    Examples
+    --------
+    >>> from sklearn_gpcd.workflow.calibration import training_moving_level
+    >>> choice = {"best": "sp_c", "models": ["p_f", "sp_c"],
+    ...           "thresholds": [[0.9, 0.5], [0.6, 0.3]]}
+    >>> training_moving_level({"model_choice": choice}).tolist()
+    [0.6, 0.3]
+    >>> training_moving_level({"model": "p_f"}) is None
+    True
+    """
+    choice = (training or {}).get("model_choice") or {}
+    if choice.get("thresholds") is None or choice.get("best") not in choice.get("models", ()):
+        return None
+    level = np.asarray(choice["thresholds"][choice["models"].index(choice["best"])], float)
+    return level if np.all(np.isfinite(level)) and np.all(level > 0) else None
+
+
+def _moving_floor_from_training(detector, training):
+    """Raise the moving row of every band with :data:`DETECTOR_RULE`'s filter and
+    debounce to :func:`training_moving_level`, joint by joint; returns that
+    level (a list, A) or None.
+
+    The calibration logs set the moving thresholds from the motion they
+    hold; another motion (another pose, another program) meets the model's
+    error where it was not calibrated. The training runs' out-of-fold level
+    is that error over diverse motion, so the moving band is
+    ``max(calibrated, training level)``: the calibration may widen it,
+    never tighten it below what the model showed on runs it was not
+    fitted on. Other regimes (settling, rest) have their own physics and
+    keep the calibration's thresholds."""
+    level = training_moving_level(training)
+    names = list(detector.rules_[0].regime_names_)
+    if level is None or "moving" not in names:
+        return None
+    row, main = names.index("moving"), {k: DETECTOR_RULE[k] for k in
+                                        ("filter_cutoff", "min_duration")}
+    if len(level) != np.atleast_2d(detector.rules_[0].scale_).shape[1]:
+        return None
+    for rule in detector.rules_:  # thresholds_ = gamma * scale_, gamma = -offset_
+        if any(getattr(rule, k) != v for k, v in main.items()) or rule.offset_ == 0:
+            continue
+        scale = np.array(np.atleast_2d(rule.scale_), dtype=float, copy=True)
+        scale[row] = np.maximum(scale[row], level / -rule.offset_)
+        rule.scale_, rule.thresholds_ = scale, -rule.offset_ * scale
+    detector.scale_, detector.thresholds_ = (detector.rules_[0].scale_,
+                                             detector.rules_[0].thresholds_)
+    return [float(v) for v in level]
 
 
 def calibration_coverage(result, times, split=False):
@@ -922,6 +1007,10 @@ def _report_lines(summary, out):
     if (one_log := summary.get("stages_from_one_log")):
         out.append(f"  {' and '.join(one_log)}: seen in one log alone (no left-out log "
                    "checks it), the threshold of the settling stage before")
+    if (floor := summary.get("moving_floor_A")):
+        out.append("  moving thresholds at least the model's level on its left-out training "
+                   "runs (gpcd train --model auto), for motion the calibration did not "
+                   "cover: " + " ".join(f"{v:.3g}" for v in floor))
     if summary.get("candidates"):
         out.append("  candidates, best first (alarms: nested onsets at that fixed candidate, "
               "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
