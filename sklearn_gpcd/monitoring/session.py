@@ -450,9 +450,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
             self._count_taught(rel)
         if mon.alarms.any():
             if self.open is not None and mon.event_onset:  # a new contact (EventHold)
-                crossed = self.cross_start
-                self._close(rel)
-                self.cross_start = crossed
+                self._append_event(rel)
             self._alarm(rel, [b for b, band in enumerate(self.bands) if band.alarms.any()])
         elif self.open is not None and not mon.event:  # an event holds (EventHold)
             self._close(rel)
@@ -593,6 +591,12 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         self._hooks = running
 
     def _close(self, rel=None):
+        """Record the open event, released at ``rel``; the next one starts afresh."""
+        self._append_event(rel)
+        self.cross_start = None
+
+    def _append_event(self, rel=None):
+        """Record the open event, released at ``rel`` (None: the last valid time)."""
         event = self.open
         if rel is None:  # the stream ended or went blind: its last valid time
             rel = event["end_s"] if self._last_rel is None else max(self._last_rel,
@@ -603,7 +607,7 @@ class MonitorSession(_FaultStates, _SessionReport, _RTDERunning):
         if self.multiband:
             event["bands"] = sorted(event["bands"])
         self.events.append(event)
-        self.open, self.cross_start = None, None
+        self.open = None
 
     def finish(self):
         """Close the open event (and the blind period, when the stream ends blind);

@@ -501,16 +501,14 @@ def _fill_regimes_without_data(detector, coverage):
     fill = empty.any() and not empty.all()
     if not fill and not one_log:
         return [], []
-    for rule in detector.rules_:  # thresholds_ = gamma * scale_, gamma = -offset_
-        scale = np.array(rule.scale_, dtype=float, copy=True)
+    def fill_rows(rule, scale):
         if fill:
             scale[empty] = scale[~empty].max(axis=0)
         for before, k in zip(stages[:-1], stages[1:]):
             if (fill and empty[k]) or k in one_log:
                 scale[k] = scale[before]
-        rule.scale_, rule.thresholds_ = scale, -rule.offset_ * scale
-    detector.scale_, detector.thresholds_ = (detector.rules_[0].scale_,
-                                             detector.rules_[0].thresholds_)
+
+    _edit_scales(detector, detector.rules_, fill_rows)
     return ([name for name, e in zip(names, empty) if e] if fill else [],
             [names[k] for k in one_log])
 
@@ -583,15 +581,25 @@ def _moving_floor_from_training(detector, training):
                                         ("filter_cutoff", "min_duration")}
     if len(level) != np.atleast_2d(detector.rules_[0].scale_).shape[1]:
         return None
-    for rule in detector.rules_:  # thresholds_ = gamma * scale_, gamma = -offset_
-        if any(getattr(rule, k) != v for k, v in main.items()) or rule.offset_ == 0:
-            continue
-        scale = np.array(np.atleast_2d(rule.scale_), dtype=float, copy=True)
+    def raise_moving(rule, scale):
         scale[row] = np.maximum(scale[row], level / -rule.offset_)
+
+    _edit_scales(detector, [rule for rule in detector.rules_ if rule.offset_ != 0 and all(
+        getattr(rule, k) == v for k, v in main.items())], raise_moving)
+    return [float(v) for v in level]
+
+
+def _edit_scales(detector, rules, edit):
+    """``edit(rule, scale)`` a copy of each of ``rules``' scales (regimes x joints)
+    in place; store it with the thresholds it gives (``thresholds_ = gamma *
+    scale_``, ``gamma = -offset_``) and keep the detector's in step with its
+    first rule."""
+    for rule in rules:
+        scale = np.array(np.atleast_2d(rule.scale_), dtype=float, copy=True)
+        edit(rule, scale)
         rule.scale_, rule.thresholds_ = scale, -rule.offset_ * scale
     detector.scale_, detector.thresholds_ = (detector.rules_[0].scale_,
                                              detector.rules_[0].thresholds_)
-    return [float(v) for v in level]
 
 
 def calibration_coverage(result, times, split=False):
