@@ -435,7 +435,7 @@ class StreamingMonitor(VersionedStateMixin):
 
     @property
     def event(self):
-        """Whether a contact event is open (:class:`EventHold`: on the largest
+        """Whether a contact event is open (:class:`EventHold`: on each joint's
         ratio over its band's level, or the taught task's)."""
         return self._events.open if self._task_stream is None else self._task_stream.event
 

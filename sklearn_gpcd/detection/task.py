@@ -838,6 +838,18 @@ class TaskStream:
     task : TaughtTask
         Fitted.
 
+    Attributes
+    ----------
+    signal : ndarray of shape (n_joints,) or None
+        The taught part's filtered residual at the last tick [A].
+    joints : ndarray of bool, shape (n_joints,)
+        Where the taught thresholds decided the last tick.
+    ratio : float
+        The largest ratio over its threshold at the last tick.
+    event, event_onset : bool
+        Whether a contact event is open, and whether one began, at the last
+        tick (:class:`EventHold` on each joint's ratio).
+
     Examples
     --------
     >>> import numpy as np

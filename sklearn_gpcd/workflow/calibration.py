@@ -39,7 +39,7 @@ __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "MIN_CALIBRATION_SECONDS", "MIN_REG
            "calibration_report", "check_calibration_options", "check_signals",
            "fed_signal_check", "resolve_select",
            "load_detector", "recording_keys", "save_detector", "signal_check",
-           "split_recordings", "untaught_detector"]
+           "split_recordings", "training_moving_level", "untaught_detector"]
 
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
 DETECTOR_KIND = "gpcd-detector"
