@@ -86,13 +86,16 @@ def test_train_without_robot_chooses_among_sp_c_and_gp_and_detects_every_push(
 
     assert main(["calibrate", str(model), *map(str, feedforward["calibrate"]), "-q",
                  "-o", str(detector)]) == 0
-    # the moving thresholds are at least the chosen model's level on its left-out runs
+    # each regime's thresholds are at least the chosen model's level on its left-out runs
     calibrated = load_detector(detector)
     level = choice["thresholds"][choice["models"].index(choice["best"])]
-    assert calibrated.calibration["moving_floor_A"] == pytest.approx(level)
-    moving = calibrated.calibration["regimes"].index("moving")
-    assert np.all(np.atleast_2d(calibrated.detector.thresholds_)[moving]
-                  >= np.asarray(level) * (1 - 1e-12))
+    floor = calibrated.calibration["training_floor_A"]
+    assert floor["moving"] == pytest.approx(level)
+    assert set(floor) <= set(calibrated.calibration["regimes"])
+    names, thresholds = (calibrated.calibration["regimes"],
+                         np.atleast_2d(calibrated.detector.thresholds_))
+    for name, row in floor.items():
+        assert np.all(thresholds[names.index(name)] >= np.asarray(row) * (1 - 1e-12))
     assert main(["monitor", str(detector), str(feedforward["push"]), "-q",
                  "--json", str(events)]) == 0
     found = json.loads(events.read_text())["events"]

@@ -345,6 +345,37 @@ class AlarmRule(BaseEstimator):
             return ()
         return (SETTLING,) + tuple(code for _, code in self._stages())
 
+    def since_stop(self):
+        """Each regime's time window after the arm stops [s], in ``regime_names_``'s order.
+
+        ``(start, end)`` for the settling stages and rest (``end`` is inf for
+        rest), None for moving and braking: what lets thresholds of rules
+        with other settle times be compared time for time.
+
+        Returns
+        -------
+        windows : list of tuple or None
+            Empty without regimes.
+
+        Examples
+        --------
+        >>> from sklearn_gpcd.detection import AlarmRule, Regimes
+        >>> rule = AlarmRule(regimes=Regimes(settle_time=0.5)).prepare(0.01)
+        >>> dict(zip(rule.regime_names_, rule.since_stop()))
+        {'moving': None, 'settling': (0.0, 0.25), 'rest': (0.5, inf), \
+'settling after 0.25 s': (0.25, 0.5)}
+        """
+        if self.regimes is None:
+            return []
+        settle = float(self.regimes.settle_time)
+        starts = [0.0] + [t for t in settle_stages(settle) if stage_name(t) in self.regime_names_]
+        ends = starts[1:] + [settle]
+        windows = [None] * len(self.regime_names_)
+        for row, start, end in zip(self.settling_rows(), starts, ends):
+            windows[row] = (start, end)
+        windows[self.regime_names_.index("rest")] = (settle, float("inf"))
+        return windows
+
     def _stages(self):
         """``(samples, code)`` of each settling stage among ``regime_names_`` (files
         saved before the stages have none: one settling regime, as they were)."""

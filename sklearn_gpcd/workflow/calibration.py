@@ -39,7 +39,7 @@ __all__ = ["DETECTOR_KIND", "DETECTOR_RULE", "MIN_CALIBRATION_SECONDS", "MIN_REG
            "calibration_report", "check_calibration_options", "check_signals",
            "fed_signal_check", "resolve_select",
            "load_detector", "recording_keys", "save_detector", "signal_check",
-           "split_recordings", "training_moving_level", "untaught_detector"]
+           "split_recordings", "training_levels", "untaught_detector"]
 
 #: What a detector file holds (a dict saved with :func:`sklearn_gpcd.save`).
 DETECTOR_KIND = "gpcd-detector"
@@ -295,11 +295,11 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     one margin chosen by leaving one recording out
     (:func:`~sklearn_gpcd.detection.calibrate_across_recordings`). The
     expected false alarms come from the nested version: each recording is
-    scored with the margin and levels chosen without it. The moving
+    scored with the margin and levels chosen without it. Each regime's
     thresholds are at least the model's level on its left-out training runs
-    when ``gpcd train --model auto`` measured it
-    (``training_moving_level``): motion the calibration recordings do not
-    cover meets the model's error there, not theirs.
+    when ``gpcd train --model auto`` measured it (:func:`training_levels`):
+    motions, stops and rests the calibration recordings do not cover meet
+    the model's error there, not theirs.
 
     Parameters
     ----------
@@ -465,13 +465,13 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
     several = bool(bands or band_candidates)
     coverage = calibration_coverage(result, times, split=split is not None)
     without_data, one_log = _fill_regimes_without_data(result.detector, coverage)
-    training_floor = _moving_floor_from_training(result.detector, trained.training)
+    training_floor = _floor_from_training(result.detector, trained.training)
     summary = _summary(result, trained, features, robot, keys=keys, split=split,
                        n_files=n_files, select=select, several=several,
                        chosen_band=bool(band_candidates))
     summary["regimes_without_data"] = without_data
     summary["stages_from_one_log"] = one_log
-    summary["moving_floor_A"] = training_floor
+    summary["training_floor_A"] = training_floor
     summary["units"] = units  # of thresholds_A: "Nm" for torque logs
     if summary["units"] != "A":
         summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
@@ -513,80 +513,133 @@ def _fill_regimes_without_data(detector, coverage):
             [names[k] for k in one_log])
 
 
-def training_moving_level(training):
-    """Per joint, the threshold the alarm rule set across the left-out training runs.
+def training_levels(training, rule=None):
+    """Per regime and joint, the thresholds the alarm rule set across the left-out training runs.
 
     ``gpcd train --model auto`` fits each candidate model without one training
     recording and runs :data:`DETECTOR_RULE` on the recording it left out
     (:data:`~sklearn_gpcd.workflow.model_choice.CHOICE_RULE`): the chosen
     model's thresholds there are out-of-fold evidence of how the model errs
-    in motion it was not fitted on, over the diverse motion of the training
-    runs. Per joint ``j`` (regimes ``g`` weighted by their time ``n_g / n``
-    in the left-out runs, :math:`L` the largest excursion, :math:`\\mu` the
-    leave-one-recording-out margin):
+    on motions, stops and rests it was not fitted on, over the diverse motion
+    of the training runs. Per regime ``g`` and joint ``j`` (:math:`L` the
+    largest excursion, :math:`\\mu` the leave-one-recording-out margin):
 
-    .. math:: T^{\\mathrm{train}}_j = \\exp \\sum_g \\frac{n_g}{n}
-              \\log\\big(\\mu\\, L_{gj}\\big)
+    .. math:: T^{\\mathrm{train}}_{gj} = \\mu\\, L_{gj}
+
+    * **moving** takes the time-weighted geometric mean over the regimes,
+      :math:`\\exp \\sum_g \\frac{n_g}{n} \\log T^{\\mathrm{train}}_{gj}`
+      (the score the model was chosen on): the moving row alone, the largest,
+      delayed detection on MuJoCo seed 4529 for no fewer alarms.
+    * **settling stages and rest** take their own row, where at least two
+      left-out runs held that regime for :data:`MIN_REGIME_DATA_SECONDS` in
+      all (one run alone has no left-out check).
+    * For another ``rule`` (another settle time), a settling stage or rest
+      takes the largest of the training rows whose windows after the stop
+      overlap its own (:meth:`~sklearn_gpcd.detection.AlarmRule.since_stop`):
+      its threshold covers that whole window.
 
     The fold models are smaller than the final one (200 support rows per
-    joint), so the level leans high: it is a floor for motion the
-    calibration did not cover, never a threshold of its own.
+    joint), so the levels lean high: they are floors for what the
+    calibration did not cover, never thresholds of their own.
 
     Parameters
     ----------
     training : dict
         A model's training record (``TrainedModel.training``).
+    rule : AlarmRule or None, default=None
+        A prepared rule (``regime_names_``) whose regimes to give levels
+        for; None: the training rule's own.
 
     Returns
     -------
-    level : ndarray of shape (n_joints,) or None
-        None when the model was not chosen across its training runs (an
-        explicit ``--model``, or a model file from an earlier ``gpcd train``).
+    levels : dict of str -> ndarray of shape (n_joints,)
+        By regime name; empty when the model was not chosen across its
+        training runs (an explicit ``--model``, or a model file from an
+        earlier ``gpcd train``), and moving alone for a model file from
+        before the regimes were recorded.
 
     Examples
     --------
-    >>> from sklearn_gpcd.workflow.calibration import training_moving_level
+    >>> from sklearn_gpcd.detection import AlarmRule, Regimes
+    >>> from sklearn_gpcd.workflow.calibration import training_levels
     >>> choice = {"best": "sp_c", "models": ["p_f", "sp_c"],
-    ...           "thresholds": [[0.9, 0.5], [0.6, 0.3]]}
-    >>> training_moving_level({"model_choice": choice}).tolist()
-    [0.6, 0.3]
-    >>> training_moving_level({"model": "p_f"}) is None
-    True
+    ...           "thresholds": [[0.9, 0.5], [0.6, 0.3]],
+    ...           "regimes": ["moving", "settling", "rest"],
+    ...           "regime_windows": [None, [0.0, 0.5], [0.5, None]],
+    ...           "regime_thresholds": [[[1, 1], [1, 1], [1, 1]],
+    ...                                 [[0.7, 0.4], [0.8, 0.5], [0.2, 0.1]]],
+    ...           "regime_seconds": [40.0, 6.0, 3.0], "regime_logs": [4, 4, 1]}
+    >>> {k: v.tolist() for k, v in training_levels({"model_choice": choice}).items()}
+    {'moving': [0.6, 0.3], 'settling': [0.8, 0.5]}
+    >>> rule = AlarmRule(regimes=Regimes(settle_time=1.0)).prepare(0.01)
+    >>> sorted(training_levels({"model_choice": choice}, rule))
+    ['moving', 'settling', 'settling after 0.25 s']
+    >>> training_levels({"model": "p_f"})
+    {}
     """
     choice = (training or {}).get("model_choice") or {}
     if choice.get("thresholds") is None or choice.get("best") not in choice.get("models", ()):
-        return None
-    level = np.asarray(choice["thresholds"][choice["models"].index(choice["best"])], float)
-    return level if np.all(np.isfinite(level)) and np.all(level > 0) else None
+        return {}
+    best = choice["models"].index(choice["best"])
+    moving = np.asarray(choice["thresholds"][best], float)
+    rows = []  # (window, level) of the stops' regimes with left-out evidence
+    if choice.get("regime_windows") is not None:
+        for window, level, seconds, logs in zip(
+                choice["regime_windows"], choice["regime_thresholds"][best],
+                choice["regime_seconds"], choice["regime_logs"]):
+            if window is not None and logs >= 2 and seconds >= MIN_REGIME_DATA_SECONDS:
+                rows.append(((window[0], np.inf if window[1] is None else window[1]),
+                             np.asarray(level, float)))
+    if rule is None:
+        names = choice.get("regimes") or ["moving"]
+        windows = [None if w is None else (w[0], np.inf if w[1] is None else w[1])
+                   for w in (choice.get("regime_windows") or [None] * len(names))]
+    else:
+        names, windows = list(rule.regime_names_), rule.since_stop()
+    levels = {}
+    for name, window in zip(names, windows):
+        if name == "moving":
+            levels[name] = moving
+        elif window is not None:
+            overlap = [level for (start, end), level in rows
+                       if start < window[1] and window[0] < end]
+            if overlap:
+                levels[name] = np.max(overlap, axis=0)
+    return {name: level for name, level in levels.items()
+            if np.all(np.isfinite(level)) and np.all(level > 0)}
 
 
-def _moving_floor_from_training(detector, training):
-    """Raise the moving row of every band with :data:`DETECTOR_RULE`'s filter and
-    debounce to :func:`training_moving_level`, joint by joint; returns that
-    level (a list, A) or None.
+def _floor_from_training(detector, training):
+    """Raise each regime row of every band with :data:`DETECTOR_RULE`'s filter and
+    debounce to :func:`training_levels` for its rule, joint by joint; returns
+    the levels applied (``{regime: list}``, A; empty when none).
 
-    The calibration logs set the moving thresholds from the motion they
-    hold; another motion (another pose, another program) meets the model's
-    error where it was not calibrated. The training runs' out-of-fold level
-    is that error over diverse motion, so the moving band is
-    ``max(calibrated, training level)``: the calibration may widen it,
-    never tighten it below what the model showed on runs it was not
-    fitted on. Other regimes (settling, rest) have their own physics and
-    keep the calibration's thresholds."""
-    level = training_moving_level(training)
-    names = list(detector.rules_[0].regime_names_)
-    if level is None or "moving" not in names:
-        return None
-    row, main = names.index("moving"), {k: DETECTOR_RULE[k] for k in
-                                        ("filter_cutoff", "min_duration")}
-    if len(level) != np.atleast_2d(detector.rules_[0].scale_).shape[1]:
-        return None
-    def raise_moving(rule, scale):
-        scale[row] = np.maximum(scale[row], level / -rule.offset_)
+    The calibration logs set the thresholds from the motions, stops and
+    rests they hold; another motion (another pose, another program) meets
+    the model's error where it was not calibrated: other loads, other
+    stops. The training runs' out-of-fold levels are that error over
+    diverse motion, so each row is ``max(calibrated, training level)``: the
+    calibration may widen it, never tighten it below what the model showed
+    on runs it was not fitted on."""
+    rule = detector.rules_[0]
+    if rule.regimes is None and "moving" not in rule.regime_names_:
+        return {}
+    levels = training_levels(training, rule if rule.regimes is not None else None)
+    names = list(rule.regime_names_)
+    n_joints = np.atleast_2d(rule.scale_).shape[1]
+    rows = {names.index(name): level for name, level in levels.items()
+            if name in names and len(level) == n_joints}
+    if not rows:
+        return {}
+    main = {k: DETECTOR_RULE[k] for k in ("filter_cutoff", "min_duration")}
 
-    _edit_scales(detector, [rule for rule in detector.rules_ if rule.offset_ != 0 and all(
-        getattr(rule, k) == v for k, v in main.items())], raise_moving)
-    return [float(v) for v in level]
+    def raise_rows(band, scale):
+        for row, level in rows.items():
+            scale[row] = np.maximum(scale[row], level / -band.offset_)
+
+    _edit_scales(detector, [band for band in detector.rules_ if band.offset_ != 0 and all(
+        getattr(band, k) == v for k, v in main.items())], raise_rows)
+    return {names[row]: [float(v) for v in level] for row, level in rows.items()}
 
 
 def _edit_scales(detector, rules, edit):
@@ -1015,10 +1068,11 @@ def _report_lines(summary, out):
     if (one_log := summary.get("stages_from_one_log")):
         out.append(f"  {' and '.join(one_log)}: seen in one log alone (no left-out log "
                    "checks it), the threshold of the settling stage before")
-    if (floor := summary.get("moving_floor_A")):
-        out.append("  moving thresholds at least the model's level on its left-out training "
-                   "runs (gpcd train --model auto), for motion the calibration did not "
-                   "cover: " + " ".join(f"{v:.3g}" for v in floor))
+    if (floor := summary.get("training_floor_A")):
+        out.append("  thresholds at least the model's levels on its left-out training runs "
+                   "(gpcd train --model auto), for what the calibration did not cover: "
+                   + "; ".join(f"{name} " + " ".join(f"{v:.3g}" for v in level)
+                               for name, level in floor.items()))
     if summary.get("candidates"):
         out.append("  candidates, best first (alarms: nested onsets at that fixed candidate, "
               "fewest first; score: time-weighted mean log threshold, smaller is tighter):")

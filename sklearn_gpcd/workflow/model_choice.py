@@ -373,6 +373,22 @@ class ModelComparison:
         GP support rows per joint of the fold fits.
     left_out : dict of str to str
         Models not compared, and why.
+    regimes : list of str or None
+        The alarm rule's regimes on the left-out recordings (moving,
+        settling and its stages, rest).
+    regime_windows : list of tuple or None
+        Each regime's window after the arm stops, ``(start, end)`` in s
+        (``end`` inf for rest; None for moving):
+        :meth:`~sklearn_gpcd.detection.AlarmRule.since_stop`.
+    regime_thresholds : ndarray of shape (n_models, n_regimes, n_joints) or None
+        The thresholds per regime and joint that ``thresholds`` are the
+        time-weighted geometric mean of; a regime absent from every left-out
+        recording holds the largest of the others (see ``regime_logs``).
+    regime_seconds : ndarray of shape (n_regimes,) or None
+        Time in each regime over the left-out recordings [s].
+    regime_logs : ndarray of shape (n_regimes,) or None
+        Left-out recordings that hold each regime: a threshold set by one
+        recording alone has no left-out check.
 
     Examples
     --------
@@ -393,6 +409,11 @@ class ModelComparison:
     left_out: dict = field(default_factory=dict)
     thresholds: np.ndarray = None
     margins: np.ndarray = None
+    regimes: list = None
+    regime_windows: list = None
+    regime_thresholds: np.ndarray = None
+    regime_seconds: np.ndarray = None
+    regime_logs: np.ndarray = None
 
     @property
     def score(self):
@@ -488,7 +509,20 @@ class ModelComparison:
                 "nmse": [[float(e) for e in row] for row in np.asarray(self.errors)],
                 "score": [float(s) for s in self.score],
                 "seconds": [float(s) for s in self.seconds], "held_out": list(self.held_out),
-                "n_support": int(self.n_support), "left_out": dict(self.left_out)}
+                "n_support": int(self.n_support), "left_out": dict(self.left_out),
+                **self._regime_summary()}
+
+    def _regime_summary(self):
+        """The thresholds per regime behind :attr:`thresholds`, JSON-ready (or {})."""
+        if self.regime_thresholds is None:
+            return {}
+        return {"regimes": list(self.regimes),
+                "regime_windows": [None if w is None else
+                                   [float(w[0]), None if np.isinf(w[1]) else float(w[1])]
+                                   for w in self.regime_windows],
+                "regime_thresholds": np.asarray(self.regime_thresholds, float).tolist(),
+                "regime_seconds": [float(v) for v in self.regime_seconds],
+                "regime_logs": [int(v) for v in self.regime_logs]}
 
 
 def _geometric_mean(values):
@@ -504,7 +538,9 @@ def _folds(data, n_folds):
     if len(sizes) >= 2:
         chosen = sorted(set(np.round(np.linspace(0, len(sizes) - 1,
                                                  min(n_folds, len(sizes)))).astype(int)))
-        pieces = [(data.names[k], bounds[k], bounds[k + 1]) for k in chosen]
+        names = [name if data.names.count(name) == 1 else f"{name or 'recording'} {k + 1}"
+                 for k, name in enumerate(data.names)]  # one fold each, named or not
+        pieces = [(names[k], bounds[k], bounds[k + 1]) for k in chosen]
     else:
         cuts = np.linspace(0, len(data.y), min(n_folds, 3) + 1).round().astype(int)
         pieces = [(f"{data.names[0]} piece {p + 1}/{len(cuts) - 1}", cuts[p], cuts[p + 1])
@@ -538,7 +574,8 @@ def _alarm_template(data, sigma_v):
 
 
 def _excursions(template, regressor, X, y):
-    """Peaks per (regime, joint) of the debounced residual, and samples per regime."""
+    """Peaks per (regime, joint) of the debounced residual, samples per regime, and
+    the regimes' names and windows after the stop."""
     # deferred: gpcd starts without scikit-learn (test_architecture.py)
     from sklearn.base import clone
     from sklearn.frozen import FrozenEstimator
@@ -549,15 +586,19 @@ def _excursions(template, regressor, X, y):
     block = stack_currents(X, y)
     detector = clone(template).set_params(regressor=FrozenEstimator(regressor)).fit(block)
     _, regime, peaks = regime_excursions(detector, {"fold": block})["fold"]
-    return peaks, np.bincount(regime, minlength=peaks.shape[0])
+    rule = detector.rules_[0]
+    return (peaks, np.bincount(regime, minlength=peaks.shape[0]),
+            (list(rule.regime_names_), rule.since_stop()))
 
 
 def _fold_thresholds(peaks, counts):
-    """Thresholds per joint (geometric mean over regimes weighted by time) and margin.
+    """Thresholds per joint (geometric mean over regimes weighted by time), margin,
+    and the thresholds per (regime, joint) they are the mean of.
 
     .. math::
 
-        T_\\ell = \\exp \\sum_g \\frac{n_g}{n} \\log\\big(\\mu\\, L_{g\\ell}\\big)
+        T_{g\\ell} = \\mu\\, L_{g\\ell}, \\qquad
+        T_\\ell = \\exp \\sum_g \\frac{n_g}{n} \\log T_{g\\ell}
 
     with :math:`L` the largest peak of the left-out recordings per regime and
     joint and :math:`\\mu` their leave-one-recording-out margin
@@ -571,7 +612,7 @@ def _fold_thresholds(peaks, counts):
     thresholds = np.maximum(margin * regime_levels(peaks, keys), np.finfo(float).tiny)
     weights = np.asarray(sum(counts.values()), float)
     weights /= weights.sum()
-    return np.exp(weights @ np.log(thresholds)), float(margin.max())
+    return np.exp(weights @ np.log(thresholds)), float(margin.max()), thresholds
 
 
 def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=FOLD_SUPPORT,
@@ -645,6 +686,7 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=FOLD_S
     sse = np.zeros((len(models), data.y.shape[1]))
     peaks = [{} for _ in models]
     counts = [{} for _ in models]
+    regimes = None
     seconds = [0.0] * len(models)
     n_test = 0
     bar = progress("comparing models (leave one recording out)",
@@ -664,19 +706,24 @@ def compare_models(data, robot=None, models=None, *, n_folds=4, n_support=FOLD_S
                 coulomb_width=coulomb_width if model in ROBOT_MODELS else None)
             predicted = np.reshape(fitted.regressor.predict(X_test), y_test.shape)
             sse[k] += ((predicted - y_test) ** 2).sum(axis=0)
-            peaks[k][name], counts[k][name] = _excursions(template, fitted.regressor,
-                                                          X_test, y_test)
+            peaks[k][name], counts[k][name], regimes = _excursions(
+                template, fitted.regressor, X_test, y_test)
             seconds[k] += time.perf_counter() - tic
             if bar is not None:
                 bar.update()
-    thresholds, margins = None, None
+    comparison = ModelComparison(models=models, errors=sse / n_test / var, seconds=seconds,
+                                 held_out=[name for name, _ in folds],
+                                 n_support=int(n_support), left_out=left_out)
     if len(folds) >= 2:
-        pairs = [_fold_thresholds(p, c) for p, c in zip(peaks, counts)]
-        thresholds = np.array([t for t, _ in pairs])
-        margins = np.array([m for _, m in pairs])
-    return ModelComparison(models=models, errors=sse / n_test / var, seconds=seconds,
-                           held_out=[name for name, _ in folds], n_support=int(n_support),
-                           left_out=left_out, thresholds=thresholds, margins=margins)
+        triples = [_fold_thresholds(p, c) for p, c in zip(peaks, counts)]
+        samples = np.array(list(counts[0].values()))  # the regimes follow q: same per model
+        comparison.thresholds = np.array([t for t, _, _ in triples])
+        comparison.margins = np.array([m for _, m, _ in triples])
+        comparison.regimes, comparison.regime_windows = regimes
+        comparison.regime_thresholds = np.array([table for _, _, table in triples])
+        comparison.regime_seconds = samples.sum(axis=0) * (data.sample_time or np.nan)
+        comparison.regime_logs = (samples > 0).sum(axis=0)
+    return comparison
 
 
 def input_signals(recordings, signals="auto", model="auto"):
