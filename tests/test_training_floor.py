@@ -91,7 +91,10 @@ def test_a_file_without_regime_levels_raises_the_moving_row_only(trained, plain)
     rule = raised.detector.rules_[0]
     assert np.atleast_2d(rule.thresholds_)[row, 0] == pytest.approx(level)
     assert raised.calibration["training_floor_A"] == {"moving": [pytest.approx(level)]}
-    assert "left-out training runs" in calibration_report(raised.calibration)
+    report = calibration_report(raised.calibration)
+    assert "left-out training runs" in report
+    # the report names the command that records the other regimes' levels
+    assert "run gpcd train --model auto again" in report
 
 
 def test_each_regime_takes_the_training_rows_of_its_window(trained, plain):
@@ -113,6 +116,7 @@ def test_each_regime_takes_the_training_rows_of_its_window(trained, plain):
     assert "moving" not in raised.calibration["training_floor_A"]
     report = calibration_report(raised.calibration)
     assert "rest " in report and "settling " in report
+    assert "gpcd train --model auto again" not in report
 
 
 def test_a_longer_settle_time_takes_the_training_rest_after_its_stop(trained):

@@ -472,6 +472,10 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
     summary["regimes_without_data"] = without_data
     summary["stages_from_one_log"] = one_log
     summary["training_floor_A"] = training_floor
+    choice = trained.training.get("model_choice") or {}
+    # a model file from before the rows per regime floors moving alone: say so
+    summary["training_floor_moving_only"] = bool(
+        training_floor and choice.get("regime_thresholds") is None)
     summary["units"] = units  # of thresholds_A: "Nm" for torque logs
     if summary["units"] != "A":
         summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
@@ -1073,6 +1077,10 @@ def _report_lines(summary, out):
                    "(gpcd train --model auto), for what the calibration did not cover: "
                    + "; ".join(f"{name} " + " ".join(f"{v:.3g}" for v in level)
                                for name, level in floor.items()))
+    if summary.get("training_floor_moving_only"):
+        out.append("  the model file records no training levels per regime (written by an "
+                   "earlier gpcd train): settling and rest keep the calibration's thresholds; "
+                   "run gpcd train --model auto again to floor them too")
     if summary.get("candidates"):
         out.append("  candidates, best first (alarms: nested onsets at that fixed candidate, "
               "fewest first; score: time-weighted mean log threshold, smaller is tighter):")
