@@ -117,6 +117,9 @@ def test_each_regime_takes_the_training_rows_of_its_window(trained, plain):
     report = calibration_report(raised.calibration)
     assert "rest " in report and "settling " in report
     assert "gpcd train --model auto again" not in report
+    # the nested false alarms were counted before the floors: the report says so
+    assert "counted before the training floors" in report
+    assert "counted before the training floors" not in calibration_report(plain.calibration)
 
 
 def test_a_longer_settle_time_takes_the_training_rest_after_its_stop(trained):

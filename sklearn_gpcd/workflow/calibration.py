@@ -759,6 +759,11 @@ def _warn_coverage(summary):
                       "to gpcd calibrate", CalibrationWarning, stacklevel=4)
 
 
+#: Said of the nested false alarms when training floors were applied after them.
+_BEFORE_FLOORS = (", counted before the training floors, which only widen the thresholds: "
+                  "an upper bound")
+
+
 def _warn_quality(summary):
     """:class:`CalibrationWarning` when the summary falls short of a good
     calibration: a margin above :data:`GOOD_MARGIN` or expected false alarms."""
@@ -774,7 +779,8 @@ def _warn_quality(summary):
         bound = rate_upper_bound(count, summary["hours"])
         where = sorted(k for k, onsets in summary["nested_onsets_s"].items() if onsets)
         figures.append(f"{summary['false_alarms_per_hour']:.0f} expected false alarms per "
-                       f"hour (95 % upper bound {bound:.0f}; on left-out {', '.join(where)})")
+                       f"hour (95 % upper bound {bound:.0f}; on left-out {', '.join(where)}"
+                       f"{_BEFORE_FLOORS if summary.get('training_floor_A') else ''})")
     warnings.warn(
         f"the calibration falls short of a good one (margin at most {GOOD_MARGIN:g}, no "
         f"expected false alarm): {', '.join(figures)}; a recording unlike the others sets "
@@ -1139,7 +1145,8 @@ def _false_alarm_line(summary, out, which=""):
           "out: each recording scored with margin"
           + (", levels and settings" if summary.get("selected")
              else ", levels and band" if summary.get("band_candidates") else " and levels")
-          + " chosen without it)")
+          + " chosen without it"
+          + (_BEFORE_FLOORS if summary.get("training_floor_A") else "") + ")")
     bound = rate_upper_bound(summary["n_false_alarms_nested"], summary["hours"])
     out.append(f"    95 % upper bound: {bound:.3g} per hour (Poisson, from "
                f"{summary['n_false_alarms_nested']} onset(s) in {summary['hours'] * 60:.1f} min: "
