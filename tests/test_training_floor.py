@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 import pytest
 
-from sklearn_gpcd.detection import AlarmRule, Regimes
+from sklearn_gpcd.detection import AlarmRule, Regimes, nested_alarms
 from sklearn_gpcd.io import Recording
 from sklearn_gpcd.workflow import (
     calibrate_detector, calibration_report, compare_models, train_model, training_set)
@@ -117,9 +117,9 @@ def test_each_regime_takes_the_training_rows_of_its_window(trained, plain):
     report = calibration_report(raised.calibration)
     assert "rest " in report and "settling " in report
     assert "gpcd train --model auto again" not in report
-    # the nested false alarms were counted before the floors: the report says so
-    assert "counted before the training floors" in report
-    assert "counted before the training floors" not in calibration_report(plain.calibration)
+    # the nested false alarms are counted at the floored thresholds
+    assert "each threshold at least its training floor" in report
+    assert "at least its training floor" not in calibration_report(plain.calibration)
 
 
 def test_a_longer_settle_time_takes_the_training_rest_after_its_stop(trained):
@@ -161,3 +161,31 @@ def test_the_model_choice_records_the_rows_its_thresholds_are_the_mean_of():
     summary = table.summary()
     assert summary["regimes"] == table.regimes and len(summary["regime_thresholds"]) == 1
     assert summary["regime_windows"][table.regimes.index("rest")] == [0.5, None]
+
+
+def test_the_nested_false_alarms_count_at_the_floored_thresholds(trained):
+    # a calibration with nested alarms: one log rings where the others do not
+    logs = [_recording(40, p, seed=k) for k, p in enumerate((1.0, 2.0, 3.0))]
+    logs[2].current[2000:2100] += 0.4
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        plain = calibrate_detector(trained, logs)
+        assert plain.calibration["n_false_alarms_nested"] > 0
+        top = 10.0 * _thresholds(plain).max()
+        levels = {"settling": top, "settling after 0.25 s": top, "rest": top}
+        floored = calibrate_detector(_with_choice(trained, top, {"moving": 0.0, **levels}),
+                                     logs)
+    # thresholds above every excursion: no recording alarms with the others' levels
+    assert floored.calibration["n_false_alarms_nested"] == 0
+    # the floors do not choose the settings: those are the calibration's own
+    assert floored.calibration["settle_time_s"] == plain.calibration["settle_time_s"]
+
+
+def test_nested_alarms_never_go_below_the_floor():
+    flat = (np.ones((5, 1)), np.zeros(5, dtype=int), np.ones((1, 1)))
+    bump = (np.array([[1.0], [3.0], [1.0], [1.0], [1.0]]), np.zeros(5, dtype=int),
+            np.array([[3.0]]))
+    series = {"a": flat, "b": flat, "c": bump}
+    assert nested_alarms(series)["c"].any()
+    assert not nested_alarms(series, floor=np.array([[3.0]]))["c"].any()
+    assert nested_alarms(series, floor=np.array([[2.9]]))["c"].any()

@@ -164,7 +164,7 @@ def loro_margin(peaks, keys, rule="global"):
     return loro_factors(np.stack([peaks[k] for k in keys]), rule)
 
 
-def nested_alarms(series, rule="global"):
+def nested_alarms(series, rule="global", floor=None):
     r"""Alarms (any joint) on each recording with margin and levels chosen without it.
 
     Recording ``r`` alarms where its debounced excursion exceeds the
@@ -172,11 +172,13 @@ def nested_alarms(series, rule="global"):
 
     .. math::
 
-        a_r(t) = \bigvee_l \; \tilde m_{r,l}(t) > \mu_{-r}\, L_{-r}(g_r(t), l),
+        a_r(t) = \bigvee_l \; \tilde m_{r,l}(t) >
+                 \max\big(\mu_{-r}\, L_{-r}(g_r(t), l),\; F(g_r(t), l)\big),
 
-    with :math:`\mu_{-r}` the leave-one-recording-out margin and
+    with :math:`\mu_{-r}` the leave-one-recording-out margin,
     :math:`L_{-r}` the per-(regime, joint) levels of the others (see
-    :func:`loro_margin`, :func:`regime_levels`). The sample-level view of
+    :func:`loro_margin`, :func:`regime_levels`) and :math:`F` a ``floor``
+    the thresholds never go below (0 without one). The sample-level view of
     :func:`nested_false_alarms`, e.g. to OR the alarms of two bands.
     Needs at least 3 recordings.
 
@@ -186,6 +188,10 @@ def nested_alarms(series, rule="global"):
         From :func:`regime_excursions`.
     rule : {"global", "joint", "regime", "cell"}, default="global"
         As :func:`loro_margin`.
+    floor : ndarray of shape (n_regime_rows, n_joints), default=None
+        Smallest thresholds, in the series' unit (e.g. the model's levels on
+        its left-out training runs, which a calibration applies after the
+        margin). None: no floor.
 
     Returns
     -------
@@ -202,17 +208,17 @@ def nested_alarms(series, rule="global"):
     ([False, True, False, False, False], False)
     """
     keys = list(series)
-    return {r: _held_out_alarm(series, keys, r, rule) for r in keys}
+    return {r: _held_out_alarm(series, keys, r, rule, floor) for r in keys}
 
 
-def nested_false_alarms(series, times, rule="global"):
+def nested_false_alarms(series, times, rule="global", floor=None):
     """Alarm onsets on each recording with margin and levels chosen without it.
 
     Needs at least 3 recordings (the margin of the others needs 2).
 
     Parameters
     ----------
-    series, rule
+    series, rule, floor
         As for :func:`nested_alarms`.
     times : dict of str -> ndarray of shape (n_samples,)
         Time stamps [s] of each recording.
@@ -235,7 +241,7 @@ def nested_false_alarms(series, times, rule="global"):
     >>> folds["c"]["onsets"], folds["a"]["onsets"]
     ([1.0], [])
     """
-    return _folds(nested_alarms(series, rule), times)
+    return _folds(nested_alarms(series, rule, floor), times)
 
 
 def _folds(alarms, times):
@@ -250,7 +256,7 @@ def _folds(alarms, times):
 
 
 def calibrate_across_recordings(detector, blocks, times, rule="global", param_grid=None, *,
-                                folder=None):
+                                folder=None, floor=None):
     """Fit a detector with a leave-one-recording-out margin; count nested false alarms.
 
     Each alarm rule (band) of ``detector`` is calibrated by the rule above on
@@ -305,6 +311,14 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         same maxima, the same thresholds). Memory is that of one recording
         and its series. Not for ``normalize="std"``.
         ``sample_time="auto"`` takes the median step of all recordings.
+    floor : callable or None, default=None
+        ``floor(rule)``: the smallest thresholds (n_regime_rows, n_joints, in
+        the residual's unit) of a prepared band rule, or None for none. The
+        nested false alarms count each band at ``max(margin x levels,
+        floor)``: the thresholds of a detector whose rows are raised to the
+        floor after this calibration. The choice of settings does not read
+        it (candidates are ranked on the recordings' own evidence), and the
+        fitted detector is not raised: the caller applies the floor.
 
     Returns
     -------
@@ -377,10 +391,12 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         band_rules, all_series = _streamed_series(base, rules, candidates, blocks, times,
                                                   folder)
     n_fixed = len(rules) - 1
-    fixed = [_band_run(r, series, times, rule)
-             for r, series in zip(band_rules[:n_fixed], all_series[:n_fixed])]
-    runs = [_band_run(r, series, times, rule)
-            for r, series in zip(band_rules[n_fixed:], all_series[n_fixed:])]
+    floors = [None if floor is None else floor(r) for r in band_rules]
+    fixed = [_band_run(r, series, times, rule, f)
+             for r, series, f in zip(band_rules[:n_fixed], all_series[:n_fixed], floors)]
+    runs = [_band_run(r, series, times, rule, f)
+            for r, series, f in zip(band_rules[n_fixed:], all_series[n_fixed:],
+                                    floors[n_fixed:])]
     fixed_series = [run.series for run in fixed]
     subsets = [tuple(keys)]
     if len(keys) >= 3 and len(runs) > 1:  # the settings chosen without each recording
@@ -406,7 +422,8 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
                 scored = ranks(subset)
                 c = min(range(len(runs)), key=scored.__getitem__)
                 fold_settings[r] = candidates[c]
-            alarms[r] = _held_out_union(fixed_series + [runs[c].series], keys, r, rule)
+            alarms[r] = _held_out_union(fixed_series + [runs[c].series], keys, r, rule,
+                                        [run.floor for run in fixed + [runs[c]]])
     bands = fixed + [runs[best]]
     chosen = [clone(run.rule).set_params(  # the margin in the shape of its scale_
         margin=run.margin if run.rule.regimes is not None else run.margin.reshape(-1))
@@ -482,22 +499,24 @@ def _band_series(rule, residuals):
             for key, (u, motion) in residuals.items()}
 
 
-def _band_run(rule, series, times, margin_rule):
+def _band_run(rule, series, times, margin_rule, floor=None):
     """One band at its settings: series, LORO margin, levels and its own nested folds."""
     keys = list(series)
     peaks = {k: _peaks(series, k) for k in keys}
-    folds = nested_false_alarms(series, times, margin_rule) if len(keys) >= 3 else {}
+    folds = nested_false_alarms(series, times, margin_rule, floor) if len(keys) >= 3 else {}
     return Bunch(rule=rule, series=series, margin=loro_margin(peaks, keys, margin_rule),
-                 levels=regime_levels(peaks, keys), folds=folds,
+                 levels=regime_levels(peaks, keys), folds=folds, floor=floor,
                  n_false_alarms=sum(len(f["onsets"]) for f in folds.values()),
                  regime_names=tuple(rule.regime_names_))
 
 
-def _held_out_union(bands, keys, r, rule):
+def _held_out_union(bands, keys, r, rule, floors):
     """Alarms of recording ``r`` where any band alarms (``bands``: each band's
     :func:`regime_excursions`), each band with margin and levels from the other
-    recordings of ``keys`` (:func:`nested_alarms` of the union)."""
-    return np.logical_or.reduce([_held_out_alarm(series, keys, r, rule) for series in bands])
+    recordings of ``keys``, at least its floor (:func:`nested_alarms` of the
+    union)."""
+    return np.logical_or.reduce([_held_out_alarm(series, keys, r, rule, floor)
+                                 for series, floor in zip(bands, floors)])
 
 
 def _loro_thresholds(series, keys, rule):
@@ -516,13 +535,13 @@ def _selection_score(series, keys, rule):
     return float(counts / counts.sum() @ log)
 
 
-def _held_out_alarm(series, keys, r, rule):
+def _held_out_alarm(series, keys, r, rule, floor=None):
     """Alarms (any joint) of recording ``r`` with margin and levels from the
-    other recordings of ``keys``."""
-    return next(_held_out_alarms(series, [keys], r, rule))
+    other recordings of ``keys``, at least ``floor`` (None: none)."""
+    return next(_held_out_alarms(series, [keys], r, rule, floor))
 
 
-def _held_out_alarms(series, subsets, r, rule):
+def _held_out_alarms(series, subsets, r, rule, floor=None):
     """:func:`_held_out_alarm` of recording ``r`` for each of ``subsets``, its
     series read once (a generator). With several subsets the samples are
     compared once with the lowest of their thresholds (``fmin``: a NaN
@@ -531,6 +550,8 @@ def _held_out_alarms(series, subsets, r, rule):
     debounced, regimes, _ = series[r]
     thresholds = [_loro_thresholds(series, [k for k in keys if k != r], rule)
                   for keys in subsets]
+    if floor is not None:  # NaN (alarms nowhere) stays NaN
+        thresholds = [np.maximum(level, floor) for level in thresholds]
     rows = slice(None)
     if len(thresholds) > 1:
         lowest = np.fmin.reduce(np.stack(thresholds))

@@ -299,7 +299,8 @@ def calibrate_detector(trained, recordings, *, keys=None, regimes=True, rest_ref
     thresholds are at least the model's level on its left-out training runs
     when ``gpcd train --model auto`` measured it (:func:`training_levels`):
     motions, stops and rests the calibration recordings do not cover meet
-    the model's error there, not theirs.
+    the model's error there, not theirs. The nested false alarms are
+    counted at those floored thresholds.
 
     Parameters
     ----------
@@ -460,8 +461,9 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
     template = CollisionDetector(FrozenEstimator(model), n_joints=features.n_joints_,
                                  sample_time="auto", rules=rules,
                                  sigma_v=trained.training.get("sigma_v"))
-    result = calibrate_across_recordings(template, blocks, times, param_grid=grid,
-                                         folder=folder)
+    result = calibrate_across_recordings(
+        template, blocks, times, param_grid=grid, folder=folder,
+        floor=lambda rule: _training_floor(trained.training, rule))
     several = bool(bands or band_candidates)
     coverage = calibration_coverage(result, times, split=split is not None)
     without_data, one_log = _fill_regimes_without_data(result.detector, coverage)
@@ -613,10 +615,11 @@ def training_levels(training, rule=None):
             if np.all(np.isfinite(level)) and np.all(level > 0)}
 
 
-def _floor_from_training(detector, training):
-    """Raise each regime row of every band with :data:`DETECTOR_RULE`'s filter and
-    debounce to :func:`training_levels` for its rule, joint by joint; returns
-    the levels applied (``{regime: list}``, A; empty when none).
+def _training_floor(training, rule):
+    """The smallest thresholds (regimes x joints, A; 0 where none) of a prepared
+    band ``rule``: :func:`training_levels` for its regimes when the band has
+    :data:`DETECTOR_RULE`'s filter and debounce, the rule the levels were set
+    with; None when nothing is floored.
 
     The calibration logs set the thresholds from the motions, stops and
     rests they hold; another motion (another pose, another program) meets
@@ -625,25 +628,39 @@ def _floor_from_training(detector, training):
     diverse motion, so each row is ``max(calibrated, training level)``: the
     calibration may widen it, never tighten it below what the model showed
     on runs it was not fitted on."""
-    rule = detector.rules_[0]
-    if rule.regimes is None and "moving" not in rule.regime_names_:
-        return {}
-    levels = training_levels(training, rule if rule.regimes is not None else None)
-    names = list(rule.regime_names_)
-    n_joints = np.atleast_2d(rule.scale_).shape[1]
-    rows = {names.index(name): level for name, level in levels.items()
-            if name in names and len(level) == n_joints}
-    if not rows:
-        return {}
     main = {k: DETECTOR_RULE[k] for k in ("filter_cutoff", "min_duration")}
+    if rule.regimes is None or any(getattr(rule, k) != v for k, v in main.items()):
+        return None  # one threshold per joint (--no-regimes), or another band
+    levels = training_levels(training, rule)
+    names = list(rule.regime_names_)
+    if not levels or len({len(level) for level in levels.values()}) != 1:
+        return None
+    floor = np.zeros((len(names), len(next(iter(levels.values())))))
+    for name, level in levels.items():
+        floor[names.index(name)] = level
+    return floor
+
+
+def _floor_from_training(detector, training):
+    """Raise each regime row of every band of the fitted ``detector`` to
+    :func:`_training_floor`, joint by joint; returns the levels applied to
+    the first band (``{regime: list}``, A; empty when none)."""
+    n_joints = np.atleast_2d(detector.rules_[0].scale_).shape[1]
+    floors = {id(band): floor for band in detector.rules_
+              if band.offset_ != 0 and (floor := _training_floor(training, band)) is not None
+              and floor.shape[1] == n_joints}
+    if not floors:
+        return {}
 
     def raise_rows(band, scale):
-        for row, level in rows.items():
-            scale[row] = np.maximum(scale[row], level / -band.offset_)
+        np.maximum(scale, floors[id(band)] / -band.offset_, out=scale)
 
-    _edit_scales(detector, [band for band in detector.rules_ if band.offset_ != 0 and all(
-        getattr(band, k) == v for k, v in main.items())], raise_rows)
-    return {names[row]: [float(v) for v in level] for row, level in rows.items()}
+    _edit_scales(detector, [band for band in detector.rules_ if id(band) in floors],
+                 raise_rows)
+    first = floors.get(id(detector.rules_[0]))
+    names = detector.rules_[0].regime_names_
+    return {} if first is None else {names[k]: [float(v) for v in row]
+                                     for k, row in enumerate(first) if row.any()}
 
 
 def _edit_scales(detector, rules, edit):
@@ -759,9 +776,8 @@ def _warn_coverage(summary):
                       "to gpcd calibrate", CalibrationWarning, stacklevel=4)
 
 
-#: Said of the nested false alarms when training floors were applied after them.
-_BEFORE_FLOORS = (", counted before the training floors, which only widen the thresholds: "
-                  "an upper bound")
+#: Said of the nested false alarms when training floors were applied.
+_AT_FLOORS = ", each threshold at least its training floor"
 
 
 def _warn_quality(summary):
@@ -779,8 +795,7 @@ def _warn_quality(summary):
         bound = rate_upper_bound(count, summary["hours"])
         where = sorted(k for k, onsets in summary["nested_onsets_s"].items() if onsets)
         figures.append(f"{summary['false_alarms_per_hour']:.0f} expected false alarms per "
-                       f"hour (95 % upper bound {bound:.0f}; on left-out {', '.join(where)}"
-                       f"{_BEFORE_FLOORS if summary.get('training_floor_A') else ''})")
+                       f"hour (95 % upper bound {bound:.0f}; on left-out {', '.join(where)})")
     warnings.warn(
         f"the calibration falls short of a good one (margin at most {GOOD_MARGIN:g}, no "
         f"expected false alarm): {', '.join(figures)}; a recording unlike the others sets "
@@ -1146,7 +1161,7 @@ def _false_alarm_line(summary, out, which=""):
           + (", levels and settings" if summary.get("selected")
              else ", levels and band" if summary.get("band_candidates") else " and levels")
           + " chosen without it"
-          + (_BEFORE_FLOORS if summary.get("training_floor_A") else "") + ")")
+          + (_AT_FLOORS if summary.get("training_floor_A") else "") + ")")
     bound = rate_upper_bound(summary["n_false_alarms_nested"], summary["hours"])
     out.append(f"    95 % upper bound: {bound:.3g} per hour (Poisson, from "
                f"{summary['n_false_alarms_nested']} onset(s) in {summary['hours'] * 60:.1f} min: "
