@@ -158,6 +158,9 @@ def test_the_model_choice_records_the_rows_its_thresholds_are_the_mean_of():
     mean = np.exp((seconds / seconds.sum()) @ np.log(rows))
     np.testing.assert_allclose(mean, table.thresholds[0])
     assert table.regime_logs[table.regimes.index("rest")] == 3
+    text = "\n".join(table.text())
+    assert "SP_C's thresholds per regime on the left-out recordings" in text
+    assert f"    rest                   {rows[table.regimes.index('rest')][0]:.3f}" in text
     summary = table.summary()
     assert summary["regimes"] == table.regimes and len(summary["regime_thresholds"]) == 1
     assert summary["regime_windows"][table.regimes.index("rest")] == [0.5, None]

@@ -479,6 +479,16 @@ class ModelComparison:
                          + ("  <- chosen" if self.models[k] == self.best else ""))
         for model, why in self.left_out.items():
             lines.append(f"  {_NAMES[model]:<5}  not compared: {why}")
+        if self.regime_thresholds is not None:
+            best = self.models.index(self.best)
+            lines.append(f"  {_NAMES[self.best]}'s thresholds per regime on the left-out "
+                         "recordings: gpcd calibrate's floors for settling and rest where 2 or "
+                         "more recordings held the regime 1 s or more (for moving, the "
+                         "time-weighted figure above):")
+            for name, row, seconds, logs in zip(self.regimes, self.regime_thresholds[best],
+                                                self.regime_seconds, self.regime_logs):
+                lines.append(f"    {name:<22} " + " ".join(f"{v:.3f}" for v in row)
+                             + f"  ({seconds:.1f} s in {logs} recording(s))")
         return lines
 
     def summary(self):
