@@ -334,7 +334,8 @@ def calibrate_across_recordings(detector, blocks, times, rule="global", param_gr
         point), ``fold_settings`` (the candidate chosen without each
         recording) and ``bands``: per rule, ``rule`` (fitted), ``margin`` and
         ``levels`` (n_regime_rows, n_joints), ``series``
-        (:func:`regime_excursions` at a unit margin), ``folds``,
+        (:func:`regime_excursions` at a unit margin), ``floor`` (what
+        ``floor`` gave its rule, or None), ``folds``,
         ``n_false_alarms`` and ``false_alarms_per_hour`` of the band alone,
         and ``regime_names``; the first band's ``margin``, ``levels``,
         ``series`` and ``regime_names`` also at the top level.

@@ -368,7 +368,7 @@ class AlarmRule(BaseEstimator):
         if self.regimes is None:
             return []
         settle = float(self.regimes.settle_time)
-        starts = [0.0] + [t for t in settle_stages(settle) if stage_name(t) in self.regime_names_]
+        starts = [0.0, *self._stage_starts()]
         ends = starts[1:] + [settle]
         windows = [None] * len(self.regime_names_)
         for row, start, end in zip(self.settling_rows(), starts, ends):
@@ -376,13 +376,19 @@ class AlarmRule(BaseEstimator):
         windows[self.regime_names_.index("rest")] = (settle, float("inf"))
         return windows
 
+    def _stage_starts(self):
+        """Start [s] after the stop of each settling stage after the first among
+        ``regime_names_`` (files saved before the stages have none: one
+        settling regime, as they were)."""
+        return tuple(t for t in settle_stages(self.regimes.settle_time)
+                     if stage_name(t) in self.regime_names_)
+
     def _stages(self):
-        """``(samples, code)`` of each settling stage among ``regime_names_`` (files
-        saved before the stages have none: one settling regime, as they were)."""
+        """``(samples, code)`` of each settling stage after the first
+        (:meth:`_stage_starts`)."""
         names, dt = self.regime_names_, self.sample_time_
         return tuple((int(round(t / dt)), names.index(stage_name(t)))
-                     for t in settle_stages(self.regimes.settle_time)
-                     if stage_name(t) in names)
+                     for t in self._stage_starts())
 
     def signal(self, u, starts=None, motion=None):
         """Monitoring signal :math:`m`, regime codes and rest reference, without

@@ -463,21 +463,17 @@ def _calibrate_blocks(trained, blocks, times, pieces, ranges, *, units, n_files,
                                  sigma_v=trained.training.get("sigma_v"))
     result = calibrate_across_recordings(
         template, blocks, times, param_grid=grid, folder=folder,
-        floor=lambda rule: _training_floor(trained.training, rule))
+        floor=lambda rule: _training_floor(trained.training, rule, features.n_joints_))
     several = bool(bands or band_candidates)
     coverage = calibration_coverage(result, times, split=split is not None)
     without_data, one_log = _fill_regimes_without_data(result.detector, coverage)
-    training_floor = _floor_from_training(result.detector, trained.training)
+    training_floor = _raise_to_floors(result.detector, [band.floor for band in result.bands])
     summary = _summary(result, trained, features, robot, keys=keys, split=split,
                        n_files=n_files, select=select, several=several,
                        chosen_band=bool(band_candidates))
     summary["regimes_without_data"] = without_data
     summary["stages_from_one_log"] = one_log
     summary["training_floor_A"] = training_floor
-    choice = trained.training.get("model_choice") or {}
-    # a model file from before the rows per regime floors moving alone: say so
-    summary["training_floor_moving_only"] = bool(
-        training_floor and choice.get("regime_thresholds") is None)
     summary["units"] = units  # of thresholds_A: "Nm" for torque logs
     if summary["units"] != "A":
         summary.pop("thresholds_Nm", None)  # torque constants convert A, not Nm
@@ -594,12 +590,10 @@ def training_levels(training, rule=None):
                 choice["regime_windows"], choice["regime_thresholds"][best],
                 choice["regime_seconds"], choice["regime_logs"]):
             if window is not None and logs >= 2 and seconds >= MIN_REGIME_DATA_SECONDS:
-                rows.append(((window[0], np.inf if window[1] is None else window[1]),
-                             np.asarray(level, float)))
+                rows.append((_window(window), np.asarray(level, float)))
     if rule is None:
         names = choice.get("regimes") or ["moving"]
-        windows = [None if w is None else (w[0], np.inf if w[1] is None else w[1])
-                   for w in (choice.get("regime_windows") or [None] * len(names))]
+        windows = [_window(w) for w in (choice.get("regime_windows") or [None] * len(names))]
     else:
         names, windows = list(rule.regime_names_), rule.since_stop()
     levels = {}
@@ -615,7 +609,13 @@ def training_levels(training, rule=None):
             if np.all(np.isfinite(level)) and np.all(level > 0)}
 
 
-def _training_floor(training, rule):
+def _window(window):
+    """A stored window after the stop (``[start, end]``, ``end`` None for rest) as
+    :meth:`~sklearn_gpcd.detection.AlarmRule.since_stop` gives it."""
+    return None if window is None else (window[0], np.inf if window[1] is None else window[1])
+
+
+def _training_floor(training, rule, n_joints):
     """The smallest thresholds (regimes x joints, A; 0 where none) of a prepared
     band ``rule``: :func:`training_levels` for its regimes when the band has
     :data:`DETECTOR_RULE`'s filter and debounce, the rule the levels were set
@@ -632,32 +632,32 @@ def _training_floor(training, rule):
     if rule.regimes is None or any(getattr(rule, k) != v for k, v in main.items()):
         return None  # one threshold per joint (--no-regimes), or another band
     levels = training_levels(training, rule)
-    names = list(rule.regime_names_)
-    if not levels or len({len(level) for level in levels.values()}) != 1:
+    if not levels or any(len(level) != n_joints for level in levels.values()):
         return None
-    floor = np.zeros((len(names), len(next(iter(levels.values())))))
+    names = list(rule.regime_names_)
+    floor = np.zeros((len(names), n_joints))
     for name, level in levels.items():
         floor[names.index(name)] = level
     return floor
 
 
-def _floor_from_training(detector, training):
-    """Raise each regime row of every band of the fitted ``detector`` to
-    :func:`_training_floor`, joint by joint; returns the levels applied to
-    the first band (``{regime: list}``, A; empty when none)."""
-    n_joints = np.atleast_2d(detector.rules_[0].scale_).shape[1]
-    floors = {id(band): floor for band in detector.rules_
-              if band.offset_ != 0 and (floor := _training_floor(training, band)) is not None
-              and floor.shape[1] == n_joints}
-    if not floors:
+def _raise_to_floors(detector, floors):
+    """Raise each band of the fitted ``detector`` to its floor (``floors``, one
+    per band or None: the :func:`_training_floor` the nested count used, from
+    :func:`~sklearn_gpcd.detection.calibrate_across_recordings`' bands),
+    joint by joint; returns the levels applied to the first band
+    (``{regime: list}``, A; empty when none)."""
+    floor_of = {id(band): floor for band, floor in zip(detector.rules_, floors)
+                if floor is not None and band.offset_ != 0}
+    if not floor_of:
         return {}
 
     def raise_rows(band, scale):
-        np.maximum(scale, floors[id(band)] / -band.offset_, out=scale)
+        np.maximum(scale, floor_of[id(band)] / -band.offset_, out=scale)
 
-    _edit_scales(detector, [band for band in detector.rules_ if id(band) in floors],
+    _edit_scales(detector, [band for band in detector.rules_ if id(band) in floor_of],
                  raise_rows)
-    first = floors.get(id(detector.rules_[0]))
+    first = floor_of.get(id(detector.rules_[0]))
     names = detector.rules_[0].regime_names_
     return {} if first is None else {names[k]: [float(v) for v in row]
                                      for k, row in enumerate(first) if row.any()}
@@ -1098,7 +1098,8 @@ def _report_lines(summary, out):
                    "(gpcd train --model auto), for what the calibration did not cover: "
                    + "; ".join(f"{name} " + " ".join(f"{v:.3g}" for v in level)
                                for name, level in floor.items()))
-    if summary.get("training_floor_moving_only"):
+    choice = (summary.get("training") or {}).get("model_choice") or {}
+    if floor and choice.get("regime_thresholds") is None:  # a file from before the rows
         out.append("  the model file records no training levels per regime (written by an "
                    "earlier gpcd train): settling and rest keep the calibration's thresholds; "
                    "run gpcd train --model auto again to floor them too")
