@@ -8,7 +8,9 @@ and ``gpcd calibrate``.
 * :func:`compare_models` and :func:`check_target_current` choose that model
   (``gpcd train --model auto``, :mod:`~sklearn_gpcd.workflow.model_choice`);
 * :func:`calibrate_detector` chooses the detection thresholds of such a model
-  across collision-free recordings (:mod:`~sklearn_gpcd.workflow.calibration`);
+  across collision-free recordings (:mod:`~sklearn_gpcd.workflow.calibration`),
+  never below the model's levels on its left-out training runs
+  (:func:`training_levels`);
   :func:`save_detector` / :func:`load_detector` write and read the detector
   file ``gpcd monitor`` runs;
 * :func:`teach_task` teaches such a detector one task from a few
@@ -37,6 +39,7 @@ from .calibration import (
     save_detector,
     signal_check,
     split_recordings,
+    training_levels,
     untaught_detector,
 )
 from .model_choice import (
@@ -88,5 +91,6 @@ __all__ = [
     "acceleration_limit", "calibrate_detector", "calibration_coverage", "candidate_models",
     "check_signals", "check_target_current", "choose_model", "compare_models",
     "input_signals", "load_detector", "load_model", "save_detector", "save_model",
-    "signal_check", "teach_task", "train_model", "update_task", "training_set", "untaught_detector",
+    "signal_check", "teach_task", "train_model", "training_levels", "update_task",
+    "training_set", "untaught_detector",
 ]

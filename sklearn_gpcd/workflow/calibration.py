@@ -563,7 +563,7 @@ def training_levels(training, rule=None):
     Examples
     --------
     >>> from sklearn_gpcd.detection import AlarmRule, Regimes
-    >>> from sklearn_gpcd.workflow.calibration import training_levels
+    >>> from sklearn_gpcd.workflow import training_levels
     >>> choice = {"best": "sp_c", "models": ["p_f", "sp_c"],
     ...           "thresholds": [[0.9, 0.5], [0.6, 0.3]],
     ...           "regimes": ["moving", "settling", "rest"],
